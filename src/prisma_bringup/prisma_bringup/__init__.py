@@ -1,0 +1,1 @@
+"""Launch files, off-robot closed-loop simulation runner and bag tools."""

@@ -1,0 +1,145 @@
+"""rosbags typestore for ROS 2 Jazzy with every prisma_msgs interface registered.
+
+The .msg/.action files are read from the source tree, or from share/prisma_msgs of a
+colcon install found on AMENT_PREFIX_PATH, or from the directory named by PRISMA_MSGS_DIR.
+`types(name)` is the message-class lookup the converters take (DESIGN.md section 2).
+"""
+from __future__ import annotations
+
+import functools
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore as _rosbags_typestore
+from rosbags.typesys.store import Typestore
+
+PACKAGE = "prisma_msgs"
+
+# A field line: type (optionally array), name, optional default; or a constant TYPE NAME=value.
+_FIELD = re.compile(
+    r"^(?P<type>[A-Za-z][\w/]*(?:<=\d+)?(?:\[(?:<=)?\d*\])?)\s+"
+    r"(?P<name>[A-Za-z]\w*)(?:\s*=\s*\S.*|\s+\S.*)?$"
+)
+
+
+class InterfaceParseError(ValueError):
+    """A .msg/.action file that cannot be parsed; the message names file and line."""
+
+
+@dataclass(frozen=True)
+class InterfaceFile:
+    path: Path
+    kind: str  # "msg" or "action"
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+
+def find_interface_dir() -> Path:
+    """Directory holding msg/ and action/ of prisma_msgs."""
+    candidates: list[Path] = []
+    if os.environ.get("PRISMA_MSGS_DIR"):
+        candidates.append(Path(os.environ["PRISMA_MSGS_DIR"]))
+    candidates.append(Path(__file__).resolve().parents[2] / PACKAGE)
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            candidates.append(Path(prefix) / "share" / PACKAGE)
+    for candidate in candidates:
+        if (candidate / "msg").is_dir():
+            return candidate
+    raise FileNotFoundError(
+        f"prisma_msgs interface files not found; looked in {', '.join(map(str, candidates))}"
+    )
+
+
+def interface_files(root: Path) -> list[InterfaceFile]:
+    files = [InterfaceFile(p, "msg") for p in sorted((root / "msg").glob("*.msg"))]
+    files += [InterfaceFile(p, "action") for p in sorted((root / "action").glob("*.action"))]
+    return files
+
+
+def _check_lines(path: Path, lines: list[str], first_line: int) -> None:
+    for offset, raw in enumerate(lines):
+        line = raw.split("#", 1)[0].strip()
+        if line and not _FIELD.match(line):
+            raise InterfaceParseError(f"{path}:{first_line + offset}: cannot parse {raw.strip()!r}")
+
+
+def _parse(text: str, typename: str, path: Path, first_line: int) -> dict:
+    lines = text.splitlines()
+    _check_lines(path, lines, first_line)
+    try:
+        return get_types_from_msg(text, typename)
+    except Exception as exc:  # rosbags raises several parser exception types
+        raise InterfaceParseError(f"{path}:{first_line}: {typename}: {exc}") from exc
+
+
+def parse_msg_file(path: Path) -> dict:
+    return _parse(path.read_text(), f"{PACKAGE}/msg/{path.stem}", path, 1)
+
+
+def parse_action_file(path: Path) -> dict:
+    """Goal, Result, Feedback, FeedbackMessage and the SendGoal/GetResult service parts."""
+    name = path.stem
+    sections: list[tuple[int, list[str]]] = [(1, [])]
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        if line.strip() == "---":
+            sections.append((number + 1, []))
+        else:
+            sections[-1][1].append(line)
+    if len(sections) != 3:
+        raise InterfaceParseError(
+            f"{path}:1: an action needs goal, result and feedback sections separated by '---', "
+            f"found {len(sections)} section(s)"
+        )
+    base = f"{PACKAGE}/action/{name}"
+    types: dict = {}
+    for suffix, (first_line, lines) in zip(("Goal", "Result", "Feedback"), sections):
+        types.update(_parse("\n".join(lines), f"{base}_{suffix}", path, first_line))
+    derived = {
+        "FeedbackMessage": f"unique_identifier_msgs/msg/UUID goal_id\n{base}_Feedback feedback",
+        "SendGoal_Request": f"unique_identifier_msgs/msg/UUID goal_id\n{base}_Goal goal",
+        "SendGoal_Response": "bool accepted\nbuiltin_interfaces/msg/Time stamp",
+        "GetResult_Request": "unique_identifier_msgs/msg/UUID goal_id",
+        "GetResult_Response": f"int8 status\n{base}_Result result",
+    }
+    for suffix, text in derived.items():
+        types.update(get_types_from_msg(text, f"{base}_{suffix}"))
+    return types
+
+
+def prisma_types(root: Path | None = None) -> dict:
+    root = root or find_interface_dir()
+    types: dict = {}
+    for item in interface_files(root):
+        parser = parse_msg_file if item.kind == "msg" else parse_action_file
+        types.update(parser(item.path))
+    return types
+
+
+@functools.lru_cache(maxsize=None)
+def get_typestore() -> Typestore:
+    """The Jazzy typestore with prisma_msgs registered (cached; do not mutate)."""
+    store = _rosbags_typestore(Stores.ROS2_JAZZY)
+    store.register(prisma_types())
+    return store
+
+
+def types(name: str) -> type:
+    """Message class for 'pkg/msg/Name' (or 'pkg/action/Name_Goal'...), for converters."""
+    store = get_typestore()
+    try:
+        return store.types[name]
+    except KeyError:
+        raise KeyError(f"unknown message type {name!r}") from None
+
+
+MessageLookup = Callable[[str], type]
+
+
+def registered_prisma_types() -> list[str]:
+    return sorted(name for name in get_typestore().types if name.startswith(f"{PACKAGE}/"))

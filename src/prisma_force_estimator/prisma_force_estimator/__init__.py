@@ -1,0 +1,1 @@
+"""Neural taxel-to-wrench estimation: training, evaluation and inference node."""

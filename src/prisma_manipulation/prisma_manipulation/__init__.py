@@ -1,0 +1,1 @@
+"""Dynamixel and simulated motors, contact monitor, grasp and in-hand manipulation controllers."""

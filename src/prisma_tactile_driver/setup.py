@@ -1,0 +1,23 @@
+from setuptools import find_packages, setup
+
+package_name = "prisma_tactile_driver"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="PRISMA developers",
+    maintainer_email="dev@prisma-hand.org",
+    description="Fingertip sensor hub driver: Arduino serial, direct I2C and simulated backends.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""STAG scalable tactile glove: readout driver, frame processing and perception networks."""
