@@ -1,0 +1,220 @@
+"""Dynamixel X-series motors over Protocol 2.0 with dynamixel-sdk.
+
+One GroupSyncRead of Present Current/Velocity/Position (126..135) and one of Hardware Error Status
+(70) per cycle; goals go out with GroupSyncWrite. Mode changes follow the firmware rule: torque off,
+write Operating Mode (EEPROM), torque on. Communication errors (no status packet, corrupt status)
+are retried a bounded number of times and counted; exhausting the retries raises BusError.
+"""
+from __future__ import annotations
+
+from typing import Callable, Mapping
+
+import dynamixel_sdk as sdk
+import serial
+
+from . import control_table as ct
+from .motor_bus import BusError, BusStats, MotorConfig, MotorState, check_velocity
+
+# Results worth another attempt: the packet may simply have been lost or garbled on the wire.
+_RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.COMM_TX_FAIL}
+
+
+class DynamixelBus:
+    def __init__(
+        self,
+        port: str,
+        baudrate: int,
+        motors: Mapping[str, MotorConfig],
+        retries: int = 3,
+        port_handler_factory: Callable[[str], sdk.PortHandler] = sdk.PortHandler,
+    ) -> None:
+        if retries < 0:
+            raise ValueError(f"retries {retries} must be >= 0")
+        self.port_name = port
+        self.baudrate = baudrate
+        self.motors = dict(motors)
+        self.retries = retries
+        self.stats = BusStats()
+        self._port = port_handler_factory(port)
+        self._packet = sdk.PacketHandler(2.0)
+        self._modes: dict[str, int] = {}
+        self._state_reader = sdk.GroupSyncRead(self._port, self._packet, ct.STATE_START, ct.STATE_LENGTH)
+        self._error_reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
+        for config in self.motors.values():
+            self._state_reader.addParam(config.servo_id)
+            self._error_reader.addParam(config.servo_id)
+        self.model_numbers: dict[str, int] = {}
+        self._open = False
+
+    # ---- lifecycle -------------------------------------------------------------------------
+    def open(self) -> None:
+        """Open the port, ping every motor, put them in velocity mode with torque on (stopped)."""
+        try:
+            opened = self._port.openPort()
+        except serial.SerialException as exc:
+            raise BusError(f"cannot open Dynamixel port {self.port_name}: {exc}") from exc
+        if not opened:
+            raise BusError(f"cannot open Dynamixel port {self.port_name}")
+        if not self._port.setBaudRate(self.baudrate):
+            self._port.closePort()
+            raise BusError(f"Dynamixel port {self.port_name}: baud rate {self.baudrate} not supported")
+        self._open = True
+        for name, config in self.motors.items():
+            model, _, _ = self._retry(lambda c=config: self._packet.ping(self._port, c.servo_id),
+                                      f"ping {name} (id {config.servo_id})", result_index=1, error_index=2)
+            self.model_numbers[name] = model
+            self._write1(config, ct.ADDR_TORQUE_ENABLE, 0)
+            self._write1(config, ct.ADDR_OPERATING_MODE, ct.MODE_VELOCITY)
+            self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
+            self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
+            self._modes[name] = ct.MODE_VELOCITY
+
+    def close(self) -> None:
+        """Torque off everywhere (best effort: a dead motor must not keep the others on), then close."""
+        if not self._open:
+            return
+        errors = []
+        for name in self.motors:
+            try:
+                self.torque_off(name)
+            except BusError as exc:
+                errors.append(str(exc))
+        self._port.closePort()
+        self._open = False
+        if errors:
+            raise BusError("; ".join(errors))
+
+    # ---- reading ---------------------------------------------------------------------------
+    def read_state(self, stamp_ns: int = 0) -> dict[str, MotorState]:
+        self._retry(self._state_reader.txRxPacket, "sync read present state")
+        self._retry(self._error_reader.txRxPacket, "sync read hardware error status")
+        self.stats.reads += 1
+        states = {}
+        for name, c in self.motors.items():
+            if not self._state_reader.isAvailable(c.servo_id, ct.STATE_START, ct.STATE_LENGTH):
+                raise BusError(f"sync read: no present state from {name} (id {c.servo_id})")
+            raw = self._state_reader.data_dict[c.servo_id]
+            present = ct.PresentState.from_bytes(raw)
+            error = self._error_reader.getData(c.servo_id, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
+            if error:
+                self.stats.hardware_errors += 1
+            states[name] = MotorState(
+                name=name,
+                position_rad=c.direction * ct.ticks_to_rad(present.position_ticks - c.zero_ticks),
+                velocity_rpm=c.direction * ct.units_to_rpm(present.velocity_units),
+                current_ma=c.direction * ct.current_units_to_ma(present.current_units),
+                torque_on=True,
+                hardware_error=int(error),
+            )
+        return states
+
+    # ---- commands --------------------------------------------------------------------------
+    def set_velocities(self, rpm: Mapping[str, float]) -> None:
+        for name, value in rpm.items():
+            check_velocity(self._config(name), value)
+        self._ensure_mode(list(rpm), ct.MODE_VELOCITY)
+        self._sync_write4(ct.ADDR_GOAL_VELOCITY, {
+            name: ct.rpm_to_units(self._config(name).direction * value) for name, value in rpm.items()
+        })
+
+    def set_positions(self, rad: Mapping[str, float], profile_rpm: float) -> None:
+        for name, value in rad.items():
+            c = self._config(name)
+            if not c.min_position_rad <= value <= c.max_position_rad:
+                raise ValueError(
+                    f"motor {name}: position {value} rad outside [{c.min_position_rad}, {c.max_position_rad}]"
+                )
+            check_velocity(c, profile_rpm)
+        self._ensure_mode(list(rad), ct.MODE_EXTENDED_POSITION)
+        self._sync_write4(ct.ADDR_PROFILE_VELOCITY, {n: ct.rpm_to_units(abs(profile_rpm)) for n in rad})
+        self._sync_write4(ct.ADDR_GOAL_POSITION, {
+            n: self._config(n).zero_ticks + ct.rad_to_ticks(self._config(n).direction * v) for n, v in rad.items()
+        })
+
+    def stop(self, names: list[str] | None = None) -> None:
+        names = list(self.motors) if names is None else names
+        velocity = [n for n in names if self._modes.get(n) == ct.MODE_VELOCITY]
+        holding = [n for n in names if n not in velocity]
+        if velocity:
+            self._sync_write4(ct.ADDR_GOAL_VELOCITY, {n: 0 for n in velocity})
+        if holding:
+            states = self.read_state()
+            self._sync_write4(ct.ADDR_GOAL_POSITION, {
+                n: self._config(n).zero_ticks + ct.rad_to_ticks(self._config(n).direction * states[n].position_rad)
+                for n in holding
+            })
+
+    def torque_off(self, name: str) -> None:
+        self._write1(self._config(name), ct.ADDR_TORQUE_ENABLE, 0)
+
+    def hardware_error(self, name: str) -> int:
+        """Hardware Error Status of one motor, read directly."""
+        c = self._config(name)
+        value, _ = self._retry(lambda: self._packet.read1ByteTxRx(self._port, c.servo_id, ct.ADDR_HARDWARE_ERROR_STATUS),
+                               f"read hardware error status of {name} (id {c.servo_id})", result_index=1, error_index=2)
+        return int(value)
+
+    # ---- internals -------------------------------------------------------------------------
+    def _config(self, name: str) -> MotorConfig:
+        try:
+            return self.motors[name]
+        except KeyError:
+            raise ValueError(f"unknown motor {name!r}; configured: {sorted(self.motors)}") from None
+
+    def _ensure_mode(self, names: list[str], mode: int) -> None:
+        for name in names:
+            if self._modes.get(name) == mode:
+                continue
+            c = self._config(name)
+            # Operating Mode lives in EEPROM, writable only with torque off.
+            self._write1(c, ct.ADDR_TORQUE_ENABLE, 0)
+            self._write1(c, ct.ADDR_OPERATING_MODE, mode)
+            if mode == ct.MODE_VELOCITY:
+                self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
+            else:
+                present = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id, ct.ADDR_PRESENT_POSITION),
+                                      f"read present position of {name}", result_index=1, error_index=2)[0]
+                self._write4(c, ct.ADDR_GOAL_POSITION, ct.to_signed(present, 4))
+            self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)
+            self._modes[name] = mode
+            self.stats.mode_changes += 1
+
+    def _write1(self, c: MotorConfig, address: int, value: int) -> None:
+        self._retry(lambda: self._packet.write1ByteTxRx(self._port, c.servo_id, address, value),
+                    f"write {value} to address {address} of {c.name} (id {c.servo_id})", result_index=0, error_index=1)
+
+    def _write4(self, c: MotorConfig, address: int, value: int) -> None:
+        self._retry(lambda: self._packet.write4ByteTxRx(self._port, c.servo_id, address, ct.to_unsigned(value, 4)),
+                    f"write {value} to address {address} of {c.name} (id {c.servo_id})", result_index=0, error_index=1)
+
+    def _sync_write4(self, address: int, values: Mapping[str, int]) -> None:
+        writer = sdk.GroupSyncWrite(self._port, self._packet, address, 4)
+        for name, value in values.items():
+            writer.addParam(self._config(name).servo_id, list(ct.to_unsigned(int(value), 4).to_bytes(4, "little")))
+        # sync write has no status packet: only a failed transmit can be retried
+        self._retry(writer.txPacket, f"sync write address {address}")
+        self.stats.writes += 1
+
+    def _retry(self, call, what: str, result_index: int | None = None, error_index: int | None = None):
+        """Run an SDK call, retrying communication failures. Returns the call's return value.
+        A status packet that reports an instruction error (range, access...) is not retried."""
+        attempts = self.retries + 1
+        for attempt in range(attempts):
+            value = call()
+            result = value if result_index is None else value[result_index]
+            if result == sdk.COMM_SUCCESS:
+                if error_index is not None:
+                    error = value[error_index] & ~ct.STATUS_ALERT_BIT
+                    if error:
+                        raise BusError(f"{what}: {self._packet.getRxPacketError(error)} (error {error})")
+                return value
+            if result not in _RETRYABLE:
+                raise BusError(f"{what}: {self._packet.getTxRxResult(result)}")
+            if result == sdk.COMM_RX_TIMEOUT:
+                self.stats.dropped_status += 1
+            elif result == sdk.COMM_RX_CORRUPT:
+                self.stats.corrupt_status += 1
+            if attempt + 1 < attempts:
+                self.stats.retries += 1
+        self.stats.comm_failures += 1
+        raise BusError(f"{what}: {self._packet.getTxRxResult(result)} after {attempts} attempts")

@@ -1,0 +1,139 @@
+"""The motor bus: what every backend (Dynamixel, sim) offers the motor driver and the controllers.
+
+Motors are named (`MOTOR_NAMES`, also the /joint_states names); positions are motor-shaft angles in
+rad from the configured zero, velocities in rpm, currents in mA.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping, Protocol
+
+from .control_table import describe_hardware_error
+
+MOTOR_NAMES = ("fingers", "thumb_flexion", "thumb_rotation")
+
+
+@dataclass(frozen=True)
+class MotorConfig:
+    name: str
+    servo_id: int
+    min_position_rad: float
+    max_position_rad: float
+    max_velocity_rpm: float
+    direction: int = 1  # -1 when the servo is mounted so that its positive turn opens the joint
+    zero_ticks: int = 0  # Present Position that means 0 rad
+
+    def __post_init__(self) -> None:
+        if self.name not in MOTOR_NAMES:
+            raise ValueError(f"motor name {self.name!r} is not one of {MOTOR_NAMES}")
+        if not 0 <= self.servo_id <= 252:
+            raise ValueError(f"motor {self.name}: servo id {self.servo_id} outside 0..252")
+        if not self.min_position_rad < self.max_position_rad:
+            raise ValueError(
+                f"motor {self.name}: position limits [{self.min_position_rad}, {self.max_position_rad}] are empty"
+            )
+        if not self.max_velocity_rpm > 0:
+            raise ValueError(f"motor {self.name}: max_velocity_rpm {self.max_velocity_rpm} must be > 0")
+        if self.direction not in (1, -1):
+            raise ValueError(f"motor {self.name}: direction {self.direction} must be 1 or -1")
+
+    def clamp(self, position_rad: float) -> float:
+        return min(self.max_position_rad, max(self.min_position_rad, position_rad))
+
+
+@dataclass
+class MotorState:
+    name: str
+    position_rad: float
+    velocity_rpm: float
+    current_ma: float
+    torque_on: bool = True
+    hardware_error: int = 0  # Hardware Error Status bits (0 = healthy)
+
+
+@dataclass
+class BusStats:
+    """Counters published on /diagnostics."""
+
+    reads: int = 0
+    writes: int = 0
+    retries: int = 0
+    dropped_status: int = 0  # no status packet in time (retried)
+    corrupt_status: int = 0  # status packet with a bad CRC or header (retried)
+    comm_failures: int = 0  # retries exhausted
+    hardware_errors: int = 0
+    mode_changes: int = 0
+
+
+class BusError(RuntimeError):
+    """Communication failed after the bounded retries; the message names the operation and motor."""
+
+
+def fault_reason(name: str, servo_id: int, status: int) -> str:
+    """The abort reason of a goal: names the motor, its ID and every set error bit."""
+    return f"motor_fault: {name} (id {servo_id}) hardware error {describe_hardware_error(status)}"
+
+
+class MotorBus(Protocol):
+    motors: dict[str, MotorConfig]
+    stats: BusStats
+
+    def open(self) -> None: ...
+
+    def close(self) -> None:
+        """Torque off on every motor, then release the port."""
+
+    def read_state(self, stamp_ns: int) -> dict[str, MotorState]: ...
+
+    def set_velocities(self, rpm: Mapping[str, float]) -> None:
+        """Velocity mode for the named motors (others keep their goals)."""
+
+    def set_positions(self, rad: Mapping[str, float], profile_rpm: float) -> None:
+        """Position mode: go to the named positions at profile_rpm."""
+
+    def stop(self, names: list[str] | None = None) -> None:
+        """Zero velocity (velocity mode) or hold the present position (position mode)."""
+
+    def torque_off(self, name: str) -> None: ...
+
+
+def check_velocity(config: MotorConfig, rpm: float) -> float:
+    if not math.isfinite(rpm):
+        raise ValueError(f"motor {config.name}: velocity {rpm} rpm is not finite")
+    if abs(rpm) > config.max_velocity_rpm + 1e-9:
+        raise ValueError(f"motor {config.name}: velocity {rpm} rpm above the limit {config.max_velocity_rpm} rpm")
+    return rpm
+
+
+@dataclass
+class MotorMap:
+    """Configured motors by name; built from the motor_driver parameters."""
+
+    motors: dict[str, MotorConfig] = field(default_factory=dict)
+
+    @classmethod
+    def from_lists(
+        cls,
+        names: list[str],
+        ids: list[int],
+        min_positions: list[float],
+        max_positions: list[float],
+        max_velocities: list[float],
+        directions: list[int] | None = None,
+        zero_ticks: list[int] | None = None,
+    ) -> "MotorMap":
+        n = len(names)
+        for label, values in (("motor_ids", ids), ("min_positions", min_positions),
+                              ("max_positions", max_positions), ("max_velocities_rpm", max_velocities)):
+            if len(values) != n:
+                raise ValueError(f"{label} has {len(values)} entries for {n} motors {names}")
+        if len(set(ids)) != n:
+            raise ValueError(f"motor_ids {ids} are not unique")
+        directions = directions or [1] * n
+        zero_ticks = zero_ticks or [0] * n
+        return cls({
+            name: MotorConfig(name, int(ids[i]), float(min_positions[i]), float(max_positions[i]),
+                              float(max_velocities[i]), int(directions[i]), int(zero_ticks[i]))
+            for i, name in enumerate(names)
+        })

@@ -1,0 +1,209 @@
+"""MoveMotors goal execution over a MotorBus: validation, limits, timeout, cancel, faults.
+
+The motor_driver node feeds this from its 100 Hz timer (`tick`) and its action callbacks; everything
+here takes explicit stamps, so it runs the same on the Dynamixel bus, the sim bus and in tests.
+
+Goal semantics (MoveMotors.action):
+- mode "velocity": targets are rpm. Each motor runs until it reaches its stop position in its
+  direction of travel (the configured limit, narrowed by `position_limits`), then stops; when every
+  moving motor has stopped the goal ends with reason "joint_limit". `timeout` > 0 ends it with
+  "timeout" (both count as success: the requested motion ran to its end).
+- mode "position": targets are rad, reached at `profile_rpm`; success with reason "reached" when all
+  are within `position_tolerance_rad`; `timeout` > 0 ends it unsuccessfully with "timeout".
+- `position_limits`: empty, one stop position per motor (velocity mode: where that motor stops), or
+  a [min, max] pair per motor (flattened).
+- cancel stops the motors ("canceled"); a new goal preempts the running one ("preempted"); a hardware
+  error on ANY motor turns that motor's torque off and aborts the running goal with a reason naming
+  the motor, its ID and the error bit; a bus failure aborts it with "motor_fault: communication ...".
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from .motor_bus import BusError, MotorBus, MotorConfig, MotorState, fault_reason
+
+VELOCITY = "velocity"
+POSITION = "position"
+
+
+@dataclass
+class MoveGoal:
+    motors: list[str]
+    mode: str
+    targets: list[float]
+    position_limits: list[float] = field(default_factory=list)
+    timeout_s: float = 0.0
+
+
+@dataclass
+class MoveFeedback:
+    positions: list[float]
+    velocities: list[float]
+    currents: list[float]
+
+
+@dataclass
+class MoveResult:
+    success: bool
+    final_positions: list[float]
+    reason: str
+
+
+def validate_goal(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[str, int] | None = None) -> str | None:
+    """None when the goal is acceptable, else the rejection reason naming the bad value."""
+    if not goal.motors:
+        return "no motors named"
+    unknown = [m for m in goal.motors if m not in motors]
+    if unknown:
+        return f"unknown motor(s) {unknown}; configured: {sorted(motors)}"
+    if len(set(goal.motors)) != len(goal.motors):
+        return f"motor named twice in {goal.motors}"
+    if goal.mode not in (VELOCITY, POSITION):
+        return f"mode {goal.mode!r} is not 'velocity' or 'position'"
+    if len(goal.targets) != len(goal.motors):
+        return f"{len(goal.targets)} targets for {len(goal.motors)} motors"
+    if len(goal.position_limits) not in (0, len(goal.motors), 2 * len(goal.motors)):
+        return (f"position_limits has {len(goal.position_limits)} entries; expected 0, "
+                f"{len(goal.motors)} or {2 * len(goal.motors)}")
+    if not math.isfinite(goal.timeout_s) or goal.timeout_s < 0:
+        return f"timeout {goal.timeout_s} must be >= 0"
+    for name, target in zip(goal.motors, goal.targets):
+        c = motors[name]
+        if not math.isfinite(target):
+            return f"target {target} for {name} is not finite"
+        if goal.mode == VELOCITY and abs(target) > c.max_velocity_rpm:
+            return f"velocity {target} rpm for {name} above the limit {c.max_velocity_rpm} rpm"
+        if goal.mode == POSITION and not c.min_position_rad <= target <= c.max_position_rad:
+            return f"position {target} rad for {name} outside [{c.min_position_rad}, {c.max_position_rad}]"
+    for value in goal.position_limits:
+        if not math.isfinite(value):
+            return f"position limit {value} is not finite"
+    faults = faults or {}
+    faulted = [m for m in goal.motors if faults.get(m)]
+    if faulted:
+        return "; ".join(fault_reason(m, motors[m].servo_id, faults[m]) for m in faulted)
+    return None
+
+
+def stop_window(goal: MoveGoal, index: int, config: MotorConfig) -> tuple[float, float]:
+    """[lo, hi] a velocity-mode motor may travel in: configured limits narrowed by the goal."""
+    lo, hi = config.min_position_rad, config.max_position_rad
+    n = len(goal.motors)
+    if len(goal.position_limits) == 2 * n:
+        lo, hi = max(lo, goal.position_limits[2 * index]), min(hi, goal.position_limits[2 * index + 1])
+    elif len(goal.position_limits) == n:
+        stop = goal.position_limits[index]
+        if goal.targets[index] > 0:
+            hi = min(hi, stop)
+        elif goal.targets[index] < 0:
+            lo = max(lo, stop)
+    return lo, hi
+
+
+class MoveGoalRunner:
+    def __init__(self, bus: MotorBus, profile_rpm: float = 30.0, position_tolerance_rad: float = 0.02) -> None:
+        self.bus = bus
+        self.profile_rpm = profile_rpm
+        self.position_tolerance_rad = position_tolerance_rad
+        self.goal: MoveGoal | None = None
+        self.start_ns = 0
+        self.faults: dict[str, int] = {}  # motor -> Hardware Error Status seen
+        self.fault_log: list[str] = []
+        self._stopped: set[str] = set()
+        self._last_states: dict[str, MotorState] = {}
+
+    @property
+    def active(self) -> bool:
+        return self.goal is not None
+
+    def validate(self, goal: MoveGoal) -> str | None:
+        return validate_goal(goal, self.bus.motors, self.faults)
+
+    def start(self, goal: MoveGoal, stamp_ns: int) -> MoveResult | None:
+        """Start a validated goal; returns the preempted goal's result, if one was running."""
+        reason = self.validate(goal)
+        if reason:
+            raise ValueError(reason)
+        preempted = self._finish(False, "preempted", stop=False) if self.goal else None
+        self.goal, self.start_ns, self._stopped = goal, stamp_ns, set()
+        if goal.mode == VELOCITY:
+            self.bus.set_velocities(dict(zip(goal.motors, goal.targets)))
+        else:
+            self.bus.set_positions(dict(zip(goal.motors, goal.targets)), self.profile_rpm)
+        return preempted
+
+    def cancel(self) -> MoveResult | None:
+        if self.goal is None:
+            return None
+        return self._finish(False, "canceled")
+
+    def communication_failure(self, error: BusError) -> MoveResult | None:
+        self.fault_log.append(str(error))
+        if self.goal is None:
+            return None
+        return self._finish(False, f"motor_fault: communication: {error}", stop=False)
+
+    def tick(self, states: dict[str, MotorState], stamp_ns: int) -> tuple[MoveFeedback | None, MoveResult | None]:
+        """Check faults, limits, completion and timeout against fresh states."""
+        self._last_states = states
+        fault = self._check_faults(states)
+        if self.goal is None:
+            return None, None
+        goal = self.goal
+        feedback = MoveFeedback(
+            [states[m].position_rad for m in goal.motors],
+            [states[m].velocity_rpm for m in goal.motors],
+            [states[m].current_ma for m in goal.motors],
+        )
+        if fault:
+            return feedback, self._finish(False, fault, stop=True)
+        if goal.mode == VELOCITY:
+            for i, name in enumerate(goal.motors):
+                if name in self._stopped or goal.targets[i] == 0:
+                    continue
+                lo, hi = stop_window(goal, i, self.bus.motors[name])
+                position = states[name].position_rad
+                if (goal.targets[i] > 0 and position >= hi) or (goal.targets[i] < 0 and position <= lo):
+                    self.bus.stop([name])
+                    self._stopped.add(name)
+            moving = [m for i, m in enumerate(goal.motors) if goal.targets[i] != 0]
+            if moving and all(m in self._stopped for m in moving):
+                return feedback, self._finish(True, "joint_limit", stop=False)
+        else:
+            errors = [abs(states[m].position_rad - t) for m, t in zip(goal.motors, goal.targets)]
+            if max(errors) <= self.position_tolerance_rad:
+                return feedback, self._finish(True, "reached", stop=False)
+        if goal.timeout_s > 0 and stamp_ns - self.start_ns >= goal.timeout_s * 1e9:
+            return feedback, self._finish(goal.mode == VELOCITY, "timeout")
+        return feedback, None
+
+    def _check_faults(self, states: dict[str, MotorState]) -> str | None:
+        reasons = []
+        for name, state in states.items():
+            if state.hardware_error and self.faults.get(name) != state.hardware_error:
+                self.faults[name] = state.hardware_error
+                reason = fault_reason(name, self.bus.motors[name].servo_id, state.hardware_error)
+                self.fault_log.append(reason)
+                try:
+                    self.bus.torque_off(name)
+                except BusError as exc:  # keep going: the abort below matters more
+                    self.fault_log.append(f"torque off {name} failed: {exc}")
+                reasons.append(reason)
+            elif not state.hardware_error and name in self.faults:
+                del self.faults[name]  # cleared (reboot)
+        return "; ".join(reasons) or None
+
+    def _finish(self, success: bool, reason: str, stop: bool = True) -> MoveResult:
+        goal = self.goal
+        assert goal is not None
+        if stop:
+            try:
+                healthy = [m for m in goal.motors if m not in self.faults]
+                if healthy:
+                    self.bus.stop(healthy)
+            except BusError as exc:
+                self.fault_log.append(f"stop failed: {exc}")
+        final = [self._last_states[m].position_rad if m in self._last_states else float("nan") for m in goal.motors]
+        self.goal = None
+        return MoveResult(success, final, reason)
