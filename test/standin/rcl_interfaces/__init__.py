@@ -1,0 +1,1 @@
+"""Test stand-in for the rcl_interfaces interface package (generated from the typestore)."""

@@ -1,0 +1,1 @@
+"""Test stand-in for rosidl_runtime_py (only `utilities` is provided)."""

@@ -1,0 +1,1 @@
+"""Test stand-in for the unique_identifier_msgs interface package (generated from the typestore)."""
