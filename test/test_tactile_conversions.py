@@ -1,0 +1,45 @@
+"""Tactile converters: CDR round trips through the rosbags typestore."""
+import numpy as np
+import pytest
+
+from prisma_bringup.typestore import get_typestore, types
+from prisma_tactile_driver.hub import DiagnosticStatusData
+from prisma_tactile_driver.ros_conversions import (diagnostics_from_msg, diagnostics_to_msg, make_header,
+                                                   ns_from_stamp, stamp_from_ns, taxel_frame_from_msg,
+                                                   taxel_frame_to_msg)
+from prisma_tactile_driver.taxels import TaxelFrame
+
+
+def cdr_round_trip(msg):
+    store = get_typestore()
+    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
+
+
+def test_stamp_helpers():
+    stamp = stamp_from_ns(types, 12_345_678_901)
+    assert (stamp.sec, stamp.nanosec) == (12, 345_678_901)
+    assert ns_from_stamp(stamp) == 12_345_678_901
+    header = make_header(types, 5, "thumb_pad")
+    assert header.frame_id == "thumb_pad" and ns_from_stamp(header.stamp) == 5
+    with pytest.raises(ValueError, match="stamp_ns"):
+        stamp_from_ns(types, -1)
+
+
+def test_taxel_frame_cdr_round_trip():
+    counts = np.array([0, 1, 512, 1241, 2048, 3000, 4000, 4094, 4095], dtype=np.uint16)
+    frame = TaxelFrame.from_counts("ring", 1_700_000_000_123_456_789, counts)
+    msg = cdr_round_trip(taxel_frame_to_msg(frame, types, "ring_pad"))
+    assert msg.header.frame_id == "ring_pad"
+    back = taxel_frame_from_msg(msg)
+    assert back.finger == "ring" and back.stamp_ns == frame.stamp_ns
+    np.testing.assert_array_equal(back.counts, counts)
+    np.testing.assert_array_equal(back.voltages, frame.voltages)
+    np.testing.assert_allclose(back.voltages, counts * 3.3 / 4096, rtol=1e-6)
+
+
+def test_diagnostics_cdr_round_trip():
+    statuses = [DiagnosticStatusData("tactile_driver: hub", 1, "stale: ring", "hub0", {"crc_errors": "3"}),
+                DiagnosticStatusData("tactile_driver: ring", 3, "stale: no sample for 250 ms", "hub0", {})]
+    msg = cdr_round_trip(diagnostics_to_msg(types, 2_000_000_000, statuses))
+    assert ns_from_stamp(msg.header.stamp) == 2_000_000_000
+    assert diagnostics_from_msg(msg) == statuses
