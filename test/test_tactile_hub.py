@@ -1,0 +1,88 @@
+"""Hub core over the sim backend: frames, tare, staleness and diagnostics."""
+import numpy as np
+import pytest
+
+from prisma_tactile_driver.contact_source import ScriptedContactSource
+from prisma_tactile_driver.hub import ERROR, OK, STALE, WARN, TactileHub
+from prisma_tactile_driver.pad_model import PadContact, PadParams
+from prisma_tactile_driver.sim_backend import SimHubBackend
+from prisma_tactile_driver.taxels import FINGERS
+
+MS = 1_000_000
+
+
+class Fixed:
+    """A contact source holding one contact on chosen fingers."""
+
+    def __init__(self, contacts):
+        self.contacts = contacts
+
+    def contact(self, finger, stamp_ns):
+        return self.contacts.get(finger)
+
+
+def test_sim_backend_publishes_all_fingers_with_consistent_voltages():
+    hub = TactileHub(SimHubBackend(ScriptedContactSource()), FINGERS)
+    frames = hub.poll(1500 * MS)
+    assert [f.finger for f in frames] == list(FINGERS)
+    for f in frames:
+        assert f.stamp_ns == 1500 * MS
+        np.testing.assert_allclose(f.voltages, f.counts * 3.3 / 4096, rtol=1e-6)
+    # the thumb is pressed at 1.5 s of its cycle, the little finger (1.6 s later) is not yet
+    rest = np.array(PadParams().rest_volts)
+    by = {f.finger: f for f in frames}
+    assert by["thumb"].voltages[4] > rest[4] + 0.3
+    np.testing.assert_allclose(by["little"].voltages, rest, atol=0.02)
+
+
+def test_vref_scales_voltages():
+    hub = TactileHub(SimHubBackend(Fixed({})), ["index"], vref=5.0)
+    [frame] = hub.poll(0)
+    np.testing.assert_allclose(frame.voltages, frame.counts * 5.0 / 4096, rtol=1e-6)
+    with pytest.raises(ValueError, match="vref"):
+        TactileHub(SimHubBackend(Fixed({})), ["index"], vref=0)
+
+
+def test_tare_is_mean_of_last_n_and_kept_beside_raw():
+    source = Fixed({})
+    hub = TactileHub(SimHubBackend(source, seed=4), FINGERS, tare_samples=50)
+    for step in range(20):
+        hub.poll(step * 10 * MS)
+    early = hub.tare()
+    assert not early.success and "20/50" in early.message
+    for step in range(20, 200):
+        hub.poll(step * 10 * MS)
+    result = hub.tare()
+    assert result.success and set(result.baselines) == set(FINGERS)
+    np.testing.assert_allclose(result.baselines["thumb"], PadParams().rest_volts, atol=0.002)
+    source.contacts["thumb"] = PadContact(0, 0, 2.0)
+    frame = hub.poll(2000 * MS)[0]
+    np.testing.assert_allclose(frame.voltages, frame.counts * 3.3 / 4096, rtol=1e-6)  # raw untouched
+    np.testing.assert_allclose(frame.baseline, result.baselines["thumb"])
+    assert frame.tared_voltages()[4] > 0.5
+    diag = {s.name: s for s in hub.diagnostics(2000 * MS)}
+    assert diag["tactile_driver: thumb"].values["baseline_v"].count(" ") == 8
+
+
+def test_staleness_levels():
+    class Dropping(SimHubBackend):
+        def read(self, stamp_ns):
+            readings = super().read(stamp_ns)
+            if stamp_ns > 100 * MS:
+                readings[0].counts.pop("ring")
+            if stamp_ns > 500 * MS:
+                readings.clear()
+            return readings
+
+    hub = TactileHub(Dropping(Fixed({})), FINGERS)
+    assert {s.level for s in hub.diagnostics(0)} == {ERROR, STALE}  # nothing read yet
+    for step in range(0, 31):
+        hub.poll(step * 10 * MS)
+    diag = {s.name: s for s in hub.diagnostics(300 * MS)}
+    assert diag["tactile_driver: hub"].level == WARN and diag["tactile_driver: ring"].level == STALE
+    assert diag["tactile_driver: ring"].message == "stale: no sample for 200 ms"
+    assert diag["tactile_driver: thumb"].level == OK
+    for step in range(31, 80):
+        hub.poll(step * 10 * MS)
+    assert hub.stale_fingers(790 * MS) == list(FINGERS)
+    assert hub.diagnostics(790 * MS)[0].level == ERROR

@@ -1,0 +1,99 @@
+"""Direct I2C backend against an emulated TCA9548A + five MAX11617, through real smbus2 calls."""
+import errno
+
+import numpy as np
+import pytest
+from smbus2 import i2c_msg
+
+from prisma_tactile_driver.hub import OK, STALE, TactileHub
+from prisma_tactile_driver.i2c_backend import I2CHubBackend, check_channel_map, decode_max11617
+from prisma_tactile_driver.i2c_emulator import EmulatedSMBus, five_finger_bus
+from prisma_tactile_driver.taxels import FINGERS
+
+CHANNELS = {"thumb": 0, "index": 1, "middle": 2, "ring": 3, "little": 4}
+RNG = np.random.default_rng(3)
+VALUES = {ch: RNG.integers(0, 4096, 12) for ch in range(5)}
+
+
+@pytest.fixture
+def bus():
+    return five_finger_bus(VALUES)
+
+
+def test_decode_masks_the_high_nibble():
+    assert decode_max11617(bytes([0xF1, 0x23] * 9)).tolist() == [0x123] * 9
+
+
+def test_emulated_bus_behaves_like_the_datasheets(bus):
+    smbus = EmulatedSMBus(bus)
+    # nothing selected: the ADC address NACKs like i2c-dev does (OSError EREMOTEIO)
+    with pytest.raises(OSError) as info:
+        smbus.i2c_rdwr(i2c_msg.write(0x35, [0x82, 0x11]))
+    assert info.value.errno == errno.EREMOTEIO
+    smbus.i2c_rdwr(i2c_msg.write(0x70, [1 << 3]))
+    readback = i2c_msg.read(0x70, 1)
+    smbus.i2c_rdwr(readback)
+    assert bytes(readback) == bytes([0x08])
+    config, result = i2c_msg.write(0x35, [0x82, 0x11]), i2c_msg.read(0x35, 18)
+    smbus.i2c_rdwr(config, result)
+    raw = bytes(result)
+    assert all(b >> 4 == 0xF for b in raw[::2])
+    assert bus.adcs[3].setup == 0x82 and bus.adcs[3].config == 0x11
+    np.testing.assert_array_equal(decode_max11617(raw), VALUES[3][:9])
+    with pytest.raises(OSError):  # an address nobody has
+        smbus.i2c_rdwr(i2c_msg.write(0x48, [0]))
+
+
+def test_backend_returns_exactly_the_emulated_adc_values(bus):
+    backend = I2CHubBackend(EmulatedSMBus(bus), CHANNELS)
+    [reading] = backend.read(0)
+    assert set(reading.counts) == set(FINGERS)
+    for finger, ch in CHANNELS.items():
+        np.testing.assert_array_equal(reading.counts[finger], VALUES[ch][:9])
+    # a remapped hub: fingers on other mux channels
+    remapped = I2CHubBackend(EmulatedSMBus(bus), {"index": 4, "thumb": 2})
+    [reading] = remapped.read(0)
+    np.testing.assert_array_equal(reading.counts["index"], VALUES[4][:9])
+    np.testing.assert_array_equal(reading.counts["thumb"], VALUES[2][:9])
+
+
+def test_transient_nack_is_retried(bus):
+    bus.adcs[1].nack_next = 2
+    backend = I2CHubBackend(EmulatedSMBus(bus), CHANNELS, retries=2)
+    [reading] = backend.read(0)
+    np.testing.assert_array_equal(reading.counts["index"], VALUES[1][:9])
+    assert backend.stats["index"].errors == 2 and backend.stats["index"].failed_scans == 0
+
+
+def test_nacking_finger_goes_stale_while_the_others_keep_publishing(bus):
+    bus.adcs[2].failing = True  # the middle finger's sensor is unplugged
+    backend = I2CHubBackend(EmulatedSMBus(bus), CHANNELS, retries=2)
+    hub = TactileHub(backend, FINGERS, stale_timeout_ns=100_000_000)
+    frames = []
+    for step in range(30):  # 300 ms at 100 Hz
+        frames += hub.poll(step * 10_000_000)
+    assert {f.finger for f in frames} == {"thumb", "index", "ring", "little"}
+    assert len(frames) == 4 * 30
+    for f in frames[:4]:
+        np.testing.assert_allclose(f.voltages, VALUES[CHANNELS[f.finger]][:9] * 3.3 / 4096, rtol=1e-6)
+    assert backend.stats["middle"].errors == 3 * 30  # bounded: 1 try + 2 retries per scan
+    assert backend.stats["middle"].consecutive_failures == 30
+    statuses = {s.name: s for s in hub.diagnostics(300_000_000)}
+    assert statuses["tactile_driver: middle"].level == STALE
+    assert statuses["tactile_driver: thumb"].level == OK
+    assert "middle" in statuses["tactile_driver: hub"].message
+    assert statuses["tactile_driver: hub"].values["middle_errors"] == "90"
+    # plugged back in: it recovers on the next scan
+    bus.adcs[2].failing = False
+    frames = hub.poll(310_000_000)
+    assert {f.finger for f in frames} == set(FINGERS)
+    assert hub.stale_fingers(310_000_000) == []
+
+
+def test_channel_map_is_validated():
+    with pytest.raises(ValueError, match="duplicate mux channel 1"):
+        check_channel_map({"thumb": 1, "index": 1})
+    with pytest.raises(ValueError, match="pinky"):
+        check_channel_map({"pinky": 0})
+    with pytest.raises(ValueError, match="0..7"):
+        check_channel_map({"thumb": 8})
