@@ -135,10 +135,13 @@ class RosHarness:
 
     def publish(self, topic: str, msg, qos_profile=10) -> None:
         """Publish `msg` from the probe node (a publisher per topic and type is kept)."""
-        key = (topic, type(msg))
+        from .messages import get_class
+
+        msg_type = get_class(msg.__msgtype__)
+        key = (topic, msg_type)
         publishers = self.__dict__.setdefault("_publishers", {})
         if key not in publishers:
-            publishers[key] = self.publisher(type(msg), topic, qos_profile)
+            publishers[key] = self.publisher(msg_type, topic, qos_profile)
         publishers[key].publish(msg)
 
     def call(self, srv_type, name: str, request, timeout_sec: float = 10.0):
