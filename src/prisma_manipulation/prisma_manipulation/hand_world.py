@@ -1,0 +1,336 @@
+"""Hand/world model (DESIGN.md section 7): motor positions -> fingertip contacts on a compliant object.
+
+What it models, along the grasp axis z (fingers push +z, the thumb pushes -z):
+- Tendon-coupled closure. Each finger pad's free position follows its motor, s = travel * angle
+  (the fingers motor drives all four fingers, thumb_flexion the thumb). Until a pad touches the
+  object it moves with the motor; after contact the elastic tendon stretches instead, so the pad
+  stays on the object and the normal force grows with the closure beyond contact:
+  F = k * (s - contact position), k = the series stiffness of tendon and object.
+- A compliant ball (or card) between thumb and fingers. It is presented by a compliant support (the
+  experimenter's hand or a stand, `fixture_n_per_mm`) that can let go once the hand holds the object.
+  The object's position along z is the static balance of pad forces, support and external force.
+- Contact location on every pad. Pads slide tangentially as they close (an arc: `*_slide_per_mm` of
+  tangential motion per mm of pad travel) and thumb rotation moves the thumb pad sideways. When the
+  thumb and the pinch partner (index) both touch, the object rolls between them without slipping:
+  its centre moves by the mean of the two pads' tangential motions, so the contact point on the thumb
+  pad moves by half their relative motion. Hence:
+    * thumb rotation (clockwise, +) moves the contact toward the thumb pad's left side: the right
+      side 6-3-0 empties first (horizontal scenario);
+    * fingers closing while the thumb extends shifts both pads the same way along z but tangentially
+      in opposite senses: the object rolls and the contact moves toward the bottom row, so the top
+      row empties; the reverse motion empties the bottom row (vertical scenario);
+    * an external push slips the object across the pads (disturbance scenario); rotating the thumb
+      brings the contact back.
+- External disturbances: timed pushes (tangential slip and/or a narrower grip width that lowers the
+  grasp force).
+
+Pad frames follow prisma_tactile_driver.pad_model: +x toward the pad's LEFT side, +y toward the TOP
+row. The finger pads face the thumb pad, so their x axis is mirrored with respect to the thumb's.
+Shear is not modelled (rolling without slip carries little tangential force): PadContact shear = 0.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Sequence
+
+from prisma_tactile_driver.pad_model import PadContact, PadParams
+from prisma_tactile_driver.taxels import FINGERS, check_finger
+
+from .motor_bus import MOTOR_NAMES
+
+FINGER_PADS = FINGERS[1:]  # index, middle, ring, little (driven by the "fingers" motor)
+
+
+@dataclass(frozen=True)
+class ObjectParams:
+    name: str
+    # motor angle (rad) at which each pad first touches the object in its presented pose;
+    # a finger absent from the map never touches it
+    finger_contact_rad: Mapping[str, float]
+    thumb_contact_rad: float
+    stiffness_n_per_mm: float  # object compliance (foam ball ~0.4)
+    fixture_n_per_mm: float = 1.0  # support presenting the object
+    release_force_n: float | None = None  # support lets go once thumb and partner press this hard...
+    release_hold_s: float = 0.5  # ...for this long,
+    release_tau_s: float = 0.2  # fading with this time constant,
+    residual_fixture_n_per_mm: float = 0.01  # down to this (keeps the balance well posed)
+    released: bool = False  # start already released (object held by the hand alone)
+
+
+OBJECTS: dict[str, ObjectParams] = {
+    # 30 mm foam ball, thumb-index tip pinch; the experimenter lets go once the pinch holds it
+    "pinch_ball": ObjectParams("pinch_ball", {"index": 3.0}, 2.5, 0.4, release_force_n=0.6),
+    # 70 mm foam ball touched by all four fingers
+    "power_ball": ObjectParams("power_ball", {"index": 2.6, "middle": 2.5, "ring": 2.7, "little": 2.9},
+                               2.0, 0.4, fixture_n_per_mm=2.0),
+    # card pressed by the thumb pad against the side of the flexed index (no sensor there: the
+    # index side acts as a stiff support)
+    "lateral_card": ObjectParams("lateral_card", {}, 3.5, 2.0, fixture_n_per_mm=5.0),
+}
+
+
+@dataclass(frozen=True)
+class HandWorldParams:
+    finger_travel_mm_per_rad: float = 8.0  # pad free travel along z per rad of the fingers motor
+    thumb_travel_mm_per_rad: float = 8.0  # equal to the fingers': equal speeds keep the grip width
+    tendon_stiffness_n_per_mm: float = 0.08  # elastic tendon, referred to fingertip travel
+    finger_slide_per_mm: float = 0.4  # finger pad tangential (-y) motion per mm of pad travel (arc)
+    thumb_slide_per_mm: float = 0.4  # thumb pad tangential (-y) motion per mm of pad travel
+    thumb_lateral_mm_per_rad: float = 6.0  # thumb pad sideways motion per rad of thumb rotation
+    partner: str = "index"  # the finger the thumb pinches against (rolling pair)
+    pad_half_size_mm: float = PadParams().pad_size_mm / 2.0  # contact beyond it has slipped off
+    load_nm_per_n: float = 0.05  # motor load torque per N of pad force (tendon lever x spool)
+    rotation_load_fraction: float = 0.2  # thumb rotation carries this share of the thumb load
+
+    def series_stiffness(self, obj: ObjectParams) -> float:
+        return 1.0 / (1.0 / self.tendon_stiffness_n_per_mm + 1.0 / obj.stiffness_n_per_mm)
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """An external push: over [start_s, start_s + duration_s] the object slips by (dx, dy) mm across
+    the pads (hand frame = thumb pad frame) and the grip width at the pads changes by dwidth_mm
+    (negative = the object slides to a narrower section and the grasp force drops)."""
+
+    start_s: float
+    duration_s: float
+    dx_mm: float = 0.0
+    dy_mm: float = 0.0
+    dwidth_mm: float = 0.0
+
+    def fraction(self, t_s: float) -> float:
+        if t_s <= self.start_s:
+            return 0.0
+        if self.duration_s <= 0 or t_s >= self.start_s + self.duration_s:
+            return 1.0
+        u = (t_s - self.start_s) / self.duration_s
+        return u * u * (3.0 - 2.0 * u)
+
+
+@dataclass
+class WorldState:
+    stamp_ns: int
+    forces: dict[str, float]  # normal force per pad, N
+    contacts: dict[str, PadContact | None]
+    object_z_mm: float  # object displacement along the grasp axis (toward the thumb)
+    object_xy_mm: tuple[float, float]  # object tangential position (hand frame)
+    fixture_n_per_mm: float
+    pad_positions_mm: dict[str, float] = field(default_factory=dict)  # actual pad travel along z
+
+
+class HandWorld:
+    def __init__(self, params: HandWorldParams | None = None, obj: ObjectParams | str = "pinch_ball",
+                 disturbances: Sequence[Disturbance] = ()) -> None:
+        self.params = params or HandWorldParams()
+        self.obj = OBJECTS[obj] if isinstance(obj, str) else obj
+        self.disturbances = list(disturbances)
+        self.k = self.params.series_stiffness(self.obj)
+        self.positions = {name: 0.0 for name in MOTOR_NAMES}
+        self._stamp_ns: int | None = None
+        self._applied = [0.0] * len(self.disturbances)
+        self._width_mm = 0.0
+        self._bx, self._by = 0.0, 0.0
+        self._fixture = self.obj.residual_fixture_n_per_mm if self.obj.released else self.obj.fixture_n_per_mm
+        self._held_since_ns: int | None = None
+        self._released_ns: int | None = 0 if self.obj.released else None
+        self._pad_tangent: dict[str, tuple[float, float]] | None = None
+        self.state = self._solve(0)
+        self._pad_tangent = self._tangents(self.state)
+
+    # ---- inputs ----------------------------------------------------------------------------
+    def add_disturbance(self, disturbance: Disturbance) -> None:
+        self.disturbances.append(disturbance)
+        self._applied.append(0.0)
+
+    def set_positions(self, positions: Mapping[str, float], centre_on_thumb: bool = True) -> None:
+        """Place the motors without any motion history (the object neither rolls nor slips); with
+        centre_on_thumb the object sits where it touches the middle of the thumb pad."""
+        self.positions.update({k: float(v) for k, v in positions.items() if k in self.positions})
+        state = self._solve(self.state.stamp_ns)
+        if centre_on_thumb:
+            self._bx, self._by = self._tangents(state)["thumb"]
+            state = self._solve(self.state.stamp_ns)
+        self.state = state
+        self._pad_tangent = self._tangents(state)
+
+    def update_joints(self, positions: Mapping[str, float], stamp_ns: int) -> WorldState:
+        """Move to new motor positions at stamp_ns; unknown names are ignored."""
+        self.positions.update({k: float(v) for k, v in positions.items() if k in self.positions})
+        return self.advance(stamp_ns)
+
+    def advance(self, stamp_ns: int) -> WorldState:
+        """Apply disturbances and the support release up to stamp_ns and re-solve the contacts."""
+        t_s = stamp_ns * 1e-9
+        for i, d in enumerate(self.disturbances):
+            f = d.fraction(t_s)
+            delta, self._applied[i] = f - self._applied[i], f
+            if delta:
+                self._bx += d.dx_mm * delta
+                self._by += d.dy_mm * delta
+                self._width_mm += d.dwidth_mm * delta
+        self._update_fixture(stamp_ns)
+        state = self._solve(stamp_ns)
+        tangents = self._tangents(state)
+        partner = self.params.partner
+        if state.forces["thumb"] > 0 and state.forces.get(partner, 0.0) > 0 and self._pad_tangent:
+            # rolling without slip between thumb and partner: the object moves by the mean motion
+            (tx0, ty0), (px0, py0) = self._pad_tangent["thumb"], self._pad_tangent[partner]
+            (tx1, ty1), (px1, py1) = tangents["thumb"], tangents[partner]
+            self._bx += ((tx1 - tx0) + (px1 - px0)) / 2.0
+            self._by += ((ty1 - ty0) + (py1 - py0)) / 2.0
+            state = self._solve(stamp_ns)
+        self._pad_tangent = tangents
+        self.state = state
+        self._stamp_ns = stamp_ns
+        return state
+
+    # ---- outputs ---------------------------------------------------------------------------
+    def contact(self, finger: str) -> PadContact | None:
+        return self.state.contacts[check_finger(finger)]
+
+    def forces(self) -> dict[str, float]:
+        return dict(self.state.forces)
+
+    def motor_loads(self) -> dict[str, float]:
+        p = self.params
+        fingers = sum(self.state.forces[f] for f in FINGER_PADS)
+        thumb = self.state.forces["thumb"]
+        return {"fingers": fingers * p.load_nm_per_n, "thumb_flexion": thumb * p.load_nm_per_n,
+                "thumb_rotation": thumb * p.load_nm_per_n * p.rotation_load_fraction}
+
+    def grasp_pose(self, force_n: float) -> dict[str, float]:
+        """Motor positions of a balanced pinch (thumb vs partner) at force_n, object centred."""
+        p = self.params
+        partner = p.partner
+        travel = force_n / self.k
+        return {
+            "fingers": self.obj.finger_contact_rad[partner] + travel / p.finger_travel_mm_per_rad,
+            "thumb_flexion": self.obj.thumb_contact_rad + travel / p.thumb_travel_mm_per_rad,
+            "thumb_rotation": 0.0,
+        }
+
+    # ---- internals -------------------------------------------------------------------------
+    def _update_fixture(self, stamp_ns: int) -> None:
+        o = self.obj
+        if self._released_ns is None and o.release_force_n is not None:
+            f = self.state.forces
+            if f["thumb"] >= o.release_force_n and f.get(self.params.partner, 0.0) >= o.release_force_n:
+                if self._held_since_ns is None:
+                    self._held_since_ns = stamp_ns
+                elif stamp_ns - self._held_since_ns >= o.release_hold_s * 1e9:
+                    self._released_ns = stamp_ns
+            else:
+                self._held_since_ns = None
+        if self._released_ns is not None and not o.released:
+            fade = math.exp(-max(0, stamp_ns - self._released_ns) * 1e-9 / o.release_tau_s)
+            self._fixture = o.residual_fixture_n_per_mm + (o.fixture_n_per_mm - o.residual_fixture_n_per_mm) * fade
+
+    def _free_travel(self) -> tuple[dict[str, float], float]:
+        p = self.params
+        s_f = {f: p.finger_travel_mm_per_rad * self.positions["fingers"] for f in FINGER_PADS}
+        return s_f, p.thumb_travel_mm_per_rad * self.positions["thumb_flexion"]
+
+    def _contact_travel(self) -> tuple[dict[str, float], float]:
+        """Pad travel at which each pad touches the object in its presented pose (width change
+        moves both surfaces away by half of it)."""
+        p = self.params
+        half = -self._width_mm / 2.0
+        h_f = {f: p.finger_travel_mm_per_rad * a + half for f, a in self.obj.finger_contact_rad.items()}
+        return h_f, p.thumb_travel_mm_per_rad * self.obj.thumb_contact_rad + half
+
+    def _balance(self, s_f, h_f, s_t, h_t) -> float:
+        """Object displacement u (toward the thumb) where pad forces and support balance.
+        g(u) = sum_f k*max(0, s_f - h_f - u) - k*max(0, s_t - h_t + u) - fixture*u is piecewise
+        linear and strictly decreasing: find its root exactly between breakpoints."""
+        k, kfix = self.k, self._fixture
+
+        def g(u: float) -> float:
+            total = sum(k * max(0.0, s_f[f] - h_f[f] - u) for f in h_f)
+            return total - k * max(0.0, s_t - h_t + u) - kfix * u
+
+        points = sorted({0.0, h_t - s_t, *(s_f[f] - h_f[f] for f in h_f)})
+        values = [g(u) for u in points]
+        if values[0] <= 0.0:
+            # left of every breakpoint all finger pads press and the thumb does not
+            return points[0] + values[0] / (kfix + k * len(h_f))
+        for (u0, g0), (u1, g1) in zip(zip(points, values), zip(points[1:], values[1:])):
+            if g1 <= 0.0:
+                return u0 + (u1 - u0) * g0 / (g0 - g1)
+        # right of every breakpoint only the thumb presses
+        return points[-1] + values[-1] / (kfix + k)
+
+    def _solve(self, stamp_ns: int) -> WorldState:
+        p, k = self.params, self.k
+        s_f, s_t = self._free_travel()
+        h_f, h_t = self._contact_travel()
+        u = self._balance(s_f, h_f, s_t, h_t)
+        forces = {f: 0.0 for f in FINGERS}
+        pads = {}
+        for f in FINGER_PADS:
+            if f in h_f and s_f[f] > h_f[f] + u:
+                forces[f] = k * (s_f[f] - h_f[f] - u)
+                pads[f] = h_f[f] + u + forces[f] / self.obj.stiffness_n_per_mm  # indents the object
+            else:
+                pads[f] = s_f[f]
+        if s_t > h_t - u:
+            forces["thumb"] = k * (s_t - h_t + u)
+            pads["thumb"] = h_t - u + forces["thumb"] / self.obj.stiffness_n_per_mm
+        else:
+            pads["thumb"] = s_t
+        state = WorldState(stamp_ns, forces, {}, u, (self._bx, self._by), self._fixture, pads)
+        tangents = self._tangents(state)
+        for f in FINGERS:
+            state.contacts[f] = self._pad_contact(f, forces[f], tangents[f])
+        return state
+
+    def _tangents(self, state: WorldState) -> dict[str, tuple[float, float]]:
+        """Tangential (x, y) position of each pad in the hand frame, relative to the pose where it
+        first touches the object."""
+        p = self.params
+        h_f, h_t = self._contact_travel()
+        out = {}
+        for f in FINGER_PADS:
+            ref = h_f.get(f, 0.0)
+            out[f] = (0.0, -p.finger_slide_per_mm * (state.pad_positions_mm[f] - ref))
+        out["thumb"] = (-p.thumb_lateral_mm_per_rad * self.positions["thumb_rotation"],
+                        -p.thumb_slide_per_mm * (state.pad_positions_mm["thumb"] - h_t))
+        return out
+
+    def _pad_contact(self, finger: str, force: float, tangent: tuple[float, float]) -> PadContact | None:
+        if force <= 0.0:
+            return None
+        x_hand = self._bx - tangent[0]
+        y = self._by - tangent[1]
+        x = x_hand if finger == "thumb" else -x_hand  # finger pads face the thumb: mirrored x
+        half = self.params.pad_half_size_mm
+        if abs(x) > half or abs(y) > half:
+            return None  # the object has slipped off the pad
+        return PadContact(x, y, force)
+
+
+class HandWorldContactSource:
+    """ContactSource for the tactile driver's sim backend (contracts: constructed with no arguments,
+    fed with /joint_states through `update_joints`)."""
+
+    def __init__(self, world: HandWorld | None = None) -> None:
+        self.world = world or HandWorld()
+        self._last_ns: int | None = None
+
+    def update_joints(self, names: list[str], positions: list[float], stamp_ns: int) -> None:
+        if len(names) != len(positions):
+            raise ValueError(f"{len(names)} joint names but {len(positions)} positions")
+        self.world.update_joints(dict(zip(names, positions)), stamp_ns)
+        self._last_ns = stamp_ns
+
+    def contact(self, finger: str, stamp_ns: int) -> PadContact | None:
+        if self._last_ns is None or stamp_ns > self._last_ns:
+            self.world.advance(stamp_ns)  # disturbances and the support release keep time
+            self._last_ns = stamp_ns
+        return self.world.contact(finger)
+
+
+def released(obj: ObjectParams | str) -> ObjectParams:
+    """The object already held by the hand alone (manipulation scenarios start from a pinch)."""
+    base = OBJECTS[obj] if isinstance(obj, str) else obj
+    return replace(base, released=True)

@@ -1,0 +1,89 @@
+"""The DESIGN.md section 6 scenarios as ready closed loops (tests, bench, plots and the CLI).
+
+- horizontal: object pinched between thumb and index at 1 N; HorizontalController at 20 rpm.
+- vertical: same start; VerticalController at 10 rpm.
+- disturbance: same start; at 0.5 s an external push slips the object 4 mm toward the thumb pad's
+  right side; HoldController at 20 rpm restores the left side.
+- grasp: hand open, a foam ball presented on a stand; GraspController (pinch, 60 rpm, 0.8 N / 1.0 N).
+- combined: pinch held with use_force; the object slips to a narrower section (grasp force drops)
+  and is pushed sideways; the thumb restores 1 N while rotation restores the contact side.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Callable
+
+from .closed_loop import ClosedLoop, ForceFn, Trace
+from .contact_monitor import ContactMonitor
+from .controllers import ControlLimits, Controller
+from .grasp_controller import GraspController
+from .hand_world import OBJECTS, Disturbance, HandWorld, released
+from .motion_controllers import ForceKeeper, HoldController, HorizontalController, VerticalController
+from .motor_bus import MOTOR_NAMES, MotorConfig, MotorMap
+from .sim_motors import SimMotorBus
+
+# Same values as config/motor_driver.yaml.
+DEFAULT_IDS = (1, 2, 3)
+DEFAULT_MIN_POSITIONS = (0.0, 0.0, -3.0)
+DEFAULT_MAX_POSITIONS = (9.0, 7.0, 3.0)
+DEFAULT_MAX_VELOCITIES_RPM = (70.0, 70.0, 70.0)
+DEFAULT_K = 0.8
+
+
+def default_motors() -> dict[str, MotorConfig]:
+    return MotorMap.from_lists(list(MOTOR_NAMES), list(DEFAULT_IDS), list(DEFAULT_MIN_POSITIONS),
+                               list(DEFAULT_MAX_POSITIONS), list(DEFAULT_MAX_VELOCITIES_RPM)).motors
+
+
+@dataclass
+class Scenario:
+    name: str
+    loop: ClosedLoop
+    controller: Controller
+    duration_s: float
+    settle_s: float = 0.3
+
+    def run(self, progress: Callable[[str], None] | None = None) -> Trace:
+        return self.loop.run(self.controller, self.duration_s, settle_s=self.settle_s, progress=progress)
+
+
+def _loop(world: HandWorld, k: float, force_fn: ForceFn | None, seed: int, rate_hz: float) -> ClosedLoop:
+    bus = SimMotorBus(default_motors(), initial_positions=world.positions)
+    return ClosedLoop(world, bus, ContactMonitor(k), force_fn, rate_hz=rate_hz, seed=seed)
+
+
+def pinched_world(force_n: float = 1.0, disturbances=()) -> HandWorld:
+    """Object already held between thumb and index at force_n, contact centred on the thumb pad."""
+    world = HandWorld(obj=released("pinch_ball"), disturbances=disturbances)
+    world.set_positions(world.grasp_pose(force_n))
+    return world
+
+
+def build(name: str, force_fn: ForceFn | None = None, k: float = DEFAULT_K, seed: int = 0,
+          rate_hz: float = 100.0, speed_rpm: float | None = None) -> Scenario:
+    limits = ControlLimits(default_motors())
+    if name == "horizontal":
+        loop = _loop(pinched_world(), k, force_fn, seed, rate_hz)
+        return Scenario(name, loop, HorizontalController(limits, speed_rpm or 20.0), 10.0)
+    if name == "vertical":
+        loop = _loop(pinched_world(), k, force_fn, seed, rate_hz)
+        return Scenario(name, loop, VerticalController(limits, speed_rpm or 10.0), 15.0)
+    if name == "disturbance":
+        world = pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0)])
+        loop = _loop(world, k, force_fn, seed, rate_hz)
+        return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0), 4.0, 0.0)
+    if name == "grasp":
+        # presented on a stand that does not let go: each phase's force stays what it reached
+        world = HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
+        loop = _loop(world, k, force_fn, seed, rate_hz)
+        return Scenario(name, loop, GraspController(limits, "pinch", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
+    if name == "combined":
+        world = pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
+        loop = _loop(world, k, force_fn, seed, rate_hz)
+        keeper = ForceKeeper(target_n=1.0, band_n=0.15, speed_rpm=20.0)
+        return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0, force_keeper=keeper),
+                        4.0, 0.0)
+    raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
+
+
+SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "combined")
