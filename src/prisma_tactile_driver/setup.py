@@ -18,6 +18,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "tactile_driver = prisma_tactile_driver.tactile_driver_node:main",
         ],
     },
 )

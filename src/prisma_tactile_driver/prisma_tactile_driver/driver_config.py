@@ -1,0 +1,122 @@
+"""tactile_driver parameters: one dataclass holding the defaults, validation naming the bad
+parameter and value, and the backend factory. The node only copies ROS parameters in."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from .backend import HubBackend
+from .contact_source import ContactSource, ScriptedContactSource
+from .taxels import FINGERS
+
+BACKENDS = ("serial", "i2c", "sim")
+CONTACT_SOURCES = ("scripted", "hand_world")
+
+
+class ParameterError(ValueError):
+    """An invalid parameter; the message names the parameter and the bad value."""
+
+    def __init__(self, name: str, value: Any, expected: str) -> None:
+        super().__init__(f"invalid parameter '{name}' = {value!r}: {expected}")
+        self.name, self.value = name, value
+
+
+@dataclass
+class DriverConfig:
+    backend: str = "sim"  # serial | i2c | sim
+    fingers: list[str] = field(default_factory=lambda: list(FINGERS))  # fingers on this hub
+    frame_id_format: str = "prisma_{finger}_pad"  # header.frame_id of each finger's TaxelArray
+    rate_hz: float = 100.0  # I2C/sim scan rate (the serial hub sets its own rate in firmware)
+    vref: float = 3.3  # ADC reference: V = vref * counts / 4096
+    tare_samples: int = 100  # ~/tare averages this many most recent samples per finger
+    stale_timeout: float = 0.1  # s without a sample before a finger is reported stale
+    diagnostics_period: float = 1.0  # s between /diagnostics messages
+    # serial (Arduino hub)
+    port: str = "/dev/ttyUSB0"
+    baud: int = 1_000_000
+    serial_poll_hz: float = 500.0  # how often the port is drained
+    reconnect_backoff_initial: float = 0.05  # s, doubled per failed reopen
+    reconnect_backoff_max: float = 2.0
+    # direct I2C
+    i2c_bus: int = 1  # /dev/i2c-<n>
+    mux_address: int = 0x70  # TCA9548A
+    adc_address: int = 0x35  # MAX11617
+    finger_channels: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])  # per finger, in order
+    i2c_retries: int = 2  # extra attempts per finger and scan after an OSError (NACK)
+    # sim
+    contact_source: str = "scripted"  # scripted | hand_world
+    sim_seed: int = 0
+
+    @classmethod
+    def from_parameters(cls, values: dict[str, Any]) -> "DriverConfig":
+        known = {f.name for f in fields(cls)}
+        config = cls(**{k: (list(v) if isinstance(v, (list, tuple)) else v)
+                        for k, v in values.items() if k in known})
+        return config.validate()
+
+    def as_parameters(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def validate(self) -> "DriverConfig":
+        if self.backend not in BACKENDS:
+            raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
+        if not self.fingers:
+            raise ParameterError("fingers", self.fingers, "at least one finger")
+        for finger in self.fingers:
+            if finger not in FINGERS:
+                raise ParameterError("fingers", self.fingers, f"{finger!r} is not one of {FINGERS}")
+        if len(set(self.fingers)) != len(self.fingers):
+            raise ParameterError("fingers", self.fingers, "each finger at most once")
+        try:
+            self.frame_id_format.format(finger="thumb")
+        except (KeyError, IndexError, ValueError) as exc:
+            raise ParameterError("frame_id_format", self.frame_id_format,
+                                 f"a str.format pattern whose only field is {{finger}} ({exc})") from None
+        for name in ("rate_hz", "vref", "stale_timeout", "diagnostics_period", "serial_poll_hz",
+                     "reconnect_backoff_initial"):
+            if not getattr(self, name) > 0:
+                raise ParameterError(name, getattr(self, name), "must be > 0")
+        if self.reconnect_backoff_max < self.reconnect_backoff_initial:
+            raise ParameterError("reconnect_backoff_max", self.reconnect_backoff_max,
+                                 f"must be >= reconnect_backoff_initial ({self.reconnect_backoff_initial})")
+        if self.tare_samples < 1:
+            raise ParameterError("tare_samples", self.tare_samples, "must be >= 1")
+        if self.baud <= 0:
+            raise ParameterError("baud", self.baud, "must be > 0")
+        if self.i2c_retries < 0:
+            raise ParameterError("i2c_retries", self.i2c_retries, "must be >= 0")
+        for name in ("mux_address", "adc_address"):
+            if not 0x08 <= getattr(self, name) <= 0x77:
+                raise ParameterError(name, getattr(self, name), "a 7-bit I2C address 0x08..0x77")
+        if len(self.finger_channels) != len(self.fingers):
+            raise ParameterError("finger_channels", self.finger_channels,
+                                 f"one mux channel per finger ({len(self.fingers)})")
+        for ch in self.finger_channels:
+            if not 0 <= ch <= 7:
+                raise ParameterError("finger_channels", self.finger_channels, f"channel {ch} is not 0..7")
+        duplicates = sorted({ch for ch in self.finger_channels if self.finger_channels.count(ch) > 1})
+        if duplicates:
+            raise ParameterError("finger_channels", self.finger_channels, f"duplicate mux channel(s) {duplicates}")
+        if self.contact_source not in CONTACT_SOURCES:
+            raise ParameterError("contact_source", self.contact_source,
+                                 f"expected one of {'|'.join(CONTACT_SOURCES)}")
+        return self
+
+    def frame_id(self, finger: str) -> str:
+        return self.frame_id_format.format(finger=finger)
+
+
+def make_backend(config: DriverConfig, contact_source: ContactSource | None = None) -> HubBackend:
+    """The configured backend. For sim, `contact_source` defaults to the scripted cycle."""
+    if config.backend == "serial":
+        from .serial_backend import SerialHubBackend
+        return SerialHubBackend(config.port, config.baud, read_timeout_s=0.0,
+                                backoff_initial_s=config.reconnect_backoff_initial,
+                                backoff_max_s=config.reconnect_backoff_max)
+    if config.backend == "i2c":
+        from .i2c_backend import I2CHubBackend
+        return I2CHubBackend(config.i2c_bus, dict(zip(config.fingers, config.finger_channels)),
+                             mux_address=config.mux_address, adc_address=config.adc_address,
+                             retries=config.i2c_retries)
+    from .sim_backend import SimHubBackend
+    return SimHubBackend(contact_source or ScriptedContactSource(), config.fingers, seed=config.sim_seed)

@@ -1,0 +1,107 @@
+"""tactile_driver: publishes /prisma/<finger>/taxels from the fingertip hub (serial, I2C or sim),
+/diagnostics at 1 Hz with the link counters, and the ~/tare service.
+
+    ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
+"""
+from __future__ import annotations
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from prisma_msgs.msg import TaxelArray
+from rclpy.node import Node
+from rosidl_runtime_py.utilities import get_message
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from .driver_config import DriverConfig, make_backend
+from .hub import TactileHub
+from .ros_conversions import diagnostics_to_msg, ns_from_stamp, taxel_frame_to_msg
+
+
+class TactileDriverNode(Node):
+    def __init__(self, **kwargs) -> None:
+        super().__init__("tactile_driver", **kwargs)
+        self.hub: TactileHub | None = None
+        defaults = DriverConfig().as_parameters()
+        self.declare_parameters("", list(defaults.items()))
+        # fails here, at start, with the parameter's name and value when one is invalid
+        self.config = DriverConfig.from_parameters(
+            {name: self.get_parameter(name).value for name in defaults})
+        cfg = self.config
+
+        source = None
+        if cfg.backend == "sim" and cfg.contact_source == "hand_world":
+            # imported only when asked for: the hand/world model lives in prisma_manipulation
+            from prisma_manipulation.hand_world import HandWorldContactSource
+            source = HandWorldContactSource()
+            self._joint_sub = self.create_subscription(JointState, "joint_states", self._on_joints, 10)
+        self._source = source
+        self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
+                              tare_samples=cfg.tare_samples,
+                              stale_timeout_ns=int(cfg.stale_timeout * 1e9),
+                              name=self.get_name(), hardware_id=self._hardware_id())
+
+        self._taxel_pubs = {f: self.create_publisher(TaxelArray, f"prisma/{f}/taxels", 10) for f in cfg.fingers}
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._tare_service = self.create_service(Trigger, "~/tare", self._on_tare)
+        poll_hz = cfg.serial_poll_hz if cfg.backend == "serial" else cfg.rate_hz
+        self._poll_timer = self.create_timer(1.0 / poll_hz, self._on_poll)
+        self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
+        self.get_logger().info(
+            f"{cfg.backend} backend ({self._hardware_id()}), fingers {', '.join(cfg.fingers)}, "
+            f"polling at {poll_hz:g} Hz")
+
+    def _hardware_id(self) -> str:
+        cfg = self.config
+        if cfg.backend == "serial":
+            return f"{cfg.port}@{cfg.baud}"
+        if cfg.backend == "i2c":
+            return f"i2c-{cfg.i2c_bus}/0x{cfg.mux_address:02x}"
+        return f"sim/{cfg.contact_source}"
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _on_poll(self) -> None:
+        for frame in self.hub.poll(self._now_ns()):
+            self._taxel_pubs[frame.finger].publish(
+                taxel_frame_to_msg(frame, get_message, self.config.frame_id(frame.finger)))
+
+    def _on_diagnostics(self) -> None:
+        stamp_ns = self._now_ns()
+        self._diag_pub.publish(diagnostics_to_msg(get_message, stamp_ns, self.hub.diagnostics(stamp_ns)))
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
+                                   ns_from_stamp(msg.header.stamp))
+
+    def _on_tare(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        result = self.hub.tare()
+        response.success = result.success
+        response.message = result.message
+        (self.get_logger().info if result.success else self.get_logger().warning)(result.message)
+        return response
+
+    def destroy_node(self) -> None:
+        hub = getattr(self, "hub", None)  # absent when the parameters were rejected at start
+        if hub is not None:
+            hub.close()
+        super().destroy_node()
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = TactileDriverNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
