@@ -1,0 +1,163 @@
+"""ROS-free command-line tools of the tactile driver.
+
+    prisma-tactile-calset --samples 140000 --seed 0 --out calibration.npz [--plot calibration.png]
+        synthetic calibration set (push, slide, press-and-roll) for the force estimator
+    prisma-tactile-pad-plot --out pad_response.png
+        the pad model's response: force sweep with hysteresis, contact location map, shear skew
+    prisma-tactile-hub-emulator --link /tmp/ttyPRISMA [--rate 100] [--seconds 0]
+        plays the Arduino hub on a pseudo-terminal (scripted contacts through the pad model), so
+        `tactile_driver` with backend:=serial port:=/tmp/ttyPRISMA runs without hardware
+(also: python -m prisma_tactile_driver.cli calset|pad-plot|hub-emulator ...)
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .calibration import KINDS, CalibrationSet, generate_calibration_set
+from .pad_model import PadContact, PadModel
+from .taxels import FINGERS
+
+
+def plot_calibration(cal: CalibrationSet, path: Path, seconds: float = 30.0) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(KINDS), 2, figsize=(12, 2.8 * len(KINDS)), sharex="col")
+    for row, kind in enumerate(KINDS):
+        index = np.flatnonzero(cal.kind == kind)
+        if not len(index):
+            continue
+        first = index[: int(seconds * 100)]
+        t = np.arange(len(first)) * 0.01  # trajectories of this kind back to back, at 100 Hz
+        axes[row, 0].plot(t, cal.voltages[first])
+        axes[row, 0].set_ylabel(f"{kind}\nvoltage [V]")
+        for axis, label in enumerate(("Fx", "Fy", "Fz")):
+            axes[row, 1].plot(t, cal.wrench[first, axis], label=label)
+        axes[row, 1].set_ylabel("force [N]")
+        axes[row, 1].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s]")
+    axes[0, 0].set_title(f"9 taxel voltages (first {seconds:g} s of each kind)")
+    axes[0, 1].set_title("ground-truth force")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_pad_response(path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    model = PadModel(seed=0)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    # force sweep up and down at the centre: saturation and hysteresis, with noise and quantisation
+    forces = np.concatenate([np.linspace(0, 5, 300), np.linspace(5, 0, 300)])
+    volts = model.sample_sequence(np.zeros(600), np.zeros(600), forces) * model.params.lsb_volts
+    for taxel, label in ((4, "centre taxel 4"), (5, "edge taxel 5"), (8, "corner taxel 8")):
+        axes[0].plot(forces[:300], volts[:300, taxel], label=f"{label} loading")
+        axes[0].plot(forces[300:], volts[300:, taxel], "--", label=f"{label} unloading")
+    axes[0].set_xlabel("normal force [N]")
+    axes[0].set_ylabel("voltage [V]")
+    axes[0].set_title("centre press: saturation, hysteresis")
+    axes[0].legend(fontsize=7)
+    # contact location sweep along x (toward the left side) at 2 N
+    xs = np.linspace(-7, 7, 141)
+    location = np.array([model.noiseless_voltages(PadContact(x, 0.0, 2.0)) for x in xs])
+    for taxel in (3, 4, 5):
+        axes[1].plot(xs, location[:, taxel], label=f"taxel {taxel}")
+    axes[1].plot(xs, 0.7 * location.mean(axis=1), "k--", label="v_t = 0.7 mean")
+    axes[1].set_xlabel("contact x [mm] (+x = left side, column 2)")
+    axes[1].set_title("2 N contact moving across the middle row")
+    axes[1].legend(fontsize=7)
+    # shear skew at the centre
+    shears = np.linspace(-1.5, 1.5, 61)
+    skew = np.array([model.noiseless_voltages(PadContact(0.0, 0.0, 2.0, s, 0.0)) for s in shears])
+    for taxel in (3, 4, 5):
+        axes[2].plot(shears, skew[:, taxel], label=f"taxel {taxel}")
+    axes[2].set_xlabel("shear x [N] at 2 N normal")
+    axes[2].set_title("shear skew")
+    axes[2].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def calset_main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Generate a synthetic fingertip calibration set (.npz)")
+    parser.add_argument("--samples", type=int, default=140_000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
+    parser.add_argument("--rate", type=float, default=100.0, help="sample rate [Hz]")
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--plot", type=Path, help="also write a PNG of the first seconds of each kind")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    cal = generate_calibration_set(args.samples, args.seed, args.kinds, args.rate)
+    cal.save(args.out)
+    kinds, counts = np.unique(cal.kind, return_counts=True)
+    print(f"{len(cal)} samples in {cal.trajectory.max() + 1} trajectories "
+          f"({', '.join(f'{k} {c}' for k, c in zip(kinds, counts))}) in {time.perf_counter() - start:.1f} s")
+    print(f"Fz 0..{cal.wrench[:, 2].max():.2f} N, |shear| <= {np.abs(cal.wrench[:, :2]).max():.2f} N, "
+          f"voltages {cal.voltages.min():.3f}..{cal.voltages.max():.3f} V -> {args.out}")
+    if args.plot:
+        plot_calibration(cal, args.plot)
+        print(f"plot -> {args.plot}")
+    return 0
+
+
+def pad_plot_main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Plot the optical pad model's response")
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args(argv)
+    plot_pad_response(args.out)
+    print(f"plot -> {args.out}")
+    return 0
+
+
+def hub_emulator_main(argv: list[str] | None = None) -> int:
+    from .contact_source import ScriptedContactSource
+    from .protocol import encode_frame
+    from .pty_hub import PtyHubPort
+    from .sim_backend import SimHubBackend
+
+    parser = argparse.ArgumentParser(description="Emulate the Arduino fingertip hub on a pseudo-terminal")
+    parser.add_argument("--link", type=Path, required=True, help="symlink path to create, e.g. /tmp/ttyPRISMA")
+    parser.add_argument("--rate", type=float, default=100.0, help="frames per second")
+    parser.add_argument("--seconds", type=float, default=0.0, help="stop after this long (0 = run until Ctrl-C)")
+    args = parser.parse_args(argv)
+    if args.rate <= 0:
+        parser.error(f"--rate must be > 0, got {args.rate}")
+    port = PtyHubPort(args.link)
+    print(f"hub on {port.open()} at {args.rate:g} Hz; Ctrl-C to stop", flush=True)
+    sim = SimHubBackend(ScriptedContactSource(), FINGERS)
+    period = 1.0 / args.rate
+    start = time.monotonic()
+    sequence = 0
+    try:
+        while not args.seconds or time.monotonic() - start < args.seconds:
+            stamp_ns = int(sequence * period * 1e9)
+            [reading] = sim.read(stamp_ns)
+            port.write(encode_frame(sequence, reading.counts))
+            sequence += 1
+            time.sleep(max(0.0, start + sequence * period - time.monotonic()))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        port.close()
+    print(f"sent {sequence} frames")
+    return 0
+
+
+COMMANDS = {"calset": calset_main, "pad-plot": pad_plot_main, "hub-emulator": hub_emulator_main}
+
+if __name__ == "__main__":  # python -m prisma_tactile_driver.cli calset|pad-plot|hub-emulator ...
+    if len(sys.argv) < 2 or sys.argv[1] not in COMMANDS:
+        sys.exit(f"usage: python -m prisma_tactile_driver.cli {{{'|'.join(COMMANDS)}}} [options]")
+    sys.exit(COMMANDS[sys.argv[1]](sys.argv[2:]))
