@@ -797,6 +797,32 @@ class Node:
             prefix = prefix + PARAMETER_SEPARATOR_STRING
         return {name[len(prefix):]: value for name, value in self._parameters.items() if name.startswith(prefix)}
 
+    def list_parameters(self, prefixes: list[str], depth: int):
+        """Declared names under `prefixes` (all when empty), down to `depth` dots (0 = unlimited)."""
+        from rcl_interfaces.msg import ListParametersResult
+
+        if depth < 0:
+            raise ValueError("The depth must be greater than or equal to zero")
+        result = ListParametersResult()
+        names, found_prefixes = [], []
+        for name in self._parameters:
+            relative = name
+            if prefixes:
+                match = next((p for p in prefixes if name == p or name.startswith(p + PARAMETER_SEPARATOR_STRING)), None)
+                if match is None:
+                    continue
+                relative = name[len(match) + 1:]
+            if depth and relative.count(PARAMETER_SEPARATOR_STRING) >= depth:
+                continue
+            names.append(name)
+            if PARAMETER_SEPARATOR_STRING in name:
+                prefix = name.rsplit(PARAMETER_SEPARATOR_STRING, 1)[0]
+                if prefix not in found_prefixes:
+                    found_prefixes.append(prefix)
+        result.names = names
+        result.prefixes = found_prefixes
+        return result
+
     def describe_parameter(self, name: str) -> ParameterDescriptor:
         try:
             return self._descriptors[name]

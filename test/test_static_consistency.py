@@ -1,0 +1,496 @@
+"""Static cross-check of launch files, setup.py entry points, config YAML, nodes and the topic table.
+
+Data-driven: adding a node (console script in src/<pkg>/setup.py), a launch file, a config file or
+a topic-table row needs no change here.
+
+1. every executable a launch file starts is a console script of the package the launch file names;
+2. every parameter in a config file (ros__parameters form, top key = node name) is declared by that
+   node, with the same type and the same value as its default; every node name there is a node;
+3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
+   publishing node, the one in its 'from' column; every action there exactly one action server.
+
+Nodes are found by instantiating the rclpy Node subclass of every console-script module (on the
+stand-in when ROS is absent) with default parameters and reading what they declared, published
+and served. Rows and entries whose node has no console script yet skip, naming the node.
+"""
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+import yaml
+
+import rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+ROOT = Path(__file__).resolve().parents[1]
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+SHARED_TOPICS = {"/diagnostics"}  # published by every driver
+
+
+# ------------------------------------------------------------------------------------------------
+# Sources: setup.py, launch files, config files, topic table
+
+
+@dataclass(frozen=True)
+class ConsoleScript:
+    package: str
+    executable: str
+    module: str
+    function: str
+
+
+class _Evaluator(ast.NodeVisitor):
+    """Evaluates the literal parts of a setup.py: constants, names bound to them, f-strings, +."""
+
+    def __init__(self, names: dict) -> None:
+        self.names = names
+
+    def value(self, node):
+        if isinstance(node, ast.Constant):
+            return node.value
+        if isinstance(node, ast.Name):
+            return self.names[node.id]
+        if isinstance(node, ast.JoinedStr):
+            return "".join(str(self.value(v.value if isinstance(v, ast.FormattedValue) else v)) for v in node.values)
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+            return self.value(node.left) + self.value(node.right)
+        if isinstance(node, (ast.List, ast.Tuple)):
+            return [self.value(v) for v in node.elts]
+        if isinstance(node, ast.Dict):
+            return {self.value(k): self.value(v) for k, v in zip(node.keys, node.values)}
+        raise ValueError(f"not a literal: {ast.dump(node)[:80]}")
+
+
+def console_scripts(setup_py: Path) -> list[ConsoleScript]:
+    tree = ast.parse(setup_py.read_text(), filename=str(setup_py))
+    names: dict = {}
+    evaluator = _Evaluator(names)
+    for statement in tree.body:
+        if isinstance(statement, ast.Assign) and len(statement.targets) == 1 and isinstance(statement.targets[0], ast.Name):
+            try:
+                names[statement.targets[0].id] = evaluator.value(statement.value)
+            except (ValueError, KeyError):
+                pass
+    package = setup_py.parent.name
+    scripts = []
+    for call in ast.walk(tree):
+        if not (isinstance(call, ast.Call) and getattr(call.func, "id", getattr(call.func, "attr", None)) == "setup"):
+            continue
+        for keyword in call.keywords:
+            if keyword.arg == "name":
+                package = evaluator.value(keyword.value)
+            if keyword.arg == "entry_points":
+                entries = evaluator.value(keyword.value).get("console_scripts", [])
+                for entry in entries:
+                    executable, _, target = (part.strip() for part in entry.partition("="))
+                    module, _, function = target.partition(":")
+                    scripts.append(ConsoleScript(package, executable, module.strip(), function.strip()))
+    return [ConsoleScript(package, s.executable, s.module, s.function) for s in scripts]
+
+
+def all_console_scripts() -> dict[tuple[str, str], ConsoleScript]:
+    scripts = {}
+    for setup_py in sorted(ROOT.glob("src/*/setup.py")):
+        for script in console_scripts(setup_py):
+            scripts[(script.package, script.executable)] = script
+    return scripts
+
+
+@dataclass(frozen=True)
+class LaunchedNode:
+    launch_file: str
+    line: int
+    package: str | None
+    executable: str | None
+    name: str | None
+    parameter_files: tuple[str, ...]
+
+
+def _literal(node):
+    return node.value if isinstance(node, ast.Constant) and isinstance(node.value, str) else None
+
+
+def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    found = []
+    for call in ast.walk(tree):
+        if not isinstance(call, ast.Call):
+            continue
+        func = call.func
+        if getattr(func, "id", getattr(func, "attr", None)) not in ("Node", "LifecycleNode"):
+            continue
+        keywords = {k.arg: k.value for k in call.keywords}
+        files = tuple(
+            c.value for c in ast.walk(keywords["parameters"])
+            if isinstance(c, ast.Constant) and isinstance(c.value, str) and c.value.endswith((".yaml", ".yml"))
+        ) if "parameters" in keywords else ()
+        found.append(LaunchedNode(
+            launch_file.name, call.lineno, _literal(keywords.get("package")), _literal(keywords.get("executable")),
+            _literal(keywords.get("name")), files))
+    return found
+
+
+def all_launched_nodes() -> list[LaunchedNode]:
+    return [n for path in sorted(ROOT.glob("launch/*.launch.py")) for n in launched_nodes(path)]
+
+
+def parameter_files() -> dict[str, dict]:
+    """config YAML files in ros__parameters form: {relative path: {node key: {param: value}}}."""
+    found = {}
+    for path in sorted(ROOT.glob("config/**/*.y*ml")):
+        document = yaml.safe_load(path.read_text())
+        if not isinstance(document, dict) or not document:
+            continue
+        if not all(isinstance(body, dict) and "ros__parameters" in body for body in document.values()):
+            continue  # hardware maps and other data files
+        per_node = {}
+        for key, body in document.items():
+            flat: dict = {}
+            _flatten("", body["ros__parameters"] or {}, flat)
+            per_node[str(key)] = flat
+        found[str(path.relative_to(ROOT))] = per_node
+    return found
+
+
+def _flatten(prefix: str, values: dict, out: dict) -> None:
+    for key, value in values.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, dict):
+            _flatten(name, value, out)
+        else:
+            out[name] = value
+
+
+@dataclass(frozen=True)
+class TableRow:
+    name: str
+    type: str
+    source: str
+
+    @property
+    def is_action(self) -> bool:
+        return "/action/" in self.type
+
+
+def topic_table() -> list[TableRow]:
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    match = re.search(r"^## Topic table\s*$(.*?)(?=^## |\Z)", text, re.S | re.M)
+    if not match:
+        return []
+    rows = []
+    for line in match.group(1).splitlines():
+        cells = [c.strip().strip("`").strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 3 or not cells[0].startswith("/"):
+            continue
+        names = [cells[0].replace("<finger>", f) for f in FINGERS] if "<finger>" in cells[0] else [cells[0]]
+        rows.extend(TableRow(name, cells[1], cells[2]) for name in names)
+    return rows
+
+
+# ------------------------------------------------------------------------------------------------
+# Nodes, instantiated
+
+
+@dataclass
+class NodeInfo:
+    script: ConsoleScript
+    class_name: str = ""
+    name: str = ""
+    error: str = ""
+    parameters: dict = field(default_factory=dict)  # name -> Parameter (default value)
+    parameter_types: dict = field(default_factory=dict)  # name -> declared Parameter.Type
+    publishers: dict = field(default_factory=dict)  # topic -> [types]
+    action_servers: dict = field(default_factory=dict)  # action -> [types]
+
+
+def _node_class(module) -> type | None:
+    classes = [c for _, c in inspect.getmembers(module, inspect.isclass)
+               if issubclass(c, Node) and c is not Node and c.__module__ == module.__name__]
+    if len(classes) > 1 and hasattr(module, "main"):
+        used = inspect.getsource(module.main)
+        classes = [c for c in classes if re.search(rf"\b{c.__name__}\s*\(", used)] or classes
+    return classes[0] if classes else None
+
+
+def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
+    info = NodeInfo(script)
+    try:
+        module = importlib.import_module(script.module)
+    except Exception as exc:  # noqa: BLE001 - reported by the test
+        info.error = f"import {script.module} failed: {exc!r}"
+        return info
+    cls = _node_class(module)
+    if cls is None:
+        return None  # a ROS-free console script, not a node
+    info.class_name = cls.__name__
+    rclpy.init()
+    try:
+        node = cls()
+    except Exception as exc:  # noqa: BLE001
+        info.error = f"{cls.__name__}() with default parameters failed: {exc!r}"
+        rclpy.shutdown()
+        return info
+    try:
+        from rclpy.action import get_action_server_names_and_types_by_node
+
+        info.name = node.get_name()
+        names = node.list_parameters([], 0).names
+        for name, descriptor in zip(names, node.describe_parameters(names)):
+            info.parameters[name] = node.get_parameter_or(name)
+            info.parameter_types[name] = Parameter.Type(descriptor.type)
+        fqn = (node.get_name(), node.get_namespace())
+        info.publishers = dict(node.get_publisher_names_and_types_by_node(*fqn))
+        info.action_servers = dict(get_action_server_names_and_types_by_node(node, *fqn))
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+    return info
+
+
+@pytest.fixture(scope="module")
+def nodes() -> dict[tuple[str, str], NodeInfo]:
+    """(package, executable) -> NodeInfo for every console script that is a node."""
+    if rclpy.ok():
+        rclpy.shutdown()
+    found = {}
+    for key, script in all_console_scripts().items():
+        info = _inspect_node(script)
+        if info is not None:
+            found[key] = info
+    return found
+
+
+def _launch_names() -> dict[str, tuple[str, str]]:
+    """Node names given in launch files -> (package, executable)."""
+    return {n.name: (n.package, n.executable) for n in all_launched_nodes() if n.name and n.package and n.executable}
+
+
+def _node_named(nodes: dict, node_name: str) -> NodeInfo | None:
+    name = node_name.strip("/").rsplit("/", 1)[-1]
+    launched = _launch_names().get(name)
+    if launched in nodes:
+        return nodes[launched]
+    return next((info for info in nodes.values() if info.name == name), None)
+
+
+def _require_started(info: NodeInfo) -> None:
+    assert not info.error, f"{info.script.package}/{info.script.executable}: {info.error}"
+
+
+# ------------------------------------------------------------------------------------------------
+# 1. launch files -> console scripts
+
+
+def _launch_id(entry: LaunchedNode) -> str:
+    return f"{entry.launch_file}:{entry.line}:{entry.package}/{entry.executable}"
+
+
+@pytest.mark.parametrize("entry", all_launched_nodes(), ids=_launch_id)
+def test_launched_executable_is_a_console_script(entry: LaunchedNode):
+    assert entry.package and entry.executable, (
+        f"{entry.launch_file}:{entry.line}: package and executable must be string literals")
+    scripts = all_console_scripts()
+    if (entry.package, entry.executable) in scripts:
+        return
+    package_dir = ROOT / "src" / entry.package
+    assert package_dir.is_dir(), f"{entry.launch_file}:{entry.line}: no package src/{entry.package}"
+    module_file = package_dir / entry.package / f"{entry.executable}_node.py"
+    assert not module_file.exists(), (
+        f"{entry.launch_file}:{entry.line}: {module_file.relative_to(ROOT)} exists but "
+        f"'{entry.executable}' is not a console script in src/{entry.package}/setup.py")
+    pytest.skip(f"node {entry.package}/{entry.executable} not written yet (no console script, no module)")
+
+
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
+def test_launched_parameter_files_exist(entry: LaunchedNode):
+    if (entry.package, entry.executable) not in all_console_scripts():
+        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    missing = [f for f in entry.parameter_files if not list(ROOT.glob(f"config/**/{f}"))]
+    assert not missing, f"{entry.launch_file}:{entry.line}: parameter files missing from config/: {missing}"
+
+
+def test_console_scripts_point_at_modules_with_main():
+    for (package, executable), script in all_console_scripts().items():
+        module_file = ROOT / "src" / package / (script.module.replace(".", "/") + ".py")
+        assert module_file.exists(), f"{package}/{executable}: no module {script.module}"
+        tree = ast.parse(module_file.read_text())
+        functions = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
+        assert script.function in functions, f"{package}/{executable}: {script.module} has no {script.function}()"
+
+
+def test_every_node_starts_with_default_parameters(nodes):
+    failures = [f"{k[0]}/{k[1]}: {info.error}" for k, info in nodes.items() if info.error]
+    assert not failures, "\n".join(failures)
+
+
+def config_problems(info: NodeInfo, values: dict) -> list[str]:
+    """What is wrong with giving `values` (from a config file) to the node `info`."""
+    problems = []
+    for name, value in values.items():
+        declared = info.parameters.get(name)
+        if declared is None:
+            problems.append(f"'{name}' is not declared by {info.class_name} ({info.name})")
+            continue
+        try:
+            config_type = Parameter.Type.from_parameter_value(value)
+        except TypeError as exc:
+            problems.append(f"'{name}': {exc}")
+            continue
+        declared_type = info.parameter_types[name]
+        if config_type != declared_type:
+            problems.append(f"'{name}': config {value!r} is {config_type.name}, node declares "
+                            f"{declared_type.name} (default {declared.value!r})")
+        elif name != "use_sim_time" and _plain(declared.value) != _plain(value):
+            problems.append(f"'{name}': config {value!r} != node default {declared.value!r}")
+    return problems
+
+
+def _plain(value):
+    return list(value) if isinstance(value, (list, tuple)) or hasattr(value, "tolist") else value
+
+
+# ------------------------------------------------------------------------------------------------
+# 2. config parameters -> declared by the node, defaults agree
+
+
+def _config_entries() -> list[tuple[str, str]]:
+    return [(path, key) for path, per_node in parameter_files().items() for key in per_node]
+
+
+@pytest.mark.parametrize("path,node_key", _config_entries(), ids=lambda v: str(v))
+def test_config_parameters_are_declared_with_matching_defaults(nodes, path: str, node_key: str):
+    values = parameter_files()[path][node_key]
+    if node_key.strip("/") == "**":
+        targets = [info for info in nodes.values() if not info.error]
+    else:
+        info = _node_named(nodes, node_key)
+        if info is None:
+            launched = _launch_names().get(node_key.strip("/").rsplit("/", 1)[-1])
+            assert launched is not None, (
+                f"{path}: node '{node_key}' is neither a node of a console script nor named in a launch file")
+            pytest.skip(f"node {launched[0]}/{launched[1]} ('{node_key}') has no console script yet")
+        _require_started(info)
+        targets = [info]
+    problems = [problem for info in targets for problem in config_problems(info, values)]
+    assert not problems, f"{path} [{node_key}]:\n  " + "\n  ".join(problems)
+
+
+# ------------------------------------------------------------------------------------------------
+# 3. topic table -> exactly one publisher / action server
+
+
+def _table_id(row: TableRow) -> str:
+    return row.name
+
+
+@pytest.mark.parametrize("row", [r for r in topic_table() if r.name not in SHARED_TOPICS], ids=_table_id)
+def test_topic_table_row_has_exactly_one_source(nodes, row: TableRow):
+    source = _node_named(nodes, row.source)
+    if source is None:
+        pytest.skip(f"node '{row.source}' has no console script yet")
+    _require_started(source)
+    kind = "action servers" if row.is_action else "publishers"
+    providers = []
+    for info in nodes.values():
+        endpoints = info.action_servers if row.is_action else info.publishers
+        if row.name in endpoints:
+            providers.append((info.name, endpoints[row.name]))
+    assert [name for name, _ in providers] == [source.name], (
+        f"{row.name}: expected exactly one of {kind}, node '{source.name}'; found {providers or 'none'}")
+    assert providers[0][1] == [row.type], f"{row.name}: {source.name} offers {providers[0][1]}, table says {row.type}"
+
+
+def test_topic_table_parses():
+    rows = topic_table()
+    assert rows, "docs/architecture.md has no '## Topic table' rows"
+    assert {"/diagnostics"} <= {r.name for r in rows}
+    assert all(re.fullmatch(r"[a-z_0-9]+/(msg|action|srv)/[A-Za-z0-9]+", r.type) for r in rows), rows
+
+
+# ------------------------------------------------------------------------------------------------
+# The checks themselves, on synthetic sources (so a green run above means something)
+
+_SETUP = """
+from setuptools import setup
+package_name = "demo_pkg"
+setup(
+    name=package_name,
+    entry_points={"console_scripts": [
+        f"talker = {package_name}.talker_node:main",
+        "cli = " + package_name + ".cli:main",
+    ]},
+)
+"""
+
+_LAUNCH = """
+from launch import LaunchDescription
+from launch_ros.actions import Node
+from launch.substitutions import LaunchConfiguration
+
+def generate_launch_description():
+    return LaunchDescription([
+        Node(package="demo_pkg", executable="talker", name="chatty",
+             parameters=["talker.yaml", {"rate": LaunchConfiguration("rate")}]),
+        Node(package=LaunchConfiguration("pkg"), executable="x"),
+    ])
+"""
+
+_NODE = """
+import rclpy
+from rclpy.node import Node
+from rclpy.action import ActionServer
+from std_msgs.msg import String
+from prisma_msgs.action import Grasp
+
+
+class TalkerNode(Node):
+    def __init__(self):
+        super().__init__("talker")
+        self.declare_parameter("rate_hz", 10.0)
+        self.declare_parameter("fingers", ["thumb", "index"])
+        self.create_publisher(String, "chatter", 10)
+        ActionServer(self, Grasp, "/prisma/grasp", lambda goal_handle: Grasp.Result())
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    rclpy.spin(TalkerNode())
+"""
+
+
+def test_checks_parse_setup_and_launch_sources(tmp_path):
+    (tmp_path / "demo_pkg").mkdir()
+    (tmp_path / "demo_pkg" / "setup.py").write_text(_SETUP)
+    scripts = console_scripts(tmp_path / "demo_pkg" / "setup.py")
+    assert scripts == [ConsoleScript("demo_pkg", "talker", "demo_pkg.talker_node", "main"),
+                       ConsoleScript("demo_pkg", "cli", "demo_pkg.cli", "main")]
+    (tmp_path / "demo.launch.py").write_text(_LAUNCH)
+    first, second = launched_nodes(tmp_path / "demo.launch.py")
+    assert (first.package, first.executable, first.name, first.parameter_files) == (
+        "demo_pkg", "talker", "chatty", ("talker.yaml",))
+    assert second.package is None  # not a literal: reported by the launch test
+
+
+def test_checks_find_what_a_node_declares_publishes_and_serves(tmp_path, monkeypatch):
+    (tmp_path / "demo_static_pkg").mkdir()
+    (tmp_path / "demo_static_pkg" / "__init__.py").write_text("")
+    (tmp_path / "demo_static_pkg" / "talker_node.py").write_text(_NODE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    if rclpy.ok():
+        rclpy.shutdown()
+    info = _inspect_node(ConsoleScript("demo_static_pkg", "talker", "demo_static_pkg.talker_node", "main"))
+    assert not info.error and info.name == "talker" and info.class_name == "TalkerNode"
+    assert info.publishers == {"/chatter": ["std_msgs/msg/String"]}
+    assert info.action_servers == {"/prisma/grasp": ["prisma_msgs/action/Grasp"]}
+    assert config_problems(info, {"rate_hz": 10.0, "fingers": ["thumb", "index"], "use_sim_time": True}) == []
+    problems = config_problems(info, {"rate_hz": 10, "fingers": ["thumb"], "unknown": 1})
+    assert len(problems) == 3
+    assert "INTEGER" in problems[0] and "DOUBLE" in problems[0]
+    assert "!= node default" in problems[1] and "not declared" in problems[2]
