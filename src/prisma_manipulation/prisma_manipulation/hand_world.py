@@ -173,7 +173,9 @@ class HandWorld:
         state = self._solve(stamp_ns)
         tangents = self._tangents(state)
         partner = self.params.partner
-        if state.forces["thumb"] > 0 and state.forces.get(partner, 0.0) > 0 and self._pad_tangent:
+        pinched_before = self.state.forces["thumb"] > 0 and self.state.forces.get(partner, 0.0) > 0
+        pinched_now = state.forces["thumb"] > 0 and state.forces.get(partner, 0.0) > 0
+        if pinched_before and pinched_now and self._pad_tangent:
             # rolling without slip between thumb and partner: the object moves by the mean motion
             (tx0, ty0), (px0, py0) = self._pad_tangent["thumb"], self._pad_tangent[partner]
             (tx1, ty1), (px1, py1) = tangents["thumb"], tangents[partner]
