@@ -54,14 +54,13 @@ class RealRosHarness:
     def params_file(self, path) -> None:
         raise NotImplementedError("pass cli_args=['--ros-args', '--params-file', path] on real rclpy")
 
-    def process(self, max_callbacks: int = 10_000) -> int:
+    def process(self, max_callbacks: int = 10_000, settle_sec: float = 0.2) -> int:
+        """Real rclpy cannot tell when nothing is pending: spin for a short wall-clock window."""
+        end = time.monotonic() + settle_sec
         count = 0
-        for _ in range(max_callbacks):
-            before = count
+        while time.monotonic() < end and count < max_callbacks:
             self.executor.spin_once(timeout_sec=0.01)
             count += 1
-            if count == before:
-                break
         return count
 
     def advance(self, seconds: float) -> int:
