@@ -94,6 +94,7 @@ def test_save_load_round_trip(tmp_path, mixed):
         CalibrationSet.load(tmp_path / "junk.npz")
 
 
+@pytest.mark.filterwarnings("ignore:.*ill-conditioned")  # cubic features are collinear; ridge copes
 def test_force_is_recoverable_but_not_linear(mixed):
     """Cubic features recover Fz and shear far better than a linear map: the mapping carries
     the information (a CNN does better still) without being a linear function of the voltages."""
