@@ -50,7 +50,8 @@ class DriverConfig:
     @classmethod
     def from_parameters(cls, values: dict[str, Any]) -> "DriverConfig":
         known = {f.name for f in fields(cls)}
-        config = cls(**{k: (list(v) if isinstance(v, (list, tuple)) else v)
+        # rclpy hands integer/double arrays over as array.array: store plain lists
+        config = cls(**{k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
                         for k, v in values.items() if k in known})
         return config.validate()
 
