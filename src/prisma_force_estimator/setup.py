@@ -18,6 +18,10 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "force_estimator = prisma_force_estimator.force_estimator_node:main",
+            "prisma-train-force = prisma_force_estimator.cli:train_main",
+            "prisma-eval-force = prisma_force_estimator.cli:eval_main",
+            "prisma-estimate-bag = prisma_force_estimator.cli:estimate_bag_main",
         ],
     },
 )

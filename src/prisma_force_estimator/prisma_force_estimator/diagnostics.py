@@ -1,0 +1,29 @@
+"""/diagnostics content of the force estimator: per-finger sample counters."""
+from __future__ import annotations
+
+from typing import Mapping
+
+from prisma_tactile_driver.hub import DiagnosticStatusData
+
+from .pipeline import WrenchPipeline
+
+OK, WARN = 0, 1
+
+
+def pipeline_diagnostics(pipeline: WrenchPipeline, name: str, bundles: Mapping[str, str]) -> list[DiagnosticStatusData]:
+    """One status per finger: WARN once any sample was rejected (non-finite voltages)."""
+    statuses = []
+    for finger, counts in pipeline.counts.items():
+        estimator = pipeline.estimators[finger]
+        level = WARN if counts.rejected else OK
+        message = (f"{counts.rejected} sample(s) rejected: non-finite voltages" if counts.rejected
+                   else "ok")
+        statuses.append(DiagnosticStatusData(
+            name=f"{name}: {finger}",
+            level=level,
+            message=message,
+            hardware_id=bundles.get(finger, ""),
+            values={"received": str(counts.received), "estimated": str(counts.estimated),
+                    "rejected": str(counts.rejected), "model_kind": estimator.model_kind},
+        ))
+    return statuses

@@ -1,0 +1,38 @@
+"""Force estimator data <-> geometry_msgs/WrenchStamped.
+
+Every function takes the message-class lookup `types(name)`: rosidl's get_message on the robot,
+prisma_bringup.typestore.types off-robot, so the node and the bag tools share one converter.
+Header helpers and the /diagnostics converter are the tactile driver's (one of each in the
+workspace).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp
+
+from .wrench import WrenchSample
+
+MessageLookup = Callable[[str], Any]
+
+
+def wrench_to_msg(types: MessageLookup, sample: WrenchSample) -> Any:
+    """geometry_msgs/WrenchStamped stamped with the sample's (the input's) stamp."""
+    vector3 = types("geometry_msgs/msg/Vector3")
+    w = [float(v) for v in sample.wrench]
+    return types("geometry_msgs/msg/WrenchStamped")(
+        header=make_header(types, sample.stamp_ns, sample.frame_id),
+        wrench=types("geometry_msgs/msg/Wrench")(
+            force=vector3(x=w[0], y=w[1], z=w[2]),
+            torque=vector3(x=w[3], y=w[4], z=w[5]),
+        ),
+    )
+
+
+def wrench_from_msg(msg: Any) -> WrenchSample:
+    f, t = msg.wrench.force, msg.wrench.torque
+    return WrenchSample(ns_from_stamp(msg.header.stamp),
+                        np.array([f.x, f.y, f.z, t.x, t.y, t.z], dtype=np.float64),
+                        str(msg.header.frame_id))

@@ -1,0 +1,98 @@
+"""Training loop: a handful of steps only (full training is the documented command)."""
+import numpy as np
+import pytest
+import torch
+
+from prisma_force_estimator.bundle import load_bundle, save_bundle
+from prisma_force_estimator.dataset import ForceDataset
+from prisma_force_estimator.inference import ForceEstimator
+from prisma_force_estimator.training import TrainConfig, train
+
+
+@pytest.fixture(scope="module")
+def small_set():
+    from prisma_tactile_driver.calibration import generate_calibration_set
+
+    return ForceDataset.from_calibration_set(generate_calibration_set(n_samples=12_000, seed=7), "synthetic small")
+
+
+def _config(**kw):
+    base = dict(model_kind="cnn2", epochs=2, batch=64, seed=0, threads=1, max_steps_per_epoch=15)
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+def test_progress_line_per_epoch_and_metadata(small_set):
+    lines = []
+    result = train(small_set, _config(epochs=3), progress=lines.append)
+    assert len(lines) == 3
+    assert lines[0].startswith("epoch   1/3") and "val MSE [fx" in lines[0] and "tz" in lines[0]
+    meta = result.metadata
+    assert meta.model_kind == "cnn2" and meta.axes == ["fx", "fy", "fz", "tx", "ty", "tz"]
+    assert set(meta.validation_mse) == set(meta.axes)
+    assert meta.validation_mse == result.history[result.best_epoch - 1].val_mse
+    t = meta.training
+    assert t["batch"] == 64 and t["epochs"] == 3 and t["seed"] == 0 and t["optimiser"] == "Adam"
+    assert t["samples_train"] + t["samples_validation"] + t["samples_guard_dropped"] == len(small_set)
+    assert 0.15 < t["samples_validation"] / len(small_set) < 0.35
+    assert meta.input_normaliser.channels == 9 and meta.output_normaliser.channels == 6
+
+
+def test_a_few_steps_reduce_the_validation_loss(small_set):
+    result = train(small_set, _config(model_kind="cnn", epochs=3, max_steps_per_epoch=40), progress=None)
+    losses = [r.val_loss for r in result.history]
+    assert losses[-1] < losses[0]
+    assert losses[0] < 1.5  # normalised: an untrained net sits near 1
+
+
+def test_training_is_seeded(small_set):
+    a = train(small_set, _config(model_kind="ann"), progress=None)
+    b = train(small_set, _config(model_kind="ann"), progress=None)
+    c = train(small_set, _config(model_kind="ann", seed=1), progress=None)
+    for (name, pa), pb in zip(a.model.state_dict().items(), b.model.state_dict().values()):
+        assert torch.equal(pa, pb), name
+    assert a.history[-1].val_loss == b.history[-1].val_loss
+    assert a.history[-1].val_loss != c.history[-1].val_loss
+
+
+def test_early_stopping_keeps_the_best_epoch(small_set):
+    # A learning rate this large makes validation worse after the first epochs.
+    lines = []
+    result = train(small_set, _config(model_kind="ann", epochs=30, learning_rate=0.5, patience=2,
+                                      max_steps_per_epoch=5), progress=lines.append)
+    assert result.stopped_early
+    assert len(result.history) < 30
+    assert result.best_epoch == 1 + int(np.argmin([r.val_loss for r in result.history]))
+    assert "early stop" in lines[-1]
+    assert result.metadata.training["stopped_early"] is True
+
+
+def test_cosine_schedule_decays_the_learning_rate(small_set):
+    result = train(small_set, _config(model_kind="ann", epochs=4, lr_schedule="cosine", max_steps_per_epoch=2),
+                   progress=None)
+    rates = [r.learning_rate for r in result.history]
+    assert rates[0] == pytest.approx(1e-3) and all(b < a for a, b in zip(rates, rates[1:]))
+
+
+def test_trained_bundle_predicts_what_the_model_predicts(small_set, tmp_path):
+    result = train(small_set, _config(model_kind="cnn_t", epochs=1), progress=None)
+    path = save_bundle(tmp_path / "cnn_t", result.model, result.metadata)
+    est = ForceEstimator.from_bundle(path)
+    v = small_set.voltages[:10]
+    x = torch.from_numpy(result.metadata.input_normaliser.apply(v)).reshape(-1, 1, 3, 3)
+    with torch.inference_mode():
+        expected = result.metadata.output_normaliser.invert(result.model(x).numpy())
+    assert np.allclose(est.estimate(v), expected, atol=1e-5)
+    assert load_bundle(path)[1].training["epochs_run"] == 1
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("model_kind", "rnn", "model_kind 'rnn' unknown"),
+    ("epochs", 0, "epochs must be >= 1, got 0"),
+    ("batch", 0, "batch must be >= 1"),
+    ("learning_rate", 0.0, "learning_rate must be > 0"),
+    ("lr_schedule", "step", "lr_schedule must be"),
+])
+def test_bad_config_is_named(small_set, field, value, message):
+    with pytest.raises(ValueError, match=message):
+        train(small_set, _config(**{field: value}), progress=None)
