@@ -1,0 +1,234 @@
+"""manipulation: Algorithm 1 on every fingertip sample (/prisma/<finger>/contact, also when idle),
+the Grasp (/prisma/grasp) and Manipulate (/prisma/manipulate) action servers, a client of
+/prisma/motors/move, and the 100 ms sensor watchdog.
+
+    ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
+
+Subscribes /prisma/<finger>/taxels, /prisma/<finger>/wrench (Fz = normal force) and /joint_states.
+The parameter `k` can be changed at run time (`ros2 param set /manipulation k 0.7`).
+"""
+from __future__ import annotations
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import WrenchStamped
+from prisma_msgs.action import Grasp, Manipulate, MoveMotors
+from prisma_msgs.msg import ContactState, TaxelArray
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.task import Future
+from rosidl_runtime_py.utilities import get_action, get_message
+from sensor_msgs.msg import JointState
+
+from prisma_tactile_driver.ros_conversions import ns_from_stamp
+
+from .contact_monitor import check_k
+from .manipulation_core import GRASP, Feedback, Finished, ManipulationCore, SendMove, StopMotors
+from .node_config import ManipulationConfig
+from .ros_conversions import (
+    contact_state_to_msg,
+    grasp_feedback_to_msg,
+    grasp_request_from_msg,
+    grasp_result_to_msg,
+    joint_sample_from_msg,
+    manipulate_feedback_to_msg,
+    manipulate_request_from_msg,
+    manipulate_result_to_msg,
+    move_goal_to_msg,
+    move_result_from_msg,
+    normal_force_from_wrench,
+    robot_types,
+    velocity_goal,
+)
+
+
+class ManipulationNode(Node):
+    def __init__(self, **kwargs) -> None:
+        super().__init__("manipulation", **kwargs)
+        defaults = ManipulationConfig().as_parameters()
+        self.declare_parameters("", list(defaults.items()))
+        # fails here, at start, with the parameter's name and value when one is invalid
+        self.config = ManipulationConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
+        self.core = ManipulationCore(self.config)
+        self.types = robot_types(get_message, get_action)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self._goal = None  # ServerGoalHandle of the running Grasp/Manipulate goal
+        self._goal_done: Future | None = None
+        self._move_handle = None  # ClientGoalHandle of our current MoveMotors goal
+        self._move_seq = 0  # increments with every MoveMotors goal we send or stop
+        group = ReentrantCallbackGroup()
+
+        self._contact_pubs = {}
+        for finger in self.config.fingers:
+            self._contact_pubs[finger] = self.create_publisher(ContactState, f"prisma/{finger}/contact", 10)
+            self.create_subscription(TaxelArray, f"prisma/{finger}/taxels",
+                                     lambda msg, f=finger: self._on_taxels(f, msg), 10, callback_group=group)
+            self.create_subscription(WrenchStamped, f"prisma/{finger}/wrench",
+                                     lambda msg, f=finger: self._on_wrench(f, msg), 10, callback_group=group)
+        self.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
+        self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
+        self._grasp_server = ActionServer(self, Grasp, "/prisma/grasp", self._execute,
+                                          goal_callback=self._on_grasp_goal, cancel_callback=self._on_cancel,
+                                          callback_group=group)
+        self._manipulate_server = ActionServer(self, Manipulate, "/prisma/manipulate", self._execute,
+                                               goal_callback=self._on_manipulate_goal,
+                                               cancel_callback=self._on_cancel, callback_group=group)
+        self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
+        self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
+                               f"stale after {self.config.stale_timeout * 1e3:.0f} ms")
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    # ---- parameters ------------------------------------------------------------------------
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        for p in params:
+            if p.name != "k":
+                return SetParametersResult(successful=False, reason=f"{p.name} cannot change at run time; only k")
+            try:
+                check_k(p.value)
+            except (TypeError, ValueError) as exc:
+                return SetParametersResult(successful=False, reason=f"parameter k: {exc}")
+        for p in params:
+            self.core.set_k(p.value)
+            self.get_logger().info(f"k = {p.value}")
+        return SetParametersResult(successful=True)
+
+    # ---- sensor input ----------------------------------------------------------------------
+    def _on_taxels(self, finger: str, msg: TaxelArray) -> None:
+        evaluation, actions = self.core.on_taxels(finger, ns_from_stamp(msg.header.stamp),
+                                                  np.asarray(msg.voltages, dtype=np.float32), self._now_ns())
+        self._contact_pubs[finger].publish(contact_state_to_msg(
+            self.types, evaluation, self.config.frame_id_format.format(finger=finger)))
+        self._apply(actions)
+
+    def _on_wrench(self, finger: str, msg: WrenchStamped) -> None:
+        stamp_ns, fz = normal_force_from_wrench(msg)
+        self._apply(self.core.on_wrench(finger, stamp_ns, fz, self._now_ns()))
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._apply(self.core.on_joints(joint_sample_from_msg(msg), self._now_ns()))
+
+    def _on_watchdog(self) -> None:
+        now = self._now_ns()
+        if self._goal is not None and self._goal.is_cancel_requested:
+            self._apply(self.core.cancel(now))
+        self._apply(self.core.check(now))
+
+    # ---- goals -----------------------------------------------------------------------------
+    def _reject(self, what: str, reason: str) -> GoalResponse:
+        self.get_logger().warning(f"{what} goal rejected: {reason}")
+        return GoalResponse.REJECT
+
+    def _on_grasp_goal(self, request) -> GoalResponse:
+        _, reason = self.core.resolve_grasp(grasp_request_from_msg(request))
+        return self._reject("Grasp", reason) if reason else GoalResponse.ACCEPT
+
+    def _on_manipulate_goal(self, request) -> GoalResponse:
+        _, reason = self.core.resolve_manipulate(manipulate_request_from_msg(request))
+        return self._reject("Manipulate", reason) if reason else GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    async def _execute(self, goal_handle):
+        request = goal_handle.request
+        is_grasp = isinstance(request, Grasp.Goal)
+        now = self._now_ns()
+        try:
+            if is_grasp:
+                actions = self.core.start_grasp(grasp_request_from_msg(request), now)
+            else:
+                actions = self.core.start_manipulate(manipulate_request_from_msg(request), now)
+        except ValueError as exc:  # became invalid between acceptance and start
+            goal_handle.abort()
+            done = Finished(GRASP if is_grasp else "manipulate", False, f"rejected at start: {exc}", 0.0, 0.0, 0.0)
+            return (grasp_result_to_msg if is_grasp else manipulate_result_to_msg)(self.types, done)
+        self._goal, self._goal_done = goal_handle, Future()
+        self._apply(actions)
+        return await self._goal_done
+
+    # ---- carrying out the core's decisions -------------------------------------------------
+    def _apply(self, actions: list) -> None:
+        for action in actions:
+            if isinstance(action, SendMove):
+                self._send_move(action)
+            elif isinstance(action, StopMotors):
+                self._stop_motors()
+            elif isinstance(action, Feedback):
+                if self._goal is not None:
+                    convert = grasp_feedback_to_msg if action.kind == GRASP else manipulate_feedback_to_msg
+                    self._goal.publish_feedback(convert(self.types, action))
+            elif isinstance(action, Finished):
+                self._finish(action)
+
+    def _send_move(self, action: SendMove) -> None:
+        self._move_seq += 1
+        seq = self._move_seq
+        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s))
+        future = self._move_client.send_goal_async(goal)
+        future.add_done_callback(lambda f, s=seq: self._on_move_accepted(f, s))
+
+    def _on_move_accepted(self, future, seq: int) -> None:
+        handle = future.result()
+        if not handle.accepted:
+            self.get_logger().error("MoveMotors goal rejected by the motor driver")
+            self._apply(self.core.on_move_result("motor_fault: MoveMotors goal rejected", self._now_ns()))
+            return
+        if seq != self._move_seq:
+            # a newer command or a stop came while this one was on its way: it must not keep running
+            # (if a newer goal already replaced it on the motor driver, the cancel is simply refused)
+            handle.cancel_goal_async()
+            return
+        self._move_handle = handle
+        handle.get_result_async().add_done_callback(lambda f, s=seq: self._on_move_result(f, s))
+
+    def _on_move_result(self, future, seq: int) -> None:
+        if seq != self._move_seq:
+            return  # preempted by our own newer goal
+        self._move_handle = None
+        result = move_result_from_msg(future.result().result)
+        self._apply(self.core.on_move_result(result.reason, self._now_ns()))
+
+    def _stop_motors(self) -> None:
+        self._move_seq += 1  # an answer still on its way is cancelled on arrival
+        if self._move_handle is not None:
+            self._move_handle.cancel_goal_async()
+            self._move_handle = None
+
+    def _finish(self, done: Finished) -> None:
+        handle, future = self._goal, self._goal_done
+        self._goal, self._goal_done = None, None
+        if handle is None:
+            return
+        if done.reason == "canceled":
+            handle.canceled()
+        elif done.success:
+            handle.succeed()
+        else:
+            handle.abort()
+        log = self.get_logger().info if done.success else self.get_logger().warning
+        log(f"{done.kind} goal ended: {done.reason}" + (f" ({done.detail})" if done.detail else ""))
+        convert = grasp_result_to_msg if done.kind == GRASP else manipulate_result_to_msg
+        future.set_result(convert(self.types, done))
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ManipulationNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,132 @@
+"""What the motor_driver node does each tick, without ROS: read the bus, supervise the MoveMotors
+goal, reconnect a lost bus with exponential backoff, and summarise health for /diagnostics."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from prisma_tactile_driver.hub import DiagnosticStatusData
+
+from .control_table import decode_hardware_error
+from .motor_bus import BusError, MotorBus, MotorState
+from .motor_goals import MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult
+from .node_config import MotorDriverConfig
+
+OK, WARN, ERROR = 0, 1, 2
+
+
+def make_bus(config: MotorDriverConfig, start_ns: int = 0) -> MotorBus:
+    motors = config.motors()
+    if config.backend == "dynamixel":
+        from .dynamixel_bus import DynamixelBus  # dynamixel-sdk only where it is used
+
+        return DynamixelBus(config.port, config.baud, motors, retries=config.retries)
+    from .sim_motors import SimMotorBus
+
+    initial = dict(zip(config.motor_names, (float(p) for p in config.sim_initial_positions)))
+    return SimMotorBus(motors, initial_positions=initial, start_ns=start_ns)
+
+
+@dataclass
+class TickResult:
+    states: dict[str, MotorState] | None  # None while the bus is down
+    feedback: MoveFeedback | None = None
+    result: MoveResult | None = None  # the running goal ended this tick
+
+
+class MotorDriverCore:
+    def __init__(self, config: MotorDriverConfig, bus: MotorBus | None = None, start_ns: int = 0) -> None:
+        self.config = config
+        self.bus = bus or make_bus(config, start_ns)
+        self.runner = MoveGoalRunner(self.bus, config.position_profile_rpm, config.position_tolerance)
+        self.connected = False
+        self.last_error = ""
+        self.reconnects = 0
+        self._backoff_s = config.reconnect_backoff_initial
+        self._next_attempt_ns = start_ns
+        self._last_states: dict[str, MotorState] = {}
+
+    def connect(self, now_ns: int) -> str | None:
+        """Try to open the bus when the backoff allows; returns the error text or None."""
+        if self.connected or now_ns < self._next_attempt_ns:
+            return None if self.connected else self.last_error or "waiting to reconnect"
+        try:
+            self.bus.open()
+        except BusError as exc:
+            self.last_error = str(exc)
+            self._next_attempt_ns = now_ns + int(self._backoff_s * 1e9)
+            self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_backoff_max)
+            return self.last_error
+        self.connected = True
+        self._backoff_s = self.config.reconnect_backoff_initial
+        return None
+
+    def validate(self, goal: MoveGoal) -> str | None:
+        if not self.connected:
+            return f"motor bus not connected: {self.last_error or 'not opened yet'}"
+        return self.runner.validate(goal)
+
+    def start(self, goal: MoveGoal, now_ns: int) -> MoveResult | None:
+        """Start a goal (raises ValueError on an invalid one, BusError when the bus fails)."""
+        return self.runner.start(goal, now_ns)
+
+    def cancel(self) -> MoveResult | None:
+        return self.runner.cancel()
+
+    def tick(self, now_ns: int) -> TickResult:
+        if not self.connected:
+            if self.connect(now_ns) is not None:
+                return TickResult(None)
+        try:
+            states = self.bus.read_state(now_ns)
+        except BusError as exc:
+            return self._lost(exc, now_ns)
+        self._last_states = states
+        feedback, result = self.runner.tick(states, now_ns)
+        return TickResult(states, feedback, result)
+
+    def _lost(self, exc: BusError, now_ns: int) -> TickResult:
+        self.last_error = str(exc)
+        result = self.runner.communication_failure(exc)
+        self.connected = False
+        self.reconnects += 1
+        try:
+            self.bus.close()
+        except BusError:
+            pass  # the bus is already unreachable; torque off failed with it
+        self._next_attempt_ns = now_ns + int(self._backoff_s * 1e9)
+        return TickResult(None, None, result)
+
+    def close(self) -> None:
+        if self.connected:
+            self.connected = False
+            self.bus.close()
+
+    def diagnostics(self) -> list[DiagnosticStatusData]:
+        stats = self.bus.stats
+        hw = self.config.port if self.config.backend == "dynamixel" else "sim"
+        if not self.connected:
+            level, message = ERROR, f"disconnected: {self.last_error}"
+        elif self.runner.faults:
+            level, message = ERROR, "; ".join(self.runner.fault_log[-3:])
+        elif stats.retries or stats.comm_failures:
+            level, message = WARN, f"{stats.retries} retries, {stats.comm_failures} failed transactions"
+        else:
+            level, message = OK, "ok"
+        values = {"backend": self.config.backend, "reads": stats.reads, "writes": stats.writes,
+                  "retries": stats.retries, "dropped_status": stats.dropped_status,
+                  "corrupt_status": stats.corrupt_status, "comm_failures": stats.comm_failures,
+                  "hardware_errors": stats.hardware_errors, "mode_changes": stats.mode_changes,
+                  "reconnects": self.reconnects, "goal_active": self.runner.active}
+        out = [DiagnosticStatusData("motor_driver: bus", level, message, hw, {k: str(v) for k, v in values.items()})]
+        for name, c in self.bus.motors.items():
+            s = self._last_states.get(name)
+            error = self.runner.faults.get(name, 0)
+            m_level = ERROR if error else OK
+            m_message = ("hardware error " + ", ".join(decode_hardware_error(error))) if error else "ok"
+            vals = {"id": c.servo_id}
+            if s is not None:
+                vals.update(position_rad=f"{s.position_rad:.4f}", velocity_rpm=f"{s.velocity_rpm:.2f}",
+                            current_ma=f"{s.current_ma:.1f}", torque_on=s.torque_on)
+            out.append(DiagnosticStatusData(f"motor_driver: {name}", m_level, m_message, f"{hw}#{c.servo_id}",
+                                            {k: str(v) for k, v in vals.items()}))
+        return out

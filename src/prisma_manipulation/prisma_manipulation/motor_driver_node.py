@@ -1,0 +1,145 @@
+"""motor_driver: the hand's three motors (Dynamixel or sim) behind /joint_states (rate_hz),
+the MoveMotors action /prisma/motors/move (cancel = stop) and /diagnostics.
+
+    ros2 run prisma_manipulation motor_driver --ros-args --params-file config/motor_driver.yaml
+"""
+from __future__ import annotations
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from prisma_msgs.action import MoveMotors
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.task import Future
+from rosidl_runtime_py.utilities import get_action, get_message
+from sensor_msgs.msg import JointState
+
+from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
+
+from .motor_bus import BusError
+from .motor_driver_core import MotorDriverCore
+from .motor_goals import MoveResult
+from .node_config import MotorDriverConfig
+from .ros_conversions import (
+    joint_state_to_msg,
+    move_feedback_to_msg,
+    move_goal_from_msg,
+    move_result_to_msg,
+    robot_types,
+)
+
+
+class MotorDriverNode(Node):
+    def __init__(self, **kwargs) -> None:
+        super().__init__("motor_driver", **kwargs)
+        self.core: MotorDriverCore | None = None
+        defaults = MotorDriverConfig().as_parameters()
+        self.declare_parameters("", list(defaults.items()))
+        # fails here, at start, with the parameter's name and value when one is invalid
+        self.config = MotorDriverConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
+        self.types = robot_types(get_message, get_action)
+        self.core = MotorDriverCore(self.config, start_ns=self._now_ns())
+        error = self.core.connect(self._now_ns())
+        if error:
+            self.get_logger().error(f"motor bus: {error}; retrying with backoff")
+
+        self._goal = None  # ServerGoalHandle of the running goal
+        self._goal_done: Future | None = None
+        group = ReentrantCallbackGroup()
+        self._joint_pub = self.create_publisher(JointState, "joint_states", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._server = ActionServer(self, MoveMotors, "/prisma/motors/move", self._execute,
+                                    goal_callback=self._on_goal, cancel_callback=self._on_cancel,
+                                    callback_group=group)
+        self._timer = self.create_timer(1.0 / self.config.rate_hz, self._on_tick, callback_group=group)
+        self._diag_timer = self.create_timer(self.config.diagnostics_period, self._on_diagnostics)
+        self.get_logger().info(
+            f"{self.config.backend} motors {dict(zip(self.config.motor_names, self.config.motor_ids))}, "
+            f"/joint_states at {self.config.rate_hz:g} Hz")
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    # ---- action ----------------------------------------------------------------------------
+    def _on_goal(self, request) -> GoalResponse:
+        reason = self.core.validate(move_goal_from_msg(request))
+        if reason:
+            self.get_logger().warning(f"MoveMotors goal rejected: {reason}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    async def _execute(self, goal_handle):
+        goal = move_goal_from_msg(goal_handle.request)
+        try:
+            preempted = self.core.start(goal, self._now_ns())
+        except (ValueError, BusError) as exc:
+            goal_handle.abort()
+            return move_result_to_msg(self.types, MoveResult(False, [], f"rejected at start: {exc}"))
+        if preempted is not None and self._goal is not None:
+            self._finish(preempted)
+        self._goal, self._goal_done = goal_handle, Future()
+        return await self._goal_done
+
+    def _finish(self, result: MoveResult) -> None:
+        handle, done = self._goal, self._goal_done
+        self._goal, self._goal_done = None, None
+        if handle is None:
+            return
+        if result.reason == "canceled":
+            handle.canceled()
+        elif result.success:
+            handle.succeed()
+        else:
+            handle.abort()
+        if not result.success:
+            self.get_logger().warning(f"MoveMotors goal ended: {result.reason}")
+        done.set_result(move_result_to_msg(self.types, result))
+
+    # ---- timers ----------------------------------------------------------------------------
+    def _on_tick(self) -> None:
+        now = self._now_ns()
+        if self._goal is not None and self._goal.is_cancel_requested:
+            result = self.core.cancel()
+            if result is not None:
+                self._finish(result)
+        tick = self.core.tick(now)
+        if tick.states is not None:
+            self._joint_pub.publish(joint_state_to_msg(self.types, now, tick.states))
+        if tick.feedback is not None and self._goal is not None:
+            self._goal.publish_feedback(move_feedback_to_msg(self.types, tick.feedback))
+        if tick.result is not None:
+            self._finish(tick.result)
+
+    def _on_diagnostics(self) -> None:
+        self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), self.core.diagnostics()))
+
+    def destroy_node(self) -> None:
+        core = getattr(self, "core", None)  # absent when the parameters were rejected at start
+        if core is not None:
+            try:
+                core.close()  # torque off
+            except BusError as exc:
+                self.get_logger().error(f"closing the motor bus: {exc}")
+        super().destroy_node()
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = MotorDriverNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

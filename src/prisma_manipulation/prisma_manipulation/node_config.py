@@ -1,0 +1,187 @@
+"""Parameters of the motor_driver and manipulation nodes: defaults (= config/*.yaml) and validation.
+
+`from_parameters` raises ValueError naming the parameter and the bad value, so a node with an
+invalid parameter fails at start with that message.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+from prisma_tactile_driver.taxels import FINGERS
+
+from .contact_monitor import K_RANGE
+from .motor_bus import MOTOR_NAMES, MotorConfig, MotorMap
+from .scenarios import (
+    DEFAULT_IDS,
+    DEFAULT_K,
+    DEFAULT_MAX_POSITIONS,
+    DEFAULT_MAX_VELOCITIES_RPM,
+    DEFAULT_MIN_POSITIONS,
+)
+
+
+def _bad(name: str, value, why: str) -> ValueError:
+    return ValueError(f"parameter {name}={value!r}: {why}")
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise _bad(name, value, "must be a finite number > 0")
+
+
+class _Params:
+    def as_parameters(self) -> dict:
+        """name -> default value, in the types ROS parameters take (lists, not tuples)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_parameters(cls, values: dict):
+        known = {f.name for f in fields(cls)}
+        unknown = set(values) - known
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {sorted(unknown)}")
+        converted = {}
+        for f in fields(cls):
+            if f.name in values:
+                value = values[f.name]
+                default = getattr(cls(), f.name)
+                if isinstance(default, list) or isinstance(default, tuple):
+                    value = list(value)
+                elif isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+                    value = float(value)
+                converted[f.name] = value
+        config = cls(**converted)
+        config.validate()
+        return config
+
+
+@dataclass
+class MotorDriverConfig(_Params):
+    backend: str = "sim"  # sim | dynamixel
+    port: str = "/dev/ttyUSB0"
+    baud: int = 1_000_000
+    retries: int = 3  # per Dynamixel transaction, on timeout / corrupt status
+    motor_names: list = field(default_factory=lambda: list(MOTOR_NAMES))
+    motor_ids: list = field(default_factory=lambda: list(DEFAULT_IDS))
+    min_positions: list = field(default_factory=lambda: list(DEFAULT_MIN_POSITIONS))  # rad
+    max_positions: list = field(default_factory=lambda: list(DEFAULT_MAX_POSITIONS))  # rad
+    max_velocities_rpm: list = field(default_factory=lambda: list(DEFAULT_MAX_VELOCITIES_RPM))
+    directions: list = field(default_factory=lambda: [1, 1, 1])
+    zero_ticks: list = field(default_factory=lambda: [0, 0, 0])
+    rate_hz: float = 100.0  # /joint_states and goal supervision
+    position_profile_rpm: float = 30.0  # position-mode goals move at this speed
+    position_tolerance: float = 0.02  # rad: a position goal is reached within this
+    diagnostics_period: float = 1.0
+    reconnect_backoff_initial: float = 0.5  # s, doubled after each failed reopen
+    reconnect_backoff_max: float = 8.0
+    sim_initial_positions: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def validate(self) -> None:
+        if self.backend not in ("sim", "dynamixel"):
+            raise _bad("backend", self.backend, "must be 'sim' or 'dynamixel'")
+        if not isinstance(self.baud, int) or self.baud <= 0:
+            raise _bad("baud", self.baud, "must be a positive integer")
+        if not isinstance(self.retries, int) or self.retries < 0:
+            raise _bad("retries", self.retries, "must be an integer >= 0")
+        for name in ("rate_hz", "position_profile_rpm", "position_tolerance", "diagnostics_period",
+                     "reconnect_backoff_initial", "reconnect_backoff_max"):
+            _positive(name, getattr(self, name))
+        for name in self.motor_names:
+            if name not in MOTOR_NAMES:
+                raise _bad("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")
+        n = len(self.motor_names)
+        for name in ("motor_ids", "min_positions", "max_positions", "max_velocities_rpm", "directions",
+                     "zero_ticks", "sim_initial_positions"):
+            if len(getattr(self, name)) != n:
+                raise _bad(name, getattr(self, name), f"needs one entry per motor ({n})")
+        try:
+            self.motors()
+        except ValueError as exc:
+            raise _bad("motor map", {"motor_ids": self.motor_ids, "min_positions": self.min_positions,
+                                     "max_positions": self.max_positions}, str(exc)) from exc
+
+    def motors(self) -> dict[str, MotorConfig]:
+        return MotorMap.from_lists(list(self.motor_names), [int(i) for i in self.motor_ids],
+                                   [float(v) for v in self.min_positions], [float(v) for v in self.max_positions],
+                                   [float(v) for v in self.max_velocities_rpm], [int(d) for d in self.directions],
+                                   [int(z) for z in self.zero_ticks]).motors
+
+
+@dataclass
+class ManipulationConfig(_Params):
+    fingers: list = field(default_factory=lambda: list(FINGERS))
+    frame_id_format: str = "prisma_{finger}_pad"
+    k: float = DEFAULT_K  # Algorithm 1 threshold factor, changeable at run time
+    min_mean_voltage: float = 0.55  # below it a pad is "not in contact" (feasible = false)
+    monitored_finger: str = "thumb"  # the pad Manipulate goals steer by
+    stale_timeout: float = 0.1  # s
+    watchdog_period: float = 0.02  # s
+    max_speed_rpm: float = 70.0  # goals asking more are rejected
+    max_force_n: float = 3.0  # goals asking more are rejected
+    hold_min_k: float = 0.6  # the hold needs K above this (DESIGN.md section 6)
+    # defaults for goal fields left at 0
+    grasp_finger_force: float = 0.8
+    grasp_thumb_force: float = 1.0
+    grasp_speed_rpm: float = 60.0
+    grasp_timeout: float = 10.0
+    horizontal_speed_rpm: float = 20.0
+    vertical_speed_rpm: float = 10.0
+    hold_speed_rpm: float = 20.0
+    manipulate_timeout: float = 30.0
+    # controller details
+    contact_force_n: float = 0.1  # a pad "touches" above this (power grasp averaging)
+    lateral_closure: float = 7.0  # rad of the fingers motor for the lateral grasp's fist
+    force_target_n: float = 1.0  # use_force: thumb force the combined controller keeps
+    force_band_n: float = 0.15  # ...restored when it drops more than this below the target
+    force_speed_rpm: float = 20.0
+    # the motor_driver's motors and limits (keep equal to config/motor_driver.yaml)
+    motor_names: list = field(default_factory=lambda: list(MOTOR_NAMES))
+    min_positions: list = field(default_factory=lambda: list(DEFAULT_MIN_POSITIONS))
+    max_positions: list = field(default_factory=lambda: list(DEFAULT_MAX_POSITIONS))
+    limit_margin: float = 0.02  # rad: a motor this close to its limit counts as at the limit
+    move_action: str = "/prisma/motors/move"
+
+    def validate(self) -> None:
+        for f in self.fingers:
+            if f not in FINGERS:
+                raise _bad("fingers", self.fingers, f"{f!r} is not one of {list(FINGERS)}")
+        if self.monitored_finger not in self.fingers:
+            raise _bad("monitored_finger", self.monitored_finger, f"must be one of fingers {self.fingers}")
+        if not (isinstance(self.k, float) and K_RANGE[0] < self.k <= K_RANGE[1]):
+            raise _bad("k", self.k, f"must be in ({K_RANGE[0]}, {K_RANGE[1]}]")
+        if not 0 <= self.min_mean_voltage < 3.3:
+            raise _bad("min_mean_voltage", self.min_mean_voltage, "must be in [0, 3.3) V")
+        if "{finger}" not in self.frame_id_format:
+            raise _bad("frame_id_format", self.frame_id_format, "must contain {finger}")
+        for name in ("stale_timeout", "watchdog_period", "max_speed_rpm", "max_force_n", "grasp_finger_force",
+                     "grasp_thumb_force", "grasp_speed_rpm", "grasp_timeout", "horizontal_speed_rpm",
+                     "vertical_speed_rpm", "hold_speed_rpm", "manipulate_timeout", "contact_force_n",
+                     "lateral_closure", "force_target_n", "force_band_n", "force_speed_rpm", "limit_margin"):
+            _positive(name, getattr(self, name))
+        if not 0 <= self.hold_min_k < K_RANGE[1]:
+            raise _bad("hold_min_k", self.hold_min_k, f"must be in [0, {K_RANGE[1]})")
+        for name in ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm",
+                     "force_speed_rpm"):
+            if getattr(self, name) > self.max_speed_rpm:
+                raise _bad(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
+        for name in ("grasp_finger_force", "grasp_thumb_force", "force_target_n"):
+            if getattr(self, name) > self.max_force_n:
+                raise _bad(name, getattr(self, name), f"above max_force_n {self.max_force_n}")
+        if self.force_band_n >= self.force_target_n:
+            raise _bad("force_band_n", self.force_band_n, f"must be below force_target_n {self.force_target_n}")
+        n = len(self.motor_names)
+        if sorted(self.motor_names) != sorted(MOTOR_NAMES):
+            raise _bad("motor_names", self.motor_names, f"must name {list(MOTOR_NAMES)}")
+        for name in ("min_positions", "max_positions"):
+            if len(getattr(self, name)) != n:
+                raise _bad(name, getattr(self, name), f"needs one entry per motor ({n})")
+        for name, lo, hi in zip(self.motor_names, self.min_positions, self.max_positions):
+            if not lo < hi:
+                raise _bad("min_positions/max_positions", [lo, hi], f"empty window for {name}")
+
+    def limits_motors(self) -> dict[str, MotorConfig]:
+        """MotorConfigs carrying only what the controllers use: the position windows."""
+        return MotorMap.from_lists(list(self.motor_names), list(range(1, len(self.motor_names) + 1)),
+                                   [float(v) for v in self.min_positions], [float(v) for v in self.max_positions],
+                                   [self.max_speed_rpm] * len(self.motor_names)).motors

@@ -1,0 +1,167 @@
+"""Core data <-> ROS messages for prisma_manipulation.
+
+Every function takes a message-class lookup `types(name)` (on the robot
+`rosidl_runtime_py.utilities.get_message`, off-robot `prisma_bringup.typestore.types`) and builds
+messages by keyword with every field. Header helpers come from prisma_tactile_driver.
+
+/joint_states units: position rad (motor shaft, from the configured zero), velocity rad/s (the
+JointState convention; MoveMotors feedback keeps rpm), effort = motor current in A (the servos
+measure current, not torque).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp
+
+from .contact_monitor import EDGE_NAMES, ContactEvaluation
+from .control_table import rad_s_to_rpm, rpm_to_rad_s
+from .controllers import JointSample
+from .manipulation_core import Feedback, Finished, GraspRequest, ManipulateRequest
+from .motor_bus import MotorState
+from .motor_goals import MoveFeedback, MoveGoal, MoveResult
+
+Types = Callable[[str], Any]
+
+
+def contact_state_to_msg(types: Types, e: ContactEvaluation, frame_id: str) -> Any:
+    return types("prisma_msgs/msg/ContactState")(
+        header=make_header(types, e.stamp_ns, frame_id),
+        finger=e.finger,
+        voltages=np.asarray(e.voltages, dtype=np.float32),
+        mean_voltage=float(e.mean_voltage),
+        k=float(e.k),
+        threshold=float(e.threshold),
+        safe=np.asarray(e.safe, dtype=bool),
+        lost_edges=list(e.lost_edges),
+        feasible=bool(e.feasible),
+    )
+
+
+def contact_state_from_msg(msg: Any) -> ContactEvaluation:
+    lost = tuple(name for name in EDGE_NAMES if name in list(msg.lost_edges))
+    return ContactEvaluation(msg.finger, ns_from_stamp(msg.header.stamp), np.asarray(msg.voltages, dtype=np.float32),
+                             float(msg.mean_voltage), float(msg.k), float(msg.threshold),
+                             np.asarray(msg.safe, dtype=bool), lost, bool(msg.feasible))
+
+
+def joint_state_to_msg(types: Types, stamp_ns: int, states: Mapping[str, MotorState], frame_id: str = "") -> Any:
+    names = list(states)
+    return types("sensor_msgs/msg/JointState")(
+        header=make_header(types, stamp_ns, frame_id),
+        name=names,
+        position=np.array([states[n].position_rad for n in names], dtype=np.float64),
+        velocity=np.array([rpm_to_rad_s(states[n].velocity_rpm) for n in names], dtype=np.float64),
+        effort=np.array([states[n].current_ma / 1000.0 for n in names], dtype=np.float64),
+    )
+
+
+def joint_sample_from_msg(msg: Any) -> JointSample:
+    names = list(msg.name)
+    positions = [float(p) for p in msg.position]
+    if len(positions) != len(names):
+        raise ValueError(f"JointState with {len(names)} names and {len(positions)} positions")
+    velocity = list(msg.velocity)
+    effort = list(msg.effort)
+    return JointSample(
+        ns_from_stamp(msg.header.stamp),
+        dict(zip(names, positions)),
+        {n: rad_s_to_rpm(float(v)) for n, v in zip(names, velocity)} if len(velocity) == len(names) else {},
+        {n: float(e) * 1000.0 for n, e in zip(names, effort)} if len(effort) == len(names) else {},
+    )
+
+
+def normal_force_from_wrench(msg: Any) -> tuple[int, float]:
+    """(stamp_ns, Fz) of a geometry_msgs/WrenchStamped from the force estimator (+Fz presses)."""
+    return ns_from_stamp(msg.header.stamp), float(msg.wrench.force.z)
+
+
+# ---- MoveMotors ---------------------------------------------------------------------------------
+def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
+    return types("prisma_msgs/action/MoveMotors_Goal")(
+        motors=list(goal.motors), mode=goal.mode,
+        targets=np.asarray(goal.targets, dtype=np.float64),
+        position_limits=np.asarray(goal.position_limits, dtype=np.float64),
+        timeout=float(goal.timeout_s),
+    )
+
+
+def move_goal_from_msg(msg: Any) -> MoveGoal:
+    return MoveGoal(list(msg.motors), str(msg.mode), [float(t) for t in msg.targets],
+                    [float(p) for p in msg.position_limits], float(msg.timeout))
+
+
+def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float) -> MoveGoal:
+    return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s)
+
+
+def move_feedback_to_msg(types: Types, fb: MoveFeedback) -> Any:
+    return types("prisma_msgs/action/MoveMotors_Feedback")(
+        positions=np.asarray(fb.positions, dtype=np.float64),
+        velocities=np.asarray(fb.velocities, dtype=np.float64),
+        currents=np.asarray(fb.currents, dtype=np.float64),
+    )
+
+
+def move_result_to_msg(types: Types, result: MoveResult) -> Any:
+    return types("prisma_msgs/action/MoveMotors_Result")(
+        success=bool(result.success), final_positions=np.asarray(result.final_positions, dtype=np.float64),
+        reason=result.reason,
+    )
+
+
+def move_result_from_msg(msg: Any) -> MoveResult:
+    return MoveResult(bool(msg.success), [float(p) for p in msg.final_positions], str(msg.reason))
+
+
+# ---- Grasp / Manipulate -------------------------------------------------------------------------
+def grasp_request_from_msg(msg: Any) -> GraspRequest:
+    return GraspRequest(str(msg.grasp), float(msg.finger_force), float(msg.thumb_force), float(msg.speed_rpm),
+                        float(msg.timeout))
+
+
+def manipulate_request_from_msg(msg: Any) -> ManipulateRequest:
+    return ManipulateRequest(str(msg.motion), float(msg.speed_rpm), float(msg.k), bool(msg.use_force),
+                             float(msg.timeout))
+
+
+def _f32(x: float) -> float:
+    return float(x) if math.isfinite(x) else float("nan")
+
+
+def grasp_feedback_to_msg(types: Types, fb: Feedback) -> Any:
+    return types("prisma_msgs/action/Grasp_Feedback")(phase=fb.phase, finger_force=_f32(fb.finger_force),
+                                                      thumb_force=_f32(fb.thumb_force))
+
+
+def grasp_result_to_msg(types: Types, done: Finished) -> Any:
+    return types("prisma_msgs/action/Grasp_Result")(success=bool(done.success), reason=done.reason,
+                                                    finger_force=_f32(done.finger_force),
+                                                    thumb_force=_f32(done.thumb_force))
+
+
+def manipulate_feedback_to_msg(types: Types, fb: Feedback) -> Any:
+    return types("prisma_msgs/action/Manipulate_Feedback")(phase=fb.phase, feasible=bool(fb.feasible),
+                                                           threshold=_f32(fb.threshold))
+
+
+def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
+    return types("prisma_msgs/action/Manipulate_Result")(success=bool(done.success), stop_reason=done.reason,
+                                                         stop_time=_f32(done.stop_time_s))
+
+
+def robot_types(get_message: Callable[[str], Any], get_action: Callable[[str], Any]) -> Types:
+    """A `types` lookup for nodes: generated ROS action modules expose `MoveMotors.Goal`, not
+    `MoveMotors_Goal`, so action parts are fetched from the action class."""
+
+    def types(name: str) -> Any:
+        package, kind, typename = name.split("/")
+        if kind == "action" and "_" in typename:
+            base, part = typename.split("_", 1)
+            return getattr(get_action(f"{package}/action/{base}"), part)
+        return get_message(name)
+
+    return types

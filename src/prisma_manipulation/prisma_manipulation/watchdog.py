@@ -1,0 +1,73 @@
+"""Sensor watchdog: data older than `stale_ns` (100 ms) stops the motors (DESIGN.md section 8).
+
+Two clocks, two questions:
+- Age, by header stamps. A stream's age is the latest /joint_states header stamp minus the stream's
+  latest header stamp. /joint_states comes from the motor driver at 100 Hz on the same ROS time
+  base as the taxels, so this works unchanged with `ros2 bag play`, use_sim_time and sim, and
+  catches a sensor hub that still talks but delivers old samples.
+- Silence, by receipt time on the node's clock: a stream (taxels, wrenches, /joint_states itself)
+  that has not delivered anything for `stale_ns` is stale even when no reference moves, e.g. when
+  the hub is unplugged or the motor driver is gone.
+A goal is granted `stale_ns` from its start before a stream that never arrived counts as silent.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+STALE_NS_DEFAULT = 100_000_000
+
+
+@dataclass
+class _Stream:
+    stamp_ns: int | None = None
+    receipt_ns: int | None = None
+
+
+class SensorWatchdog:
+    def __init__(self, stale_ns: int = STALE_NS_DEFAULT) -> None:
+        if stale_ns <= 0:
+            raise ValueError(f"stale timeout {stale_ns} ns must be > 0")
+        self.stale_ns = stale_ns
+        self._streams: dict[str, _Stream] = {}
+        self._reference_ns: int | None = None
+        self._joint_receipt_ns: int | None = None
+        self._armed_ns: int | None = None
+
+    def arm(self, now_ns: int) -> None:
+        """A goal starts: streams get `stale_ns` from now to (re)appear."""
+        self._armed_ns = now_ns
+
+    def disarm(self) -> None:
+        self._armed_ns = None
+
+    def sample(self, stream: str, stamp_ns: int, receipt_ns: int) -> None:
+        # the age of what just arrived counts, even when an earlier message was newer: a sample
+        # delivered 150 ms late is stale data
+        s = self._streams.setdefault(stream, _Stream())
+        s.stamp_ns, s.receipt_ns = stamp_ns, receipt_ns
+
+    def reference(self, stamp_ns: int, receipt_ns: int) -> None:
+        """A /joint_states header stamp: the time base ages are measured against."""
+        if self._reference_ns is None or stamp_ns > self._reference_ns:
+            self._reference_ns = stamp_ns
+        self._joint_receipt_ns = receipt_ns
+
+    def check(self, streams: tuple[str, ...] | list[str], now_ns: int) -> str | None:
+        """None when every named stream is fresh, else a description of the first stale one."""
+        if self._armed_ns is None:
+            return None
+        grace_from = self._armed_ns
+        joint_seen = self._joint_receipt_ns if self._joint_receipt_ns is not None else grace_from
+        if now_ns - max(joint_seen, grace_from) > self.stale_ns:
+            return f"/joint_states silent for {(now_ns - joint_seen) / 1e6:.0f} ms"
+        for name in streams:
+            s = self._streams.get(name)
+            receipt = s.receipt_ns if s and s.receipt_ns is not None else None
+            if now_ns - max(receipt if receipt is not None else grace_from, grace_from) > self.stale_ns:
+                silent = (now_ns - receipt) / 1e6 if receipt is not None else (now_ns - grace_from) / 1e6
+                return f"{name} silent for {silent:.0f} ms"
+            if s and s.stamp_ns is not None and self._reference_ns is not None:
+                age = self._reference_ns - s.stamp_ns
+                if age > self.stale_ns:
+                    return f"{name} {age / 1e6:.0f} ms older than /joint_states"
+        return None
