@@ -18,6 +18,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "motor_driver = prisma_manipulation.motor_driver_node:main",
+            "manipulation = prisma_manipulation.manipulation_node:main",
+            "prisma-manip-scenarios = prisma_manipulation.scenarios_cli:main",
         ],
     },
 )

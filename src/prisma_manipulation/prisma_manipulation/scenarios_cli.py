@@ -1,0 +1,130 @@
+"""prisma-manip-scenarios: run the DESIGN.md section 6 scenarios in the ROS-free closed loop and
+write one PNG per scenario plus summary.json (stop reasons, stop times, forces).
+
+    prisma-manip-scenarios --out docs/images/manipulation [--only horizontal] [--bundle config/models/cnn2]
+
+With --bundle the controllers see the force estimator's Fz instead of the world's ground truth.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from prisma_tactile_driver.taxels import EDGES
+
+from .closed_loop import Trace, estimator_force_fn
+from .contact_monitor import first_lost_index
+from .motor_bus import MOTOR_NAMES
+from .scenarios import DEFAULT_K, SCENARIO_NAMES, Scenario, build
+
+EDGE_COLOURS = {"right": "tab:red", "left": "tab:blue", "top": "tab:green", "bottom": "tab:orange"}
+
+
+def summarise(sc: Scenario, trace: Trace) -> dict:
+    c = sc.controller
+    t = np.asarray(trace.stamps_ns) * 1e-9
+    out = {"scenario": sc.name, "reason": c.reason, "success": c.success,
+           "stop_time_s": None if c.stop_ns is None else c.stop_ns * 1e-9,
+           "events": [{"t_s": e.stamp_ns * 1e-9, "what": e.what} for e in c.events if e.what != "start"],
+           "thumb_force_final_n": float(trace.force("thumb")[-1]),
+           "index_force_final_n": float(trace.force("index")[-1]),
+           "samples": len(t)}
+    volts = trace.finger_voltages("thumb")
+    for edge in ("right", "top", "left"):
+        i = first_lost_index(volts, DEFAULT_K, edge)
+        out[f"first_{edge}_lost_s"] = None if i is None else float(t[i])
+    if hasattr(c, "phase_end_ns"):
+        for phase, stamp in c.phase_end_ns.items():
+            i = trace.index_of(stamp)
+            finger = "index" if phase == "close_fingers" else "thumb"
+            target = c.finger_force_n if phase == "close_fingers" else c.thumb_force_n
+            end = trace.index_of(c.phase_end_ns.get("close_thumb", stamp)) if phase == "close_fingers" else len(t) - 1
+            for which in ("used", "true"):
+                f = trace.force(finger, which)
+                out[f"{phase}_{which}_at_stop_n"] = float(f[i])
+                out[f"{phase}_{which}_overshoot_n"] = float(f[i:end + 1].max() - target)
+    return out
+
+
+def plot(sc: Scenario, trace: Trace, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(trace.stamps_ns) * 1e-9
+    volts = trace.finger_voltages("thumb")
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    ax = axes[0]
+    # colour the edges the scenario is about: rows for vertical, lateral columns otherwise
+    edges = ("top", "bottom") if sc.name == "vertical" else ("right", "left")
+    labelled = set()
+    for i in range(9):
+        edge = next((e for e in edges if i in EDGES[e]), None)
+        label = None if edge in labelled else (f"{edge} {'-'.join(map(str, EDGES[edge]))}" if edge else "others")
+        labelled.add(edge)
+        ax.plot(t, volts[:, i], color=EDGE_COLOURS.get(edge, "0.6"), lw=1, label=label)
+    ax.plot(t, trace.array("thresholds")[:, 0], "k--", lw=1.5, label=f"v_t = {DEFAULT_K} v_a")
+    ax.set_ylabel("thumb taxels (V)")
+    ax.legend(loc="upper right", fontsize=8, ncol=4)
+    ax = axes[1]
+    xy = trace.array("contact_xy")[:, 0]
+    ax.plot(t, xy[:, 0], label="contact x (+ left)")
+    ax.plot(t, xy[:, 1], label="contact y (+ top)")
+    ax.set_ylabel("thumb pad contact (mm)")
+    ax2 = ax.twinx()
+    ax2.plot(t, trace.force("thumb"), "k", lw=1, label="thumb Fz true")
+    ax2.plot(t, trace.force("thumb", "used"), "k:", lw=1, label="thumb Fz used")
+    ax2.plot(t, trace.force("index"), "m", lw=1, label="index Fz true")
+    ax2.set_ylabel("normal force (N)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax2.legend(loc="lower right", fontsize=8)
+    ax = axes[2]
+    for m, name in enumerate(MOTOR_NAMES):
+        ax.plot(t, trace.array("positions")[:, m], label=name)
+    ax.set_ylabel("motor position (rad)")
+    ax.set_xlabel("time (s)")
+    ax.legend(fontsize=8)
+    for e in sc.controller.events:
+        if e.what.startswith(("edge_lost", "force_reached", "restored", "joint_limit", "returned")):
+            for a in axes:
+                a.axvline(e.stamp_ns * 1e-9, color="0.3", lw=0.8, ls=":")
+            axes[0].annotate(e.what, (e.stamp_ns * 1e-9, axes[0].get_ylim()[1]), fontsize=7, rotation=90,
+                             va="top", ha="right")
+    fig.suptitle(f"{sc.name}: {sc.controller.reason}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("manipulation_scenarios"))
+    parser.add_argument("--only", action="append", choices=SCENARIO_NAMES)
+    parser.add_argument("--bundle", type=Path, help="force-estimator bundle: controllers use its Fz")
+    args = parser.parse_args(argv)
+    force_fn = None
+    if args.bundle:
+        from prisma_force_estimator.inference import ForceEstimator
+
+        force_fn = estimator_force_fn(ForceEstimator.from_bundle(args.bundle))
+    args.out.mkdir(parents=True, exist_ok=True)
+    summaries = []
+    for name in args.only or SCENARIO_NAMES:
+        print(f"[{name}] running")
+        sc = build(name, force_fn=force_fn)
+        trace = sc.run(progress=lambda line, n=name: print(f"[{n}] {line}"))
+        summary = summarise(sc, trace)
+        summaries.append(summary)
+        plot(sc, trace, args.out / f"{name}.png")
+        print(f"[{name}] {summary['reason']} stop at {summary['stop_time_s']} s -> {args.out / (name + '.png')}")
+    (args.out / "summary.json").write_text(json.dumps(summaries, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
