@@ -272,3 +272,33 @@ def test_invalid_parameters_fail_at_start_naming_them(ros):
     ros.override(node="motor_driver", motor_ids=[1, 1, 3])
     with pytest.raises(ValueError, match=r"motor_ids \[1, 1, 3\] are not unique"):
         MotorDriverNode()
+
+
+def test_sim_stack_tactile_driver_fed_by_motor_driver_through_hand_world(ros):
+    """The ROS sim mode end to end: motor_driver (sim) -> /joint_states -> tactile_driver
+    (contact_source hand_world) -> taxels -> manipulation -> MoveMotors -> motor_driver."""
+    from prisma_tactile_driver.tactile_driver_node import TactileDriverNode
+
+    pose = HandWorld().grasp_pose(1.0)
+    ros.override(node="motor_driver", sim_initial_positions=[pose["fingers"], pose["thumb_flexion"], 0.0])
+    ros.override(node="tactile_driver", backend="sim", contact_source="hand_world")
+    MotorDriverNode()
+    tactile = TactileDriverNode()
+    ManipulationNode()
+    contacts = ros.collect(ContactState, "/prisma/thumb/contact")
+    joints = ros.collect(JointState, "/joint_states")
+    ros.advance(0.6)  # the presenting hand lets go of the ball once the pinch holds it
+    assert tactile._source.world.forces()["thumb"] == pytest.approx(1.0, abs=0.05)
+    assert contacts[-1].feasible and contacts[-1].mean_voltage > 0.9
+    goal_sent = ros.now_ns()
+    handle = send(ros, "/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=10.0))
+    result = handle.get_result_async()
+    assert ros.spin_until(result, timeout_sec=5.0)
+    r = result.result().result
+    assert r.success and r.stop_reason == "edge_lost"
+    # the stop time is the first published ContactState with the right side lost
+    lost_ns = next(ns_from_stamp(c.header.stamp) for c in contacts if "right" in list(c.lost_edges))
+    assert (lost_ns - goal_sent) * 1e-9 == pytest.approx(r.stop_time, abs=0.011)
+    ros.advance(0.2)
+    rotation = float(joints[-1].position[2])
+    assert rotation == pytest.approx(0.0, abs=0.03)  # back at the start angle
