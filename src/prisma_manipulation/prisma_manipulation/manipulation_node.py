@@ -70,10 +70,10 @@ class ManipulationNode(Node):
                                      lambda msg, f=finger: self._on_wrench(f, msg), 10, callback_group=group)
         self.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
-        self._grasp_server = ActionServer(self, Grasp, "/prisma/grasp", self._execute,
+        self._grasp_server = ActionServer(self, Grasp, "prisma/grasp", self._execute,
                                           goal_callback=self._on_grasp_goal, cancel_callback=self._on_cancel,
                                           callback_group=group)
-        self._manipulate_server = ActionServer(self, Manipulate, "/prisma/manipulate", self._execute,
+        self._manipulate_server = ActionServer(self, Manipulate, "prisma/manipulate", self._execute,
                                                goal_callback=self._on_manipulate_goal,
                                                cancel_callback=self._on_cancel, callback_group=group)
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)

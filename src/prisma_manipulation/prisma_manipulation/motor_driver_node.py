@@ -49,7 +49,7 @@ class MotorDriverNode(Node):
         group = ReentrantCallbackGroup()
         self._joint_pub = self.create_publisher(JointState, "joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._server = ActionServer(self, MoveMotors, "/prisma/motors/move", self._execute,
+        self._server = ActionServer(self, MoveMotors, "prisma/motors/move", self._execute,
                                     goal_callback=self._on_goal, cancel_callback=self._on_cancel,
                                     callback_group=group)
         self._timer = self.create_timer(1.0 / self.config.rate_hz, self._on_tick, callback_group=group)

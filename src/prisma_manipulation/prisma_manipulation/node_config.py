@@ -140,7 +140,7 @@ class ManipulationConfig(_Params):
     min_positions: list = field(default_factory=lambda: list(DEFAULT_MIN_POSITIONS))
     max_positions: list = field(default_factory=lambda: list(DEFAULT_MAX_POSITIONS))
     limit_margin: float = 0.02  # rad: a motor this close to its limit counts as at the limit
-    move_action: str = "/prisma/motors/move"
+    move_action: str = "prisma/motors/move"  # relative: follows the node namespace
 
     def validate(self) -> None:
         for f in self.fingers:
