@@ -96,3 +96,14 @@ def test_trained_bundle_predicts_what_the_model_predicts(small_set, tmp_path):
 def test_bad_config_is_named(small_set, field, value, message):
     with pytest.raises(ValueError, match=message):
         train(small_set, _config(**{field: value}), progress=None)
+
+
+def test_input_noise_augmentation_changes_training_but_not_validation_data(small_set):
+    plain = train(small_set, _config(model_kind="ann", epochs=1), progress=None)
+    noisy = train(small_set, _config(model_kind="ann", epochs=1, input_noise=0.02), progress=None)
+    assert plain.history[0].train_loss != noisy.history[0].train_loss
+    assert noisy.metadata.training["input_noise"] == 0.02
+    # the normalisation is fitted on the clean training inputs either way
+    assert np.array_equal(plain.metadata.input_normaliser.mean, noisy.metadata.input_normaliser.mean)
+    with pytest.raises(ValueError, match="input_noise must be >= 0"):
+        train(small_set, _config(input_noise=-1.0), progress=None)

@@ -60,6 +60,8 @@ def train_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--patience", type=int, default=0, help="early stopping patience in epochs (0 = off)")
     parser.add_argument("--val-fraction", type=float, default=0.2)
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    parser.add_argument("--input-noise", type=float, default=0.0,
+                        help="V rms Gaussian noise added to training inputs (augmentation; 0 = off)")
     parser.add_argument("--max-steps-per-epoch", type=int, default=0, help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help="bundle directory (default models/<model>)")
     args = parser.parse_args(argv)
@@ -69,7 +71,7 @@ def train_main(argv: list[str] | None = None) -> int:
 
     config = TrainConfig(model_kind=args.model, epochs=args.epochs, batch=args.batch, learning_rate=args.lr,
                          lr_schedule=args.lr_schedule, seed=args.seed, patience=args.patience,
-                         val_fraction=args.val_fraction, threads=args.threads,
+                         val_fraction=args.val_fraction, threads=args.threads, input_noise=args.input_noise,
                          max_steps_per_epoch=args.max_steps_per_epoch)
     try:
         config.validate()
@@ -93,8 +95,8 @@ def eval_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="prisma-eval-force",
                                      description="Held-out push (Fz) and slide (Fx, Fy) tests of model bundles.")
     parser.add_argument("bundles", nargs="+", type=Path, help="bundle directories")
-    parser.add_argument("--push-samples", type=int, default=3000)
-    parser.add_argument("--slide-samples", type=int, default=3000)
+    parser.add_argument("--push-samples", type=int, default=10_000)
+    parser.add_argument("--slide-samples", type=int, default=10_000)
     parser.add_argument("--push-seed", type=int)
     parser.add_argument("--slide-seed", type=int)
     parser.add_argument("--plots", type=Path, help="write PNG plots into this directory")

@@ -38,7 +38,7 @@ class HeldOutTests:
     rate_hz: float = 100.0
 
 
-def held_out_tests(push_samples: int = 3000, slide_samples: int = 3000,
+def held_out_tests(push_samples: int = 10_000, slide_samples: int = 10_000,
                    push_seed: int = PUSH_SEED, slide_seed: int = SLIDE_SEED) -> HeldOutTests:
     from prisma_tactile_driver.calibration import generate_trajectory
 

@@ -31,6 +31,7 @@ class TrainConfig:
     patience: int = 0  # early stopping: epochs without validation improvement; 0 = off
     val_fraction: float = 0.2
     threads: int = 1
+    input_noise: float = 0.0  # V rms of Gaussian noise added to training inputs (augmentation); 0 = off
     max_steps_per_epoch: int = 0  # 0 = full epochs; tests use a handful of steps
 
     def validate(self) -> None:
@@ -45,6 +46,8 @@ class TrainConfig:
             raise ValueError(f"lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}")
         if self.patience < 0 or self.max_steps_per_epoch < 0:
             raise ValueError("patience and max_steps_per_epoch must be >= 0")
+        if not self.input_noise >= 0:
+            raise ValueError(f"input_noise must be >= 0, got {self.input_noise}")
 
 
 @dataclass
@@ -102,6 +105,8 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
     model = build_model(config.model_kind)
     optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     shuffle = torch.Generator().manual_seed(config.seed)
+    # noise in volts, per taxel in normalised units
+    noise_scale = torch.from_numpy((config.input_noise / in_norm.std).astype(np.float32)).reshape(1, 1, 3, 3)
     steps = math.ceil(len(x_train) / config.batch)
     if config.max_steps_per_epoch:
         steps = min(steps, config.max_steps_per_epoch)
@@ -123,7 +128,10 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
         for step in range(steps):
             index = order[step * config.batch:(step + 1) * config.batch]
             optimiser.zero_grad(set_to_none=True)
-            loss = torch.nn.functional.mse_loss(model(x_train[index]), y_train[index])
+            x = x_train[index]
+            if config.input_noise:
+                x = x + noise_scale * torch.randn(x.shape, generator=shuffle)
+            loss = torch.nn.functional.mse_loss(model(x), y_train[index])
             loss.backward()
             optimiser.step()
             total += loss.item()
