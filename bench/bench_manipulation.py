@@ -71,7 +71,7 @@ def _measure_control_step(bench: Benchmark) -> float:
 def _measure_dynamixel_cycle(bench: Benchmark) -> float:
     from prisma_manipulation.dynamixel_bus import DynamixelBus
     from prisma_manipulation.dynamixel_emulator import DynamixelEmulator
-    from prisma_manipulation.scenarios import default_motors
+    from prisma_manipulation.motor_bus import default_motors
 
     with DynamixelEmulator([1, 2, 3]) as emu:
         bus = DynamixelBus(emu.port_name, 1_000_000, default_motors())

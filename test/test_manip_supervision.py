@@ -167,7 +167,7 @@ class FlakyBus:
     """Opens only after `failures` attempts; can lose the link."""
 
     def __init__(self, failures):
-        from prisma_manipulation.scenarios import default_motors
+        from prisma_manipulation.motor_bus import default_motors
         from prisma_manipulation.motor_bus import BusStats
 
         self.motors, self.stats, self.failures, self.attempts, self.down = default_motors(), BusStats(), failures, [], False

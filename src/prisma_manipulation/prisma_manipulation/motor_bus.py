@@ -13,6 +13,12 @@ from .control_table import describe_hardware_error
 
 MOTOR_NAMES = ("fingers", "thumb_flexion", "thumb_rotation")
 
+# The hand's motor map (same values as config/motor_driver.yaml), in MOTOR_NAMES order.
+DEFAULT_IDS = (1, 2, 3)
+DEFAULT_MIN_POSITIONS = (0.0, 0.0, -3.0)  # rad
+DEFAULT_MAX_POSITIONS = (9.0, 7.0, 3.0)  # rad
+DEFAULT_MAX_VELOCITIES_RPM = (70.0, 70.0, 70.0)
+
 
 @dataclass(frozen=True)
 class MotorConfig:
@@ -137,3 +143,8 @@ class MotorMap:
                               float(max_velocities[i]), int(directions[i]), int(zero_ticks[i]))
             for i, name in enumerate(names)
         })
+
+
+def default_motors() -> dict[str, MotorConfig]:
+    return MotorMap.from_lists(list(MOTOR_NAMES), list(DEFAULT_IDS), list(DEFAULT_MIN_POSITIONS),
+                               list(DEFAULT_MAX_POSITIONS), list(DEFAULT_MAX_VELOCITIES_RPM)).motors

@@ -11,14 +11,16 @@ from dataclasses import asdict, dataclass, field, fields
 from prisma_tactile_driver.taxels import FINGERS
 
 from .contact_monitor import K_RANGE
-from .motor_bus import MOTOR_NAMES, MotorConfig, MotorMap
-from .scenarios import (
+from .motor_bus import (
     DEFAULT_IDS,
-    DEFAULT_K,
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MAX_VELOCITIES_RPM,
     DEFAULT_MIN_POSITIONS,
+    MOTOR_NAMES,
+    MotorConfig,
+    MotorMap,
 )
+from .scenarios import DEFAULT_K
 
 
 def _bad(name: str, value, why: str) -> ValueError:

@@ -19,20 +19,10 @@ from .controllers import ControlLimits, Controller
 from .grasp_controller import GraspController
 from .hand_world import OBJECTS, Disturbance, HandWorld, released
 from .motion_controllers import ForceKeeper, HoldController, HorizontalController, VerticalController
-from .motor_bus import MOTOR_NAMES, MotorConfig, MotorMap
+from .motor_bus import default_motors
 from .sim_motors import SimMotorBus
 
-# Same values as config/motor_driver.yaml.
-DEFAULT_IDS = (1, 2, 3)
-DEFAULT_MIN_POSITIONS = (0.0, 0.0, -3.0)
-DEFAULT_MAX_POSITIONS = (9.0, 7.0, 3.0)
-DEFAULT_MAX_VELOCITIES_RPM = (70.0, 70.0, 70.0)
-DEFAULT_K = 0.8
-
-
-def default_motors() -> dict[str, MotorConfig]:
-    return MotorMap.from_lists(list(MOTOR_NAMES), list(DEFAULT_IDS), list(DEFAULT_MIN_POSITIONS),
-                               list(DEFAULT_MAX_POSITIONS), list(DEFAULT_MAX_VELOCITIES_RPM)).motors
+DEFAULT_K = 0.8  # K of every scenario (the hold needs K > 0.6)
 
 
 @dataclass
