@@ -171,3 +171,30 @@ def test_combined_restores_force_and_orientation_after_a_slip():
     assert thumb_force[-1] >= 0.95 and thumb_force[dropped:].max() <= 1.1
     assert len(c.restorations) == 1 and c.restorations[0][0] == "left"
     assert left_safe_count(tr.finger_voltages("thumb")[-1]) >= 2
+
+
+@pytest.mark.parametrize("obj, preset", [("power_ball", "power"), ("lateral_card", "lateral")])
+def test_power_and_lateral_presets_close_on_their_objects(obj, preset):
+    from prisma_manipulation.closed_loop import ClosedLoop
+    from prisma_manipulation.contact_monitor import ContactMonitor
+    from prisma_manipulation.controllers import ControlLimits
+    from prisma_manipulation.grasp_controller import GraspController
+    from prisma_manipulation.hand_world import HandWorld
+    from prisma_manipulation.motor_bus import default_motors
+    from prisma_manipulation.sim_motors import SimMotorBus
+
+    world = HandWorld(obj=obj)
+    loop = ClosedLoop(world, SimMotorBus(default_motors()), ContactMonitor(DEFAULT_K))
+    c = GraspController(ControlLimits(default_motors()), preset)
+    tr = loop.run(c, 10.0, settle_s=0.3)
+    assert c.reason == "force_reached"
+    i_fingers = tr.index_of(c.phase_end_ns["close_fingers"])
+    if preset == "power":
+        pads = np.stack([tr.force(f) for f in ("index", "middle", "ring", "little")], axis=1)[i_fingers]
+        assert np.all(pads > 0.1)  # all four fingers wrap the ball
+        assert pads.mean() >= 0.8 and c.fingers_force(dict(zip(("index", "middle", "ring", "little"), pads))) >= 0.8
+    else:
+        assert tr.position("fingers")[i_fingers] >= 7.0  # fist made by position, no fingertip contact
+        assert np.all(tr.force("index") == 0.0)
+    i_thumb = tr.index_of(c.phase_end_ns["close_thumb"])
+    assert tr.force("thumb")[i_thumb] >= 1.0 and tr.force("thumb")[i_thumb:].max() <= 1.1
