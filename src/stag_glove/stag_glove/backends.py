@@ -1,0 +1,226 @@
+"""Glove readout backends: serial (the readout board), sim (synthetic glove) and replay (a dataset
+file). Each is polled with the current time and returns the frames that arrived; none reads a
+clock itself, so the node's timer (and use_sim_time) sets the pace.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Protocol
+
+import numpy as np
+import serial
+
+from .dataset import load_dataset
+from .protocol import GloveStreamParser, ParserStats
+
+NS = 1_000_000_000
+BACKENDS = ("serial", "sim", "replay")
+
+
+@dataclass
+class BackendFrame:
+    stamp_ns: int
+    sequence: int
+    raw: np.ndarray  # uint16 [rows, cols]
+
+
+@dataclass
+class BackendStatus:
+    connected: bool
+    message: str
+    values: dict[str, str] = field(default_factory=dict)
+
+
+class GloveBackend(Protocol):
+    def poll(self, now_ns: int) -> list[BackendFrame]: ...
+
+    def status(self) -> BackendStatus: ...
+
+    def close(self) -> None: ...
+
+
+# ------------------------------------------------------------------------------------- serial
+@dataclass
+class SerialStats:
+    opens: int = 0
+    open_failures: int = 0
+    disconnects: int = 0
+    bytes_read: int = 0
+
+
+class SerialGloveBackend:
+    """Reads protocol frames from the readout board over pyserial.
+
+    A port that is missing or drops out is retried with exponential backoff (backoff_initial_s
+    doubling up to backoff_max_s); corrupt bytes resynchronise in the parser and are counted. Frames
+    are stamped with the poll time (the board has no clock)."""
+
+    def __init__(self, port: str, baudrate: int = 250_000, rows: int = 32, cols: int = 32,
+                 backoff_initial_s: float = 0.5, backoff_max_s: float = 8.0, max_read: int = 1 << 16,
+                 opener: Callable[..., serial.SerialBase] = serial.serial_for_url) -> None:
+        if not port:
+            raise ValueError("serial backend needs a port (parameter 'port'), got an empty string")
+        if baudrate <= 0:
+            raise ValueError(f"baudrate must be > 0, got {baudrate}")
+        if not 0 < backoff_initial_s <= backoff_max_s:
+            raise ValueError(f"need 0 < backoff_initial_s <= backoff_max_s, got {backoff_initial_s}, {backoff_max_s}")
+        self.port, self.baudrate = port, baudrate
+        self.parser = GloveStreamParser(rows, cols)
+        self.stats = SerialStats()
+        self._opener = opener
+        self._serial: serial.SerialBase | None = None
+        self._backoff_initial_ns = int(backoff_initial_s * NS)
+        self._backoff_max_ns = int(backoff_max_s * NS)
+        self._backoff_ns = self._backoff_initial_ns
+        self._next_attempt_ns: int | None = None
+        self._max_read = max_read
+        self.last_error = ""
+
+    @property
+    def connected(self) -> bool:
+        return self._serial is not None
+
+    def poll(self, now_ns: int) -> list[BackendFrame]:
+        if self._serial is None and not self._try_open(now_ns):
+            return []
+        try:
+            data = self._serial.read(self._max_read)
+        except (serial.SerialException, OSError) as exc:
+            self._lost(now_ns, f"read failed: {exc}")
+            return []
+        self.stats.bytes_read += len(data)
+        return [BackendFrame(now_ns, f.sequence, f.raw) for f in self.parser.feed(data)]
+
+    def _try_open(self, now_ns: int) -> bool:
+        if self._next_attempt_ns is not None and now_ns < self._next_attempt_ns:
+            return False
+        try:
+            # timeout=0: read() returns what is there without blocking the node's executor
+            self._serial = self._opener(self.port, baudrate=self.baudrate, timeout=0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self.stats.open_failures += 1
+            self.last_error = f"cannot open {self.port}: {exc}"
+            self._schedule_retry(now_ns)
+            return False
+        self.stats.opens += 1
+        self.parser.reset()
+        self._backoff_ns = self._backoff_initial_ns
+        self._next_attempt_ns = None
+        return True
+
+    def _lost(self, now_ns: int, reason: str) -> None:
+        self.stats.disconnects += 1
+        self.last_error = reason
+        self.close()
+        self._next_attempt_ns = now_ns  # first retry at once, then back off
+        self._backoff_ns = self._backoff_initial_ns
+
+    def _schedule_retry(self, now_ns: int) -> None:
+        self._next_attempt_ns = now_ns + self._backoff_ns
+        self._backoff_ns = min(2 * self._backoff_ns, self._backoff_max_ns)
+
+    @property
+    def retry_in_s(self) -> float | None:
+        return None if self._next_attempt_ns is None else self._backoff_ns / NS
+
+    def status(self) -> BackendStatus:
+        p: ParserStats = self.parser.stats
+        values = {"port": self.port, "baudrate": str(self.baudrate), "frames": str(p.frames),
+                  "crc_errors": str(p.crc_errors), "bad_headers": str(p.bad_headers),
+                  "discarded_bytes": str(p.discarded_bytes), "dropped_frames": str(p.dropped_frames),
+                  "opens": str(self.stats.opens), "open_failures": str(self.stats.open_failures),
+                  "disconnects": str(self.stats.disconnects), "last_error": self.last_error}
+        message = "connected" if self.connected else f"disconnected: {self.last_error or 'not opened yet'}"
+        return BackendStatus(self.connected, message, values)
+
+    def close(self) -> None:
+        if self._serial is not None:
+            try:
+                self._serial.close()
+            except (serial.SerialException, OSError):
+                pass
+            self._serial = None
+
+
+# ------------------------------------------------------------------------------------- paced
+class _PacedBackend:
+    """Emits frames from an iterator at `rate_hz` of the polled time (at most max_burst per poll,
+    so a long pause in polling does not flood the graph)."""
+
+    def __init__(self, frames: Iterator[np.ndarray], rate_hz: float, max_burst: int = 8) -> None:
+        if rate_hz <= 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        self._frames = frames
+        self._period_ns = int(round(NS / rate_hz))
+        self._next_ns: int | None = None
+        self._sequence = 0
+        self._max_burst = max_burst
+        self.frames_sent = 0
+        self.finished = False
+
+    def poll(self, now_ns: int) -> list[BackendFrame]:
+        if self._next_ns is None:
+            self._next_ns = now_ns
+        out = []
+        while self._next_ns <= now_ns and len(out) < self._max_burst and not self.finished:
+            try:
+                raw = next(self._frames)
+            except StopIteration:
+                self.finished = True
+                break
+            out.append(BackendFrame(self._next_ns, self._sequence, np.asarray(raw, dtype=np.uint16)))
+            self._sequence = (self._sequence + 1) & 0xFFFF
+            self._next_ns += self._period_ns
+            self.frames_sent += 1
+        if self._next_ns <= now_ns and len(out) == self._max_burst:
+            self._next_ns = now_ns + self._period_ns  # skip what we could not send in time
+        return out
+
+    def close(self) -> None:
+        pass
+
+
+class SimGloveBackend(_PacedBackend):
+    """Synthetic glove stream (empty hand first, then grasps of random objects)."""
+
+    def __init__(self, rate_hz: float = 7.3, seed: int = 0, short_probability: float = 0.0) -> None:
+        from .synthetic import SyntheticConfig, SyntheticGlove  # heavy-ish import only when used
+
+        self.glove = SyntheticGlove(SyntheticConfig(seed=seed, short_probability=short_probability))
+        self._stream = self.glove.stream()
+        self.truth: tuple[str, bool] | None = None
+        super().__init__(self._frames(), rate_hz)
+
+    def _frames(self) -> Iterator[np.ndarray]:
+        for raw, name, touching in self._stream:
+            self.truth = (name, touching)
+            yield raw
+
+    def status(self) -> BackendStatus:
+        return BackendStatus(True, "simulated glove", {"frames": str(self.frames_sent)})
+
+
+class ReplayGloveBackend(_PacedBackend):
+    """Replays the raw frames of a dataset file (metadata.mat or HDF5) in order."""
+
+    def __init__(self, path: str | Path, rate_hz: float = 7.3, loop: bool = True) -> None:
+        self.path = Path(path)
+        self.dataset = load_dataset(self.path)
+        if not np.issubdtype(self.dataset.pressure.dtype, np.integer):
+            raise ValueError(f"{self.path}: replay needs raw 10-bit counts, pressure has dtype "
+                             f"{self.dataset.pressure.dtype}")
+        self.loop = loop
+        super().__init__(self._frames(), rate_hz)
+
+    def _frames(self) -> Iterator[np.ndarray]:
+        while True:
+            yield from self.dataset.pressure
+            if not self.loop:
+                return
+
+    def status(self) -> BackendStatus:
+        state = "finished" if self.finished else "replaying"
+        return BackendStatus(not self.finished, f"{state} {self.path.name}",
+                             {"file": str(self.path), "frames": str(self.frames_sent),
+                              "file_frames": str(len(self.dataset))})

@@ -1,0 +1,263 @@
+"""Glove datasets: the public STAG metadata.mat format and an HDF5 equivalent.
+
+metadata.mat (DESIGN.md section 5) holds pressure [N, 32, 32] raw counts and per-frame objectId,
+recordingId, splitId, hasValidLabel, isBalanced, plus the cell array `objects` of class names.
+The public files are MATLAB v5 (scipy.io.loadmat); MATLAB v7.3 files are HDF5 underneath (column
+major, so every array comes back with its axes reversed, and strings are cell arrays of object
+references to uint16 character arrays), read with h5py. Our own HDF5 files keep the same field names,
+row-major, with plain string arrays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+import scipy.io
+
+MAT73_SIGNATURE = b"MATLAB 7.3 MAT-file"
+SPLIT_TRAIN, SPLIT_TEST = 0, 1
+REQUIRED = ("pressure", "objectId", "recordingId", "splitId", "hasValidLabel", "isBalanced", "objects")
+
+
+@dataclass
+class GloveDataset:
+    """Frames and labels in the STAG layout. `object_id` indexes `objects`."""
+
+    pressure: np.ndarray          # [N, rows, cols] raw 10-bit counts (uint16)
+    object_id: np.ndarray         # int [N]
+    recording_id: np.ndarray      # int [N]
+    split_id: np.ndarray          # int [N], 0 train / 1 test
+    has_valid_label: np.ndarray   # bool [N]
+    is_balanced: np.ndarray       # bool [N]
+    objects: list[str]
+    weights_g: np.ndarray | None = None   # float [len(objects)], grams, when known
+    frame: np.ndarray | None = None       # int [N], frame index inside its recording
+    extras: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = self.pressure.shape[0]
+        if self.pressure.ndim != 3:
+            raise ValueError(f"pressure must be [N, rows, cols], got shape {self.pressure.shape}")
+        for name in ("object_id", "recording_id", "split_id", "has_valid_label", "is_balanced"):
+            value = np.asarray(getattr(self, name)).reshape(-1)
+            if value.shape[0] != n:
+                raise ValueError(f"{name} has {value.shape[0]} entries, pressure has {n} frames")
+            setattr(self, name, value)
+        self.object_id = self.object_id.astype(np.int64)
+        self.recording_id = self.recording_id.astype(np.int64)
+        self.split_id = self.split_id.astype(np.int64)
+        self.has_valid_label = self.has_valid_label.astype(bool)
+        self.is_balanced = self.is_balanced.astype(bool)
+        self.objects = [str(o) for o in self.objects]
+        if n and self.object_id.max() >= len(self.objects):
+            raise ValueError(f"objectId {self.object_id.max()} but only {len(self.objects)} objects")
+        if self.frame is None:
+            self.frame = np.zeros(n, dtype=np.int64)
+            for rec in np.unique(self.recording_id):
+                idx = np.nonzero(self.recording_id == rec)[0]
+                self.frame[idx] = np.arange(idx.size)
+
+    def __len__(self) -> int:
+        return int(self.pressure.shape[0])
+
+    def subset(self, index: np.ndarray) -> "GloveDataset":
+        return GloveDataset(self.pressure[index], self.object_id[index], self.recording_id[index],
+                            self.split_id[index], self.has_valid_label[index], self.is_balanced[index],
+                            list(self.objects), self.weights_g, self.frame[index],
+                            {k: v[index] for k, v in self.extras.items()})
+
+
+# ---------------------------------------------------------------------------------------- reading
+def load_dataset(path: str | Path) -> GloveDataset:
+    """Read metadata.mat (MATLAB v5 or v7.3) or our HDF5 (.h5/.hdf5)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"dataset {path} does not exist")
+    with open(path, "rb") as stream:
+        head = stream.read(128)
+    if head.startswith(MAT73_SIGNATURE):
+        fields = _read_mat73(path)
+    elif path.suffix == ".mat":
+        fields = _read_mat5(path)
+    elif h5py.is_hdf5(path):
+        fields = _read_hdf5(path)
+    else:
+        raise ValueError(f"{path}: neither a .mat file nor HDF5")
+    return _from_fields(fields, str(path))
+
+
+def _from_fields(f: dict, source: str) -> GloveDataset:
+    missing = [k for k in REQUIRED if k not in f]
+    if missing:
+        raise ValueError(f"{source}: missing field(s) {missing}; a STAG metadata file has {list(REQUIRED)}")
+    pressure = np.asarray(f["pressure"])
+    if pressure.ndim != 3:
+        raise ValueError(f"{source}: pressure must be [N, rows, cols], got shape {pressure.shape}")
+    split = np.asarray(f["splitId"]).reshape(-1).astype(np.int64)
+    if "splits" in f:  # map the file's split names onto 0 = train, 1 = test
+        names = [str(s).strip().lower() for s in _strings(f["splits"])]
+        if "train" in names and "test" in names:
+            lookup = np.full(len(names), -1, dtype=np.int64)
+            lookup[names.index("train")], lookup[names.index("test")] = SPLIT_TRAIN, SPLIT_TEST
+            split = lookup[split]
+    weights = f.get("weights")
+    # raw counts are integers even when MATLAB stored them as double
+    integral = np.issubdtype(pressure.dtype, np.integer) or bool(np.all(np.mod(pressure, 1) == 0))
+    return GloveDataset(
+        pressure=pressure.astype(np.uint16 if integral else np.float32),
+        object_id=np.asarray(f["objectId"]).reshape(-1),
+        recording_id=np.asarray(f["recordingId"]).reshape(-1),
+        split_id=split,
+        has_valid_label=np.asarray(f["hasValidLabel"]).reshape(-1),
+        is_balanced=np.asarray(f["isBalanced"]).reshape(-1),
+        objects=_strings(f["objects"]),
+        weights_g=None if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1),
+        frame=None if "frame" not in f else np.asarray(f["frame"]).reshape(-1).astype(np.int64),
+    )
+
+
+def _strings(value) -> list[str]:
+    if isinstance(value, str):
+        return [value]
+    out = []
+    for item in np.asarray(value, dtype=object).reshape(-1):
+        while isinstance(item, np.ndarray) and item.dtype == object and item.size == 1:
+            item = item.reshape(-1)[0]
+        if isinstance(item, np.ndarray):
+            item = "".join(item.reshape(-1).tolist()) if item.dtype.kind == "U" else str(item.squeeze())
+        if isinstance(item, bytes):
+            item = item.decode()
+        out.append(str(item).strip())
+    return out
+
+
+def _read_mat5(path: Path) -> dict:
+    raw = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+    return {k: v for k, v in raw.items() if not k.startswith("__")}
+
+
+def _read_mat73(path: Path) -> dict:
+    out: dict = {}
+    with h5py.File(path, "r") as h5:
+        for key, node in h5.items():
+            if key.startswith("#") or not isinstance(node, h5py.Dataset):
+                continue
+            out[key] = _mat73_value(h5, node)
+    return out
+
+
+def _mat73_value(h5: h5py.File, node: h5py.Dataset):
+    cls = node.attrs.get("MATLAB_class", b"")
+    cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+    data = node[()]
+    if cls == "cell":
+        return [_mat73_value(h5, h5[ref]) for ref in np.asarray(data).T.reshape(-1)]
+    if cls == "char":
+        return "".join(map(chr, np.asarray(data).T.reshape(-1))).rstrip("\x00")
+    array = np.asarray(data)
+    # MATLAB is column-major: reverse the axes to get the MATLAB [N, rows, cols] order back
+    array = np.transpose(array) if array.ndim > 1 else array
+    if cls == "logical":
+        array = array.astype(bool)
+    return array
+
+
+def _read_hdf5(path: Path) -> dict:
+    out: dict = {}
+    with h5py.File(path, "r") as h5:
+        for key, node in h5.items():
+            value = node[()]
+            if isinstance(value, np.ndarray) and value.dtype.kind in "OS":
+                value = [v.decode() if isinstance(v, bytes) else str(v) for v in value.reshape(-1)]
+            out[key] = value
+    return out
+
+
+# ---------------------------------------------------------------------------------------- writing
+def _fields(ds: GloveDataset) -> dict:
+    out = {
+        "pressure": ds.pressure,
+        "objectId": ds.object_id.astype(np.int32),
+        "recordingId": ds.recording_id.astype(np.int32),
+        "splitId": ds.split_id.astype(np.int32),
+        "hasValidLabel": ds.has_valid_label.astype(np.uint8),
+        "isBalanced": ds.is_balanced.astype(np.uint8),
+        "frame": ds.frame.astype(np.int32),
+        "objects": list(ds.objects),
+        "splits": ["train", "test"],
+    }
+    if ds.weights_g is not None:
+        out["weights"] = np.asarray(ds.weights_g, dtype=np.float64)
+    return out
+
+
+def save_mat(ds: GloveDataset, path: str | Path) -> None:
+    """MATLAB v5 metadata.mat, as the public STAG files are."""
+    fields = _fields(ds)
+    for key in ("objects", "splits"):
+        fields[key] = np.array(fields[key], dtype=object)
+    for key in ("objectId", "recordingId", "splitId", "hasValidLabel", "isBalanced", "frame"):
+        fields[key] = fields[key].reshape(1, -1)  # MATLAB row vectors, as in the public files
+    scipy.io.savemat(path, fields, do_compression=True)
+
+
+def save_mat73(ds: GloveDataset, path: str | Path) -> None:
+    """MATLAB v7.3 layout (HDF5 with a 512-byte MATLAB header, column-major arrays, cell arrays of
+    uint16 char arrays under #refs#), so the v7.3 reader is tested against the real structure."""
+    fields = _fields(ds)
+    with h5py.File(path, "w", userblock_size=512) as h5:
+        refs = h5.create_group("#refs#")
+        counter = 0
+        for key, value in fields.items():
+            if isinstance(value, list):
+                ref_array = np.empty((len(value), 1), dtype=h5py.ref_dtype)
+                for i, text in enumerate(value):
+                    name = f"s{counter}"
+                    counter += 1
+                    # a MATLAB 1xL char array is stored as an HDF5 (L, 1) uint16 dataset
+                    chars = refs.create_dataset(name, data=np.array([[ord(c)] for c in text] or [[0]],
+                                                                    dtype=np.uint16))
+                    chars.attrs["MATLAB_class"] = np.bytes_("char")
+                    ref_array[i, 0] = chars.ref
+                dset = h5.create_dataset(key, data=ref_array)  # MATLAB 1xN cell = HDF5 (N, 1)
+                dset.attrs["MATLAB_class"] = np.bytes_("cell")
+            else:
+                array = np.asarray(value)
+                if array.ndim == 1:
+                    array = array.reshape(1, -1)
+                cls = {"u": "uint", "i": "int", "f": "double" if array.dtype == np.float64 else "single"}
+                name = cls[array.dtype.kind]
+                if array.dtype.kind in "ui":
+                    name += str(array.dtype.itemsize * 8)
+                dset = h5.create_dataset(key, data=np.transpose(array))
+                dset.attrs["MATLAB_class"] = np.bytes_(name)
+    header = (MAT73_SIGNATURE + b", Platform: GLNXA64, Created by: stag_glove").ljust(116, b" ")
+    with open(path, "r+b") as stream:
+        stream.write(header + b"\x00" * 8 + b"\x00\x02IM")
+
+
+def save_hdf5(ds: GloveDataset, path: str | Path) -> None:
+    """Row-major HDF5 with the metadata.mat field names (compressed pressure)."""
+    with h5py.File(path, "w") as h5:
+        for key, value in _fields(ds).items():
+            if isinstance(value, list):
+                h5.create_dataset(key, data=np.array(value, dtype=h5py.string_dtype()))
+            elif key == "pressure":
+                h5.create_dataset(key, data=value, compression="gzip", chunks=(min(256, len(value)) or 1,
+                                                                                *value.shape[1:]))
+            else:
+                h5.create_dataset(key, data=value)
+        h5.attrs["format"] = "stag_glove dataset v1 (metadata.mat fields, row-major)"
+
+
+def save_dataset(ds: GloveDataset, path: str | Path) -> None:
+    """By extension: .mat -> MATLAB v5, .h5/.hdf5 -> HDF5."""
+    path = Path(path)
+    if path.suffix == ".mat":
+        save_mat(ds, path)
+    elif path.suffix in (".h5", ".hdf5"):
+        save_hdf5(ds, path)
+    else:
+        raise ValueError(f"{path}: use a .mat, .h5 or .hdf5 file name")

@@ -1,0 +1,72 @@
+"""STAG metadata.mat loader (MATLAB v5 and v7.3) and the HDF5 equivalent, on small files written
+in those formats."""
+import h5py
+import numpy as np
+import pytest
+import scipy.io
+
+from stag_glove.dataset import GloveDataset, load_dataset, save_hdf5, save_mat, save_mat73
+from stag_glove.layout import load_layout, mask_from_pressure
+from stag_glove.synthetic import SyntheticConfig, SyntheticGlove
+
+
+@pytest.fixture(scope="module")
+def small():
+    glove = SyntheticGlove(SyntheticConfig(n_objects=3, sessions=2, test_sessions=(1,), frames_per_session=25, seed=3))
+    return glove.object_dataset()
+
+
+def same(a: GloveDataset, b: GloveDataset):
+    np.testing.assert_array_equal(a.pressure, b.pressure)
+    for name in ("object_id", "recording_id", "split_id", "has_valid_label", "is_balanced", "frame"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert a.objects == b.objects
+    np.testing.assert_allclose(a.weights_g, b.weights_g)
+
+
+@pytest.mark.parametrize("writer,suffix", [(save_mat, ".mat"), (save_mat73, ".mat"), (save_hdf5, ".h5")])
+def test_round_trip_and_mask_recovery(tmp_path, small, writer, suffix):
+    path = tmp_path / f"metadata{suffix}"
+    writer(small, path)
+    back = load_dataset(path)
+    same(small, back)
+    assert back.pressure.dtype == np.uint16 and back.pressure.shape == (len(small), 32, 32)
+    mask = mask_from_pressure(back.pressure)
+    assert mask.sum() == 548
+    np.testing.assert_array_equal(mask, load_layout().mask)
+
+
+def test_v73_file_is_hdf5_with_matlab_layout(tmp_path, small):
+    path = tmp_path / "metadata.mat"
+    save_mat73(small, path)
+    assert path.read_bytes()[:19] == b"MATLAB 7.3 MAT-file"
+    with h5py.File(path, "r") as h5:
+        assert h5["pressure"].shape == (32, 32, len(small))  # column-major: axes reversed
+        assert h5["objects"].attrs["MATLAB_class"] == b"cell"
+
+
+def test_public_style_v5_file_with_double_pressure_and_split_names(tmp_path):
+    """The public files store pressure as double and carry split names; only the named fields
+    are needed."""
+    rng = np.random.default_rng(0)
+    n = 12
+    pressure = np.zeros((n, 32, 32))
+    pressure[:, 3:5, 3:5] = rng.integers(480, 700, (n, 2, 2))
+    scipy.io.savemat(tmp_path / "metadata.mat", {
+        "pressure": pressure, "objectId": np.arange(n).reshape(1, -1) % 2, "recordingId": np.zeros((1, n)),
+        "splitId": np.array([[1] * 6 + [0] * 6]), "splits": np.array(["test", "train"], dtype=object),
+        "hasValidLabel": np.ones((1, n)), "isBalanced": np.ones((1, n)),
+        "objects": np.array(["empty_hand", "mug"], dtype=object)})
+    ds = load_dataset(tmp_path / "metadata.mat")
+    assert ds.pressure.dtype == np.uint16
+    assert ds.objects == ["empty_hand", "mug"]
+    assert ds.split_id.tolist() == [0] * 6 + [1] * 6  # remapped to 0 = train, 1 = test
+    assert mask_from_pressure(ds.pressure).sum() == 4
+
+
+def test_missing_fields_and_files_are_named(tmp_path):
+    scipy.io.savemat(tmp_path / "bad.mat", {"pressure": np.zeros((2, 32, 32))})
+    with pytest.raises(ValueError, match="objectId"):
+        load_dataset(tmp_path / "bad.mat")
+    with pytest.raises(FileNotFoundError, match="nope.mat"):
+        load_dataset(tmp_path / "nope.mat")
