@@ -117,6 +117,9 @@ def test_disturbance_losing_the_left_side_is_restored_by_thumb_rotation():
     assert c.reason == "timeout" and c.success  # a hold goal ends when its time is up
 
 
+SETTLE_SAMPLES = 10  # 100 ms = 10 velocity-loop time constants: the stopped motor has settled
+
+
 def _check_grasp(tr, c, which):
     fingers_end = tr.index_of(c.phase_end_ns["close_fingers"])
     thumb_end = tr.index_of(c.phase_end_ns["close_thumb"])
@@ -124,8 +127,12 @@ def _check_grasp(tr, c, which):
     # each phase stops on the first sample at or above its target...
     assert index_force[fingers_end] >= 0.8 and index_force[fingers_end - 1] < 0.8
     assert thumb_force[thumb_end] >= 1.0 and thumb_force[thumb_end - 1] < 1.0
-    # ...and the force settles no more than 0.1 N above it (motor deceleration included)
-    assert index_force[fingers_end:thumb_end + 1].max() <= 0.8 + 0.1
+    # ...and the force settles no more than 0.1 N above it (motor deceleration included): the
+    # fingers' step response until their motor has settled (later the thumb's push moves the
+    # object and the index contact, which is no longer this phase's response), the thumb's until
+    # the end of the recording
+    assert np.all(tr.force("thumb")[fingers_end:fingers_end + SETTLE_SAMPLES + 1] == 0.0)
+    assert index_force[fingers_end:fingers_end + SETTLE_SAMPLES + 1].max() <= 0.8 + 0.1
     assert thumb_force[thumb_end:].max() <= 1.0 + 0.1
     assert len(tr.stamps_ns) - thumb_end >= 40  # 0.4 s of settling observed
     commands = tr.array("commands")
@@ -138,7 +145,9 @@ def test_pinch_grasp_with_ground_truth_force_reaches_targets_without_overshoot()
     tr = sc.run()
     c = sc.controller
     assert c.reason == "force_reached" and c.success
-    _check_grasp(tr, c, "true")
+    fingers_end, thumb_end = _check_grasp(tr, c, "true")
+    # ground truth has no estimator error: the index stays within 0.1 N through the thumb phase too
+    assert tr.force("index")[fingers_end:].max() <= 0.8 + 0.1
 
 
 @pytest.mark.skipif(not (BUNDLE / "model.pt").exists(),
@@ -153,9 +162,11 @@ def test_pinch_grasp_at_60_rpm_100_hz_with_the_estimators_forces():
     c = sc.controller
     assert c.reason == "force_reached" and c.success
     fingers_end, thumb_end = _check_grasp(tr, c, "used")
-    # what the pads really carry stays close to what the estimator reported
-    assert tr.force("index")[fingers_end] == pytest.approx(0.8, abs=0.15)
-    assert tr.force("thumb")[thumb_end] == pytest.approx(1.0, abs=0.15)
+    # what the pads really carry: close to the targets as well (estimator error included)
+    assert tr.force("index")[fingers_end:fingers_end + SETTLE_SAMPLES + 1].max() <= 0.8 + 0.1
+    assert tr.force("index")[fingers_end] == pytest.approx(0.8, abs=0.1)
+    assert tr.force("thumb")[thumb_end:].max() <= 1.0 + 0.1
+    assert tr.force("thumb")[thumb_end] == pytest.approx(1.0, abs=0.1)
 
 
 def test_combined_restores_force_and_orientation_after_a_slip():

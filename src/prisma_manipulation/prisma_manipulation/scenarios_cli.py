@@ -1,7 +1,7 @@
 """prisma-manip-scenarios: run the DESIGN.md section 6 scenarios in the ROS-free closed loop and
 write one PNG per scenario plus summary.json (stop reasons, stop times, forces).
 
-    prisma-manip-scenarios --out docs/images/manipulation [--only horizontal] [--bundle config/models/cnn2]
+    prisma-manip-scenarios --out docs/img [--only horizontal] [--bundle config/models/cnn2]
 
 With --bundle the controllers see the force estimator's Fz instead of the world's ground truth.
 """
@@ -21,6 +21,7 @@ from .contact_monitor import first_lost_index
 from .motor_bus import MOTOR_NAMES
 from .scenarios import DEFAULT_K, SCENARIO_NAMES, Scenario, build
 
+SETTLE_SAMPLES = 10  # 100 ms at 100 Hz: ten velocity-loop time constants
 EDGE_COLOURS = {"right": "tab:red", "left": "tab:blue", "top": "tab:green", "bottom": "tab:orange"}
 
 
@@ -42,7 +43,9 @@ def summarise(sc: Scenario, trace: Trace) -> dict:
             i = trace.index_of(stamp)
             finger = "index" if phase == "close_fingers" else "thumb"
             target = c.finger_force_n if phase == "close_fingers" else c.thumb_force_n
-            end = trace.index_of(c.phase_end_ns.get("close_thumb", stamp)) if phase == "close_fingers" else len(t) - 1
+            # overshoot of a phase = its step response: the fingers' until their motor settled
+            # (100 ms), the thumb's until the end of the recording
+            end = i + SETTLE_SAMPLES if phase == "close_fingers" else len(t) - 1
             for which in ("used", "true"):
                 f = trace.force(finger, which)
                 out[f"{phase}_{which}_at_stop_n"] = float(f[i])
@@ -80,6 +83,10 @@ def plot(sc: Scenario, trace: Trace, path: Path) -> None:
     ax2.plot(t, trace.force("thumb"), "k", lw=1, label="thumb Fz true")
     ax2.plot(t, trace.force("thumb", "used"), "k:", lw=1, label="thumb Fz used")
     ax2.plot(t, trace.force("index"), "m", lw=1, label="index Fz true")
+    ax2.plot(t, trace.force("index", "used"), "m:", lw=1, label="index Fz used")
+    for target in (getattr(sc.controller, "finger_force_n", None), getattr(sc.controller, "thumb_force_n", None)):
+        if target is not None:
+            ax2.axhline(target, color="0.5", lw=0.8, ls="--")
     ax2.set_ylabel("normal force (N)")
     ax.legend(loc="upper left", fontsize=8)
     ax2.legend(loc="lower right", fontsize=8)
