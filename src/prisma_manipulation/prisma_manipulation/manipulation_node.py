@@ -85,6 +85,7 @@ class ManipulationNode(Node):
 
     # ---- parameters ------------------------------------------------------------------------
     def _on_set_parameters(self, params) -> SetParametersResult:
+        params = [p for p in params if p.name != "use_sim_time"]  # rclpy's own, always allowed
         for p in params:
             if p.name != "k":
                 return SetParametersResult(successful=False, reason=f"{p.name} cannot change at run time; only k")
