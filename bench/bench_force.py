@@ -23,19 +23,20 @@ SCAN_RATE_HZ = 100.0
 SECONDS = 2.0
 
 
-def _bundle(kind: str, scratch: Path) -> Path:
+def _bundle(kind: str, scratch: Path) -> tuple[Path, str]:
+    """The bundle to time and how to name it in the notes."""
     if kind == "cnn2":
         default = resolve_bundle_path(DEFAULT_BUNDLE)
         if (default / "model.pt").is_file():
-            return default
-    return save_untrained_bundle(scratch / kind, kind)
+            return default, f"default {DEFAULT_BUNDLE}"
+    return save_untrained_bundle(scratch / kind, kind), f"untrained {kind}"
 
 
 def _measure(kind: str, bench: Benchmark) -> float:
     previous = torch.get_num_threads()
     try:
         with tempfile.TemporaryDirectory() as scratch:
-            path = _bundle(kind, Path(scratch))
+            path, label = _bundle(kind, Path(scratch))
             estimator = ForceEstimator.from_bundle(path, threads=1)
         rng = np.random.default_rng(0)
         batches = rng.uniform(0.4, 3.0, (256, 5, 9)).astype(np.float32)
@@ -49,7 +50,7 @@ def _measure(kind: str, bench: Benchmark) -> float:
             latencies.append(time.perf_counter() - t)
         elapsed = time.perf_counter() - start
         lat = np.array(latencies) * 1e3
-        bench.notes.update({"bundle": str(path) if kind == "cnn2" and "tmp" not in str(path) else f"untrained {kind}",
+        bench.notes.update({"bundle": label,
                             "calls": len(latencies), "p50 latency ms": round(float(np.percentile(lat, 50)), 3),
                             "p99 latency ms": round(float(np.percentile(lat, 99)), 3), "torch threads": 1})
         return len(latencies) / elapsed

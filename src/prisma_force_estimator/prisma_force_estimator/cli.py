@@ -63,7 +63,7 @@ def train_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--input-noise", type=float, default=0.0,
                         help="V rms Gaussian noise added to training inputs (augmentation; 0 = off)")
     parser.add_argument("--max-steps-per-epoch", type=int, default=0, help=argparse.SUPPRESS)
-    parser.add_argument("--out", type=Path, help="bundle directory (default models/<model>)")
+    parser.add_argument("--out", type=Path, help="bundle directory (default out/force/<model>)")
     args = parser.parse_args(argv)
 
     from .bundle import save_bundle
@@ -82,7 +82,7 @@ def train_main(argv: list[str] | None = None) -> int:
     print(f"training {args.model} ({spec.description}) on {dataset.source}: {len(dataset)} samples, "
           f"{args.epochs} epochs, batch {args.batch}, seed {args.seed}, {args.threads} torch thread(s)", flush=True)
     result = train(dataset, config, progress=lambda line: print(line, flush=True))
-    out = args.out or Path("models") / args.model
+    out = args.out or Path("out") / "force" / args.model
     save_bundle(out, result.model, result.metadata)
     mse = " ".join(f"{a} {v:.4g}" for a, v in result.metadata.validation_mse.items())
     print(f"best epoch {result.best_epoch} of {len(result.history)} ({result.seconds:.0f} s, "
@@ -95,12 +95,13 @@ def eval_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="prisma-eval-force",
                                      description="Held-out push (Fz) and slide (Fx, Fy) tests of model bundles.")
     parser.add_argument("bundles", nargs="+", type=Path, help="bundle directories")
-    parser.add_argument("--push-samples", type=int, default=10_000)
-    parser.add_argument("--slide-samples", type=int, default=10_000)
+    parser.add_argument("--push-samples", type=int, default=30_000, help="held-out push test length (100 Hz)")
+    parser.add_argument("--slide-samples", type=int, default=30_000, help="held-out slide test length (100 Hz)")
     parser.add_argument("--push-seed", type=int)
     parser.add_argument("--slide-seed", type=int)
     parser.add_argument("--plots", type=Path, help="write PNG plots into this directory")
     parser.add_argument("--prefix", default="force_", help="plot file name prefix")
+    parser.add_argument("--plot-seconds", type=float, default=30.0, help="time span shown in the time plots")
     parser.add_argument("--table", type=Path, help="also write the markdown table to this file")
     parser.add_argument("--json", type=Path, help="also write the numbers as JSON")
     parser.add_argument("--threads", type=int, default=1)
@@ -140,7 +141,7 @@ def eval_main(argv: list[str] | None = None) -> int:
             "validation_mse": r.validation_mse, "training_seconds": r.training_seconds,
             "epochs_run": r.epochs_run, "meets_targets": r.meets_targets()} for r in results], indent=2))
     if args.plots:
-        for path in plot_tests(results, tests, args.plots, args.prefix):
+        for path in plot_tests(results, tests, args.plots, args.prefix, args.plot_seconds):
             print(f"wrote {path}")
     return 0
 

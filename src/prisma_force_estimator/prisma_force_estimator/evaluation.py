@@ -38,7 +38,7 @@ class HeldOutTests:
     rate_hz: float = 100.0
 
 
-def held_out_tests(push_samples: int = 10_000, slide_samples: int = 10_000,
+def held_out_tests(push_samples: int = 30_000, slide_samples: int = 30_000,
                    push_seed: int = PUSH_SEED, slide_seed: int = SLIDE_SEED) -> HeldOutTests:
     from prisma_tactile_driver.calibration import generate_trajectory
 
@@ -142,8 +142,11 @@ def results_table(results: Sequence[EvalResult]) -> str:
 
 
 def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str | Path,
-               prefix: str = "force_") -> list[Path]:
+               prefix: str = "force_", seconds: float = 30.0) -> list[Path]:
     """Prediction vs reference over time, one column per model (cf. the paper's Figs. 7, 8, 13, 14).
+
+    The time plots show the first `seconds` of each test (the MSE in the titles is over the
+    whole test); the error plot uses every sample.
 
     Writes <prefix>push_fz.png (push test, Fz), <prefix>slide_fxfy.png (slide test, Fx and Fy)
     and <prefix>error_vs_force.png (absolute Fz error against reference normal force).
@@ -157,13 +160,15 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     n = len(results)
-    t_push = np.arange(len(tests.push)) / tests.rate_hz
-    t_slide = np.arange(len(tests.slide)) / tests.rate_hz
+    n_push = min(len(tests.push), int(seconds * tests.rate_hz))
+    n_slide = min(len(tests.slide), int(seconds * tests.rate_hz))
+    t_push = np.arange(n_push) / tests.rate_hz
+    t_slide = np.arange(n_slide) / tests.rate_hz
 
     fig, axs = plt.subplots(1, n, figsize=(3.6 * n, 3.0), sharey=True, squeeze=False)
     for ax, r in zip(axs[0], results):
-        ax.plot(t_push, tests.push.wrench[:, 2], color="k", lw=1.2, label="reference")
-        ax.plot(t_push, r.push_pred[:, 2], color="tab:red", lw=0.8, label="estimate")
+        ax.plot(t_push, tests.push.wrench[:n_push, 2], color="k", lw=1.2, label="reference")
+        ax.plot(t_push, r.push_pred[:n_push, 2], color="tab:red", lw=0.8, label="estimate")
         ax.set_title(f"{r.name}: push Fz (MSE {r.push_fz_mse:.3f} N²)", fontsize=9)
         ax.set_xlabel("time [s]")
     axs[0][0].set_ylabel("Fz [N]")
@@ -178,8 +183,8 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
         for row, (axis, mse) in enumerate((("fx", r.slide_fx_mse), ("fy", r.slide_fy_mse))):
             i = WRENCH_AXES.index(axis)
             ax = axs[row][col]
-            ax.plot(t_slide, tests.slide.wrench[:, i], color="k", lw=1.2, label="reference")
-            ax.plot(t_slide, r.slide_pred[:, i], color="tab:blue", lw=0.8, label="estimate")
+            ax.plot(t_slide, tests.slide.wrench[:n_slide, i], color="k", lw=1.2, label="reference")
+            ax.plot(t_slide, r.slide_pred[:n_slide, i], color="tab:blue", lw=0.8, label="estimate")
             ax.set_title(f"{r.name}: slide {axis.upper()} (MSE {mse:.4f} N²)", fontsize=9)
             if col == 0:
                 ax.set_ylabel(f"{axis.upper()} [N]")
