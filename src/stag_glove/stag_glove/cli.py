@@ -14,21 +14,21 @@ import numpy as np
 
 from .dataset import GloveDataset, load_dataset, save_dataset
 
-_thread_limit = None
 
 
 def limit_threads(threads: int) -> None:
-    """One or two threads for torch and for BLAS (OpenBLAS oversubscribes a shared 2-core box)."""
-    global _thread_limit
-    import torch
-    from threadpoolctl import threadpool_limits
+    from .perception import limit_threads as limit
 
-    torch.set_num_threads(threads)
-    _thread_limit = threadpool_limits(limits=threads)  # kept alive: applies for the whole process
+    limit(threads)
 
 
 def _command(argv: list[str] | None, prog: str) -> str:
-    return " ".join([prog] + [shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv)])
+    """The command line as run, less --out-json (where the numbers went is no part of the recipe)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if "--out-json" in args:
+        i = args.index("--out-json")
+        del args[i:i + 2]
+    return " ".join([prog] + [shlex.quote(a) for a in args])
 
 
 def _add_data_args(parser: argparse.ArgumentParser) -> None:

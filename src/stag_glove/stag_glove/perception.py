@@ -20,6 +20,19 @@ from .ros_conversions import Estimate, WeightResult
 from .selection import check_selection, select_from_buffer
 
 
+_thread_limit = None
+
+
+def limit_threads(threads: int) -> None:
+    """Use `threads` threads for torch and for BLAS. OpenBLAS otherwise starts one thread per core,
+    which on a shared 2-core machine makes a 64x1024 PCA ~10x slower than single-threaded."""
+    global _thread_limit
+    from threadpoolctl import threadpool_limits
+
+    torch.set_num_threads(threads)
+    _thread_limit = threadpool_limits(limits=threads)  # kept referenced: applies to the whole process
+
+
 @dataclass
 class PerceptionConfig:
     selection: str = "cluster"

@@ -443,9 +443,10 @@ class SyntheticGlove:
         return ds
 
     # ------------------------------------------------------------------------------ live stream
-    def stream(self, episode_frames: int = 60, empty_first: int = 40) -> Iterator[tuple[np.ndarray, str, bool]]:
+    def stream(self, episode_frames: int = 60, empty_first: int = 60) -> Iterator[tuple[np.ndarray, str, bool]]:
         """Endless glove stream for the sim backend: (raw frame, class name, contact truth).
-        Starts with the empty hand (for the empty-hand capture), then cycles through objects."""
+        Starts with ~8 s of the empty hand moving through its range (what the empty-hand capture
+        should record), then grasps random objects."""
         session = self.new_session()
         classes = self.class_names()
         rec = self.record(None, session, empty_first)

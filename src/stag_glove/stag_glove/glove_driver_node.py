@@ -1,0 +1,101 @@
+"""glove_driver: reads the STAG glove (serial readout board, synthetic glove, or a dataset file)
+and publishes /stag/frame (GloveFrame) and /stag/image (sensor_msgs/Image 32FC1, for
+rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
+
+    ros2 run stag_glove glove_driver --ros-args --params-file config/glove_driver.yaml
+"""
+from __future__ import annotations
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from prisma_msgs.msg import GloveFrame
+from rclpy.node import Node
+from rosidl_runtime_py.utilities import get_message
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from .driver import GloveDriver
+from .layout import load_layout
+from .node_config import GloveDriverConfig, ParameterError
+from .processing import FrameProcessor, NormalisationConfig
+from .ros_conversions import diagnostics_to_msg, glove_frame_to_msg, pressure_image_msg
+
+
+class GloveDriverNode(Node):
+    def __init__(self, **kwargs) -> None:
+        super().__init__("glove_driver", **kwargs)
+        self.driver: GloveDriver | None = None
+        defaults = GloveDriverConfig().as_parameters()
+        self.declare_parameters("", list(defaults.items()))
+        # fails here, at start, with the parameter's name and value when one is invalid
+        cfg = self.config = GloveDriverConfig.from_parameters(
+            {name: self.get_parameter(name).value for name in defaults})
+        mask = None
+        if cfg.layout_file:
+            try:
+                mask = load_layout(cfg.layout_file).mask
+            except (OSError, ValueError) as exc:
+                raise ParameterError("layout_file", cfg.layout_file, str(exc)) from None
+            if mask.shape != (cfg.rows, cfg.cols):
+                raise ParameterError("layout_file", cfg.layout_file,
+                                     f"layout is {mask.shape[0]}x{mask.shape[1]}, glove is {cfg.rows}x{cfg.cols}")
+        processor = FrameProcessor(NormalisationConfig(cfg.normalisation_low, cfg.normalisation_high,
+                                                       cfg.short_threshold, cfg.contact_margin), mask=mask)
+        hardware_id = {"serial": f"{cfg.port}@{cfg.baudrate}", "sim": f"sim/seed{cfg.sim_seed}",
+                       "replay": f"replay/{cfg.replay_file}"}[cfg.backend]
+        try:
+            self.driver = GloveDriver(cfg.make_backend(), processor, cfg.empty_hand_frames, cfg.stale_timeout,
+                                      cfg.calibration_file or None, self.get_name(), hardware_id)
+        except ValueError as exc:
+            raise ParameterError("calibration_file", cfg.calibration_file, str(exc)) from None
+
+        self._frame_pub = self.create_publisher(GloveFrame, "stag/frame", 10)
+        self._image_pub = self.create_publisher(Image, "stag/image", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._capture_service = self.create_service(Trigger, "~/capture_empty_hand", self._on_capture)
+        self._poll_timer = self.create_timer(1.0 / cfg.poll_rate_hz, self._on_poll)
+        self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
+        self.get_logger().info(f"{cfg.backend} backend ({hardware_id}), polling at {cfg.poll_rate_hz:g} Hz")
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _on_poll(self) -> None:
+        for frame in self.driver.poll(self._now_ns()):
+            self._frame_pub.publish(glove_frame_to_msg(frame, get_message, self.config.frame_id))
+            self._image_pub.publish(pressure_image_msg(frame, get_message, self.config.frame_id))
+
+    def _on_diagnostics(self) -> None:
+        stamp_ns = self._now_ns()
+        self._diag_pub.publish(diagnostics_to_msg(get_message, stamp_ns, self.driver.diagnostics(stamp_ns)))
+
+    def _on_capture(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        result = self.driver.capture_empty_hand()
+        response.success = result.success
+        response.message = result.message
+        (self.get_logger().info if result.success else self.get_logger().warning)(result.message)
+        return response
+
+    def destroy_node(self) -> None:
+        driver = getattr(self, "driver", None)  # absent when the parameters were rejected at start
+        if driver is not None:
+            driver.close()
+        super().destroy_node()
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GloveDriverNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

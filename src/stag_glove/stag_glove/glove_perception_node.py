@@ -1,0 +1,74 @@
+"""glove_perception: subscribes /stag/frame and publishes /stag/object (N-frame classifier over
+buffered contact frames), /stag/hand_pose and /stag/weight, from the model bundles in config.
+Shorted frames are ignored.
+
+    ros2 run stag_glove glove_perception --ros-args --params-file config/glove_perception.yaml
+"""
+from __future__ import annotations
+
+import rclpy
+from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
+from rclpy.node import Node
+from rosidl_runtime_py.utilities import get_message
+
+from .bundle import BundleError, load_bundle
+from .node_config import GlovePerceptionConfig, ParameterError
+from .perception import GlovePerception, PerceptionConfig, limit_threads
+from .ros_conversions import estimate_to_msg, glove_frame_from_msg, weight_to_msg
+
+
+class GlovePerceptionNode(Node):
+    def __init__(self, **kwargs) -> None:
+        super().__init__("glove_perception", **kwargs)
+        defaults = GlovePerceptionConfig().as_parameters()
+        self.declare_parameters("", list(defaults.items()))
+        # fails here, at start, with the parameter's name and value when one is invalid
+        cfg = self.config = GlovePerceptionConfig.from_parameters(
+            {name: self.get_parameter(name).value for name in defaults})
+        limit_threads(cfg.threads)  # torch and BLAS threads, before any inference
+        bundles = {}
+        for kind in ("object", "pose", "weight"):
+            path = getattr(cfg, f"{kind}_bundle")
+            try:
+                bundles[kind] = load_bundle(path, kind) if path else None
+            except BundleError as exc:  # missing or mismatched model: fail at start with the path
+                raise ParameterError(f"{kind}_bundle", path, str(exc)) from None
+        self.perception = GlovePerception(bundles["object"], bundles["pose"], bundles["weight"],
+                                          PerceptionConfig(cfg.selection, cfg.buffer_size, cfg.release_frames,
+                                                           cfg.kmeans_restarts, cfg.seed))
+        self._object_pub = self.create_publisher(ObjectEstimate, "stag/object", 10)
+        self._pose_pub = self.create_publisher(ObjectEstimate, "stag/hand_pose", 10)
+        self._weight_pub = self.create_publisher(WeightEstimate, "stag/weight", 10)
+        self._frame_sub = self.create_subscription(GloveFrame, "stag/frame", self._on_frame, 10)
+        loaded = ", ".join(f"{k}: {b.path} ({b.n_frames if k == 'object' else 1} frame)"
+                           for k, b in bundles.items() if b is not None) or "no models"
+        self.get_logger().info(f"{loaded}; selection {cfg.selection}")
+
+    def _on_frame(self, msg: GloveFrame) -> None:
+        frame = glove_frame_from_msg(msg)
+        out = self.perception.update(frame)
+        stamp, frame_id = frame.stamp_ns, self.config.frame_id
+        if out.object is not None:
+            self._object_pub.publish(estimate_to_msg(out.object, get_message, stamp, frame_id))
+        if out.pose is not None:
+            self._pose_pub.publish(estimate_to_msg(out.pose, get_message, stamp, frame_id))
+        if out.weight is not None:
+            self._weight_pub.publish(weight_to_msg(out.weight, get_message, stamp, frame_id))
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GlovePerceptionNode()
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
