@@ -167,3 +167,13 @@ def test_behind_the_simulated_tactile_driver_every_scan_gets_wrenches(ros, node_
         assert len(taxels[f]) == 50
         # a whole scan is estimated as soon as its fifth finger arrives, so nothing lags behind
         assert [stamp_ns(m) for m in wrenches[f]] == [stamp_ns(m) for m in taxels[f]]
+
+
+def test_main_exits_with_the_bundle_problem_logged(real_rclpy, tmp_path, capfd):
+    if real_rclpy:
+        pytest.skip("runs main() on the stand-in's default context")
+    from prisma_force_estimator.force_estimator_node import main
+    with pytest.raises(SystemExit) as exit_info:
+        main(["force_estimator", "--ros-args", "-p", f"model_bundle:={tmp_path / 'gone'}"])
+    assert exit_info.value.code == 1
+    assert f"model bundle {tmp_path / 'gone'}: directory does not exist" in "".join(capfd.readouterr())

@@ -9,6 +9,7 @@ A missing or mismatched model bundle stops the node at start with the path and t
 from __future__ import annotations
 
 import rclpy
+import rclpy.logging
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import TaxelArray
@@ -17,9 +18,9 @@ from rosidl_runtime_py.utilities import get_message
 
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, taxel_frame_from_msg
 
-from .bundle import resolve_bundle_path
+from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
-from .node_config import EstimatorConfig
+from .node_config import EstimatorConfig, ParameterError
 from .pipeline import TaxelSample, WrenchPipeline, build_estimators
 from .ros_conversions import wrench_to_msg
 
@@ -71,6 +72,10 @@ def main(args=None) -> None:
         rclpy.spin(node)
     except KeyboardInterrupt:
         pass
+    except (BundleError, ParameterError) as exc:
+        # the operator's fix is in the message (path + mismatch, or parameter + value)
+        rclpy.logging.get_logger("force_estimator").fatal(str(exc))
+        raise SystemExit(1) from None
     finally:
         if node is not None:
             node.destroy_node()
