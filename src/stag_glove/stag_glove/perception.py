@@ -9,7 +9,7 @@ pose is estimated on every non-shorted frame (an empty hand is a pose); the weig
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch

@@ -21,11 +21,11 @@ What it models, and why each part is there (the real data has all of it):
 - Weight set: lifting adds a load that presses the object toward the palm side of the contact, on
   top of the (weight-dependent, noisy) grip; the target for leave-one-object-out regression.
 
-The generator is deterministic for a given seed.
+Durations are in frames of the glove's ~7.3 frames/s. The generator is deterministic for a seed.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Iterator
 
 import numpy as np
@@ -35,11 +35,7 @@ from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset
 from .layout import GloveLayout, load_layout
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
-FRAME_RATE_HZ = 7.3
 SHAPES = ("sphere", "cylinder", "box", "thin", "soft")
-# Generic names: the synthetic objects are not the paper's objects (their weights, sizes and
-# shapes are random), so borrowing real names would mislead.
-OBJECT_NAMES = tuple(f"object_{i:02d}" for i in range(26))
 EMPTY_HAND = "empty_hand"
 
 # Grasp primitives: region contact strengths (by region name prefix) and finger flexion
@@ -243,6 +239,8 @@ class SyntheticGlove:
 
     def _make_objects(self) -> list[ObjectSpec]:
         cfg, rng = self.config, self.rng
+        # generic names: these are not the paper's objects (weights, sizes and shapes are random),
+        # so borrowing real names would mislead
         names = [f"object_{i:02d}" for i in range(cfg.n_objects)]
         lo, hi = np.log(cfg.weight_range_g[0]), np.log(cfg.weight_range_g[1])
         primitives = list(PRIMITIVES)
