@@ -64,6 +64,18 @@ def test_public_style_v5_file_with_double_pressure_and_split_names(tmp_path):
     assert mask_from_pressure(ds.pressure).sum() == 4
 
 
+def test_weights_style_file_with_grasp_valid_and_no_balance_flag(tmp_path):
+    n = 6
+    scipy.io.savemat(tmp_path / "metadata.mat", {
+        "pressure": np.full((n, 32, 32), 500.0), "objectId": np.array([[0, 0, 0, 1, 1, 1]]),
+        "recordingId": np.array([[0, 0, 0, 1, 1, 1]]), "splitId": np.zeros((1, n)),
+        "graspValid": np.array([[1, 0, 1, 1, 1, 0]]), "objects": np.array(["cup", "pen"], dtype=object),
+        "weights": np.array([[250.0, 12.0]])})
+    ds = load_dataset(tmp_path / "metadata.mat")
+    assert ds.has_valid_label.tolist() == [True, False, True, True, True, False]
+    assert ds.is_balanced.all() and ds.weights_g.tolist() == [250.0, 12.0]
+
+
 def test_missing_fields_and_files_are_named(tmp_path):
     scipy.io.savemat(tmp_path / "bad.mat", {"pressure": np.zeros((2, 32, 32))})
     with pytest.raises(ValueError, match="objectId"):

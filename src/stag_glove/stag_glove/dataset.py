@@ -89,6 +89,12 @@ def load_dataset(path: str | Path) -> GloveDataset:
 
 
 def _from_fields(f: dict, source: str) -> GloveDataset:
+    f = dict(f)
+    # the public weights set marks valid frames as graspValid and has no balance flag
+    if "hasValidLabel" not in f and "graspValid" in f:
+        f["hasValidLabel"] = f["graspValid"]
+    if "isBalanced" not in f and "pressure" in f:
+        f["isBalanced"] = np.ones(np.asarray(f["pressure"]).shape[0], dtype=bool)
     missing = [k for k in REQUIRED if k not in f]
     if missing:
         raise ValueError(f"{source}: missing field(s) {missing}; a STAG metadata file has {list(REQUIRED)}")
