@@ -8,7 +8,7 @@ from typing import Any, Iterable, Iterator
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from .typestore import get_typestore
+from .typestore import get_typestore, message_definition
 
 STORAGE = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 
@@ -50,7 +50,8 @@ class BagWriter:
         msgtype = message.__msgtype__
         connection = self._connections.get(topic)
         if connection is None:
-            connection = self._writer.add_connection(topic, msgtype, typestore=self._typestore)
+            msgdef, rihs01 = message_definition(msgtype)
+            connection = self._writer.add_connection(topic, msgtype, msgdef=msgdef, rihs01=rihs01)
             self._connections[topic] = connection
         elif connection.msgtype != msgtype:
             raise TypeError(f"topic {topic!r} carries {connection.msgtype}, not {msgtype}")

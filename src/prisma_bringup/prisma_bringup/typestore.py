@@ -141,5 +141,43 @@ def types(name: str) -> type:
 MessageLookup = Callable[[str], type]
 
 
+def _as_msg_name(value):
+    """Rename interface-derived types (pkg/action/X, pkg/srv/X) to pkg/msg/X, recursively."""
+    if isinstance(value, str):
+        package, sep, rest = value.partition("/")
+        kind, sep2, name = rest.partition("/")
+        return f"{package}/msg/{name}" if sep and sep2 and kind in ("action", "srv") else value
+    if isinstance(value, (list, tuple)):
+        return type(value)(_as_msg_name(v) for v in value)
+    return value
+
+
+@functools.lru_cache(maxsize=None)
+def _msg_alias_typestore() -> Typestore:
+    """The typestore with action/service-derived types also registered under msg names."""
+    store = _rosbags_typestore(Stores.ROS2_JAZZY)
+    source = get_typestore().fielddefs
+    store.register({_as_msg_name(name): _as_msg_name(definition) for name, definition in source.items()
+                    if name != _as_msg_name(name) or name.startswith(f"{PACKAGE}/")})
+    return store
+
+
+@functools.lru_cache(maxsize=None)
+def message_definition(msgtype: str) -> tuple[str, str]:
+    """(ros2msg definition text, RIHS01 hash) of `msgtype` as bags store it.
+
+    rosbags cannot write the definition of action-derived types (e.g. the feedback topic's
+    `prisma_msgs/action/Grasp_FeedbackMessage`): nested action types are written here under
+    `pkg/Name` like any message, so rosbags' AnyReader and mcap_ros2's reader can decode the topic.
+    The hash is that of the definition as a reader rebuilds it from the text."""
+    store = get_typestore()
+    if _as_msg_name(msgtype) == msgtype:
+        return store.generate_msgdef(msgtype, ros_version=2)[0], store.hash_rihs01(msgtype)
+    text = _msg_alias_typestore().generate_msgdef(_as_msg_name(msgtype), ros_version=2)[0]
+    rebuilt = _rosbags_typestore(Stores.EMPTY)
+    rebuilt.register(get_types_from_msg(text, msgtype))
+    return text, rebuilt.hash_rihs01(msgtype)
+
+
 def registered_prisma_types() -> list[str]:
     return sorted(name for name in get_typestore().types if name.startswith(f"{PACKAGE}/"))
