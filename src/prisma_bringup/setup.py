@@ -28,6 +28,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "prisma-sim = prisma_bringup.sim_cli:main",
         ],
     },
 )
