@@ -1,4 +1,9 @@
-"""Hand and glove together: `ros2 launch prisma_bringup all.launch.py sim:=true`."""
+"""Hand and glove together.
+
+    ros2 launch prisma_bringup all.launch.py                       # both simulated
+    ros2 launch prisma_bringup all.launch.py sim:=false glove_backend:=serial glove_port:=/dev/ttyACM0
+    ros2 launch prisma_bringup all.launch.py glove:=false
+"""
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.conditions import IfCondition
@@ -9,20 +14,27 @@ from launch_ros.substitutions import FindPackageShare
 
 def generate_launch_description():
     launch_dir = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "launch"])
-    sim = LaunchConfiguration("sim")
-    return LaunchDescription([
-        DeclareLaunchArgument("sim", default_value="true", choices=["true", "false"]),
+
+    declared_arguments = [
+        DeclareLaunchArgument("sim", default_value="true", choices=["true", "false"],
+                              description="Simulated hand instead of the hardware"),
+        DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c", "sim"]),
+        DeclareLaunchArgument("motor_backend", default_value="dynamixel", choices=["dynamixel", "sim"]),
         DeclareLaunchArgument("glove", default_value="true", choices=["true", "false"],
                               description="Also start the STAG glove nodes"),
-        DeclareLaunchArgument("glove_backend", default_value="sim",
-                              choices=["sim", "serial", "replay"]),
-        IncludeLaunchDescription(
-            PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
-            launch_arguments={"sim": sim}.items(),
-        ),
-        IncludeLaunchDescription(
-            PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),
-            launch_arguments={"backend": LaunchConfiguration("glove_backend")}.items(),
-            condition=IfCondition(LaunchConfiguration("glove")),
-        ),
-    ])
+        DeclareLaunchArgument("glove_backend", default_value="sim", choices=["sim", "serial", "replay"]),
+        DeclareLaunchArgument("glove_port", default_value="/dev/ttyACM0"),
+    ]
+    hand = IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
+        launch_arguments={"sim": LaunchConfiguration("sim"),
+                          "tactile_backend": LaunchConfiguration("tactile_backend"),
+                          "motor_backend": LaunchConfiguration("motor_backend")}.items(),
+    )
+    glove = IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),
+        launch_arguments={"backend": LaunchConfiguration("glove_backend"),
+                          "port": LaunchConfiguration("glove_port")}.items(),
+        condition=IfCondition(LaunchConfiguration("glove")),
+    )
+    return LaunchDescription(declared_arguments + [hand, glove])

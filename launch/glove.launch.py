@@ -1,38 +1,49 @@
 """STAG glove: readout driver and perception.
 
-    ros2 launch prisma_bringup glove.launch.py backend:=sim
+    ros2 launch prisma_bringup glove.launch.py                                   # backend:=sim
     ros2 launch prisma_bringup glove.launch.py backend:=serial port:=/dev/ttyACM0
-    ros2 launch prisma_bringup glove.launch.py backend:=replay dataset:=/data/stag/metadata.mat
+    ros2 launch prisma_bringup glove.launch.py backend:=replay replay_file:=/data/stag/metadata.mat
+    ros2 launch prisma_bringup glove.launch.py perception:=false
+
+Every parameter not given here comes from config/glove_driver.yaml and config/glove_perception.yaml.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
 
 def generate_launch_description():
     config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
     namespace = LaunchConfiguration("namespace")
-    return LaunchDescription([
+
+    declared_arguments = [
         DeclareLaunchArgument("backend", default_value="sim", choices=["sim", "serial", "replay"],
-                              description="Glove readout source"),
+                              description="Glove readout: synthetic glove, readout board, or a dataset file"),
         DeclareLaunchArgument("port", default_value="/dev/ttyACM0",
                               description="Serial port of the readout board (backend:=serial)"),
-        DeclareLaunchArgument("dataset", default_value="",
-                              description="metadata.mat or .h5 file to replay (backend:=replay)"),
-        DeclareLaunchArgument("namespace", default_value=""),
-        Node(
-            package="stag_glove", executable="glove_driver", name="glove_driver",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "glove_driver.yaml"]),
-                        {"backend": LaunchConfiguration("backend"),
-                         "port": LaunchConfiguration("port"),
-                         "dataset": LaunchConfiguration("dataset")}],
-        ),
-        Node(
-            package="stag_glove", executable="glove_perception", name="glove_perception",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "glove_perception.yaml"])],
-        ),
-    ])
+        DeclareLaunchArgument("replay_file", default_value="",
+                              description="metadata.mat (MATLAB v5/v7.3) or .h5 file to replay (backend:=replay)"),
+        DeclareLaunchArgument("perception", default_value="true", choices=["true", "false"],
+                              description="Also run glove_perception (object, hand pose, weight)"),
+        DeclareLaunchArgument("namespace", default_value="", description="Namespace for the glove nodes"),
+    ]
+
+    driver = Node(
+        package="stag_glove", executable="glove_driver", name="glove_driver",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "glove_driver.yaml"]),
+                    {"backend": LaunchConfiguration("backend"),
+                     "port": ParameterValue(LaunchConfiguration("port"), value_type=str),
+                     "replay_file": ParameterValue(LaunchConfiguration("replay_file"), value_type=str)}],
+    )
+    perception = Node(
+        package="stag_glove", executable="glove_perception", name="glove_perception",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "glove_perception.yaml"])],
+        condition=IfCondition(LaunchConfiguration("perception")),
+    )
+    return LaunchDescription(declared_arguments + [driver, perception])

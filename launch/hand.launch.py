@@ -1,65 +1,87 @@
 """PRISMA Hand II: fingertip sensors, force estimator, motors and the manipulation controller.
 
-    ros2 launch prisma_bringup hand.launch.py sim:=true
-    ros2 launch prisma_bringup hand.launch.py sim:=false tactile_backend:=serial motor_backend:=dynamixel
+    ros2 launch prisma_bringup hand.launch.py                      # sim:=true
+    ros2 launch prisma_bringup hand.launch.py sim:=false tactile_port:=/dev/ttyUSB1 motor_port:=/dev/ttyUSB0
+    ros2 launch prisma_bringup hand.launch.py sim:=false tactile_backend:=i2c
+    ros2 launch prisma_bringup hand.launch.py model_bundle:=/path/to/bundle namespace:=left
+
+sim:=true runs the drivers' sim backends: motor_driver simulates the motors and publishes
+/joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world).
+sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
+not given here comes from config/<node>.yaml.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
+from launch.conditions import IfCondition, UnlessCondition
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
 
 def generate_launch_description():
-    sim = LaunchConfiguration("sim")
-    tactile_backend = LaunchConfiguration("tactile_backend")
-    motor_backend = LaunchConfiguration("motor_backend")
-    model_bundle = LaunchConfiguration("model_bundle")
-    namespace = LaunchConfiguration("namespace")
     config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
+    sim = LaunchConfiguration("sim")
+    namespace = LaunchConfiguration("namespace")
 
-    # In simulation both drivers use their sim backends whatever the hardware arguments say.
-    effective_tactile = PythonExpression(
-        ["'sim' if '", sim, "'.lower() == 'true' else '", tactile_backend, "'"])
-    effective_motor = PythonExpression(
-        ["'sim' if '", sim, "'.lower() == 'true' else '", motor_backend, "'"])
-
-    return LaunchDescription([
+    declared_arguments = [
         DeclareLaunchArgument("sim", default_value="true", choices=["true", "false"],
-                              description="Simulated hand and sensors instead of hardware"),
-        DeclareLaunchArgument("tactile_backend", default_value="serial",
-                              choices=["serial", "i2c", "sim"],
-                              description="Fingertip hub link when sim:=false"),
-        DeclareLaunchArgument("motor_backend", default_value="dynamixel",
-                              choices=["dynamixel", "sim"],
+                              description="Simulated motors and fingertip sensors instead of the hardware"),
+        DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c", "sim"],
+                              description="Fingertip hub link when sim:=false (serial: Arduino hub, i2c: host bus)"),
+        DeclareLaunchArgument("tactile_port", default_value="/dev/ttyUSB0",
+                              description="Serial port of the fingertip hub (tactile_backend:=serial)"),
+        DeclareLaunchArgument("motor_backend", default_value="dynamixel", choices=["dynamixel", "sim"],
                               description="Motor bus when sim:=false"),
+        DeclareLaunchArgument("motor_port", default_value="/dev/ttyUSB0",
+                              description="Serial port of the Dynamixel adapter (motor_backend:=dynamixel)"),
         DeclareLaunchArgument("model_bundle",
                               default_value=PathJoinSubstitution([config, "models", "cnn2"]),
-                              description="Force estimator model bundle directory"),
+                              description="Force estimator model bundle directory (model.pt + metadata.json)"),
         DeclareLaunchArgument("namespace", default_value="",
-                              description="Namespace for every node of the hand"),
-        Node(
-            package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                        {"backend": effective_tactile,
-                         "contact_source": "hand_world"}],
-        ),
-        Node(
-            package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
-                        {"model_bundle": model_bundle}],
-        ),
-        Node(
-            package="prisma_manipulation", executable="motor_driver", name="motor_driver",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
-                        {"backend": effective_motor}],
-        ),
-        Node(
-            package="prisma_manipulation", executable="manipulation", name="manipulation",
-            namespace=namespace, output="screen",
-            parameters=[PathJoinSubstitution([config, "manipulation.yaml"])],
-        ),
-    ])
+                              description="Namespace for every node of the hand (topics follow it)"),
+    ]
+
+    tactile_sim = Node(
+        package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
+                    {"backend": "sim", "contact_source": "hand_world"}],
+        condition=IfCondition(sim),
+    )
+    tactile_hardware = Node(
+        package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
+                    {"backend": LaunchConfiguration("tactile_backend"),
+                     "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str)}],
+        condition=UnlessCondition(sim),
+    )
+    motors_sim = Node(
+        package="prisma_manipulation", executable="motor_driver", name="motor_driver",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
+        condition=IfCondition(sim),
+    )
+    motors_hardware = Node(
+        package="prisma_manipulation", executable="motor_driver", name="motor_driver",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
+                    {"backend": LaunchConfiguration("motor_backend"),
+                     "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
+        condition=UnlessCondition(sim),
+    )
+    force_estimator = Node(
+        package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
+                    {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
+    )
+    manipulation = Node(
+        package="prisma_manipulation", executable="manipulation", name="manipulation",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "manipulation.yaml"])],
+    )
+
+    nodes = [tactile_sim, tactile_hardware, motors_sim, motors_hardware, force_estimator, manipulation]
+    return LaunchDescription(declared_arguments + nodes)

@@ -4,6 +4,10 @@ Data-driven: adding a node (console script in src/<pkg>/setup.py), a launch file
 a topic-table row needs no change here.
 
 1. every executable a launch file starts is a console script of the package the launch file names;
+   its parameter files exist in config/ and address that node by name; every parameter given inline
+   in the launch file is declared by the node, literal values with the declared type (and the node
+   starts with them); every LaunchConfiguration is a declared launch argument; every included
+   launch file exists and declares the arguments passed to it;
 2. every parameter in a config file (ros__parameters form, top key = node name) is declared by that
    node, with the same type and the same value as its default; every node name there is a node;
 3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
@@ -103,6 +107,9 @@ def all_console_scripts() -> dict[tuple[str, str], ConsoleScript]:
     return scripts
 
 
+_NOT_LITERAL = object()  # an inline parameter value given by a substitution (LaunchConfiguration...)
+
+
 @dataclass(frozen=True)
 class LaunchedNode:
     launch_file: str
@@ -111,6 +118,7 @@ class LaunchedNode:
     executable: str | None
     name: str | None
     parameter_files: tuple[str, ...]
+    inline_parameters: tuple[tuple[str, object], ...] = ()  # (name, literal value or _NOT_LITERAL)
 
 
 def _literal(node):
@@ -131,9 +139,56 @@ def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
             c.value for c in ast.walk(keywords["parameters"])
             if isinstance(c, ast.Constant) and isinstance(c.value, str) and c.value.endswith((".yaml", ".yml"))
         ) if "parameters" in keywords else ()
+        inline = []
+        for mapping in (ast.walk(keywords["parameters"]) if "parameters" in keywords else ()):
+            if isinstance(mapping, ast.Dict):
+                for key, value in zip(mapping.keys, mapping.values):
+                    try:
+                        literal = ast.literal_eval(value)
+                    except ValueError:
+                        literal = _NOT_LITERAL
+                    inline.append((_literal(key) or f"<not a literal at line {key.lineno}>", literal))
         found.append(LaunchedNode(
             launch_file.name, call.lineno, _literal(keywords.get("package")), _literal(keywords.get("executable")),
-            _literal(keywords.get("name")), files))
+            _literal(keywords.get("name")), files, tuple(inline)))
+    return found
+
+
+def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
+    return [c for c in ast.walk(tree) if isinstance(c, ast.Call)
+            and getattr(c.func, "id", getattr(c.func, "attr", None)) == name]
+
+
+def declared_launch_arguments(launch_file: Path) -> set[str]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    return {_literal(c.args[0]) for c in _calls(tree, "DeclareLaunchArgument") if c.args and _literal(c.args[0])}
+
+
+def used_launch_configurations(launch_file: Path) -> list[tuple[int, str | None]]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    return sorted((c.lineno, _literal(c.args[0]) if c.args else None) for c in _calls(tree, "LaunchConfiguration"))
+
+
+@dataclass(frozen=True)
+class Include:
+    launch_file: str
+    line: int
+    target: str | None  # the *.launch.py file name named in the include
+    arguments: tuple[str, ...]
+
+
+def launch_includes(launch_file: Path) -> list[Include]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    found = []
+    for call in _calls(tree, "IncludeLaunchDescription"):
+        names = [c.value for c in ast.walk(call.args[0]) if isinstance(c, ast.Constant)
+                 and isinstance(c.value, str) and c.value.endswith(".launch.py")] if call.args else []
+        arguments = ()
+        for keyword in call.keywords:
+            if keyword.arg == "launch_arguments":
+                mapping = next((d for d in ast.walk(keyword.value) if isinstance(d, ast.Dict)), None)
+                arguments = tuple(_literal(k) or "<not a literal>" for k in mapping.keys) if mapping else ()
+        found.append(Include(launch_file.name, call.lineno, names[0] if len(names) == 1 else None, arguments))
     return found
 
 
@@ -316,6 +371,72 @@ def test_launched_parameter_files_exist(entry: LaunchedNode):
     assert not missing, f"{entry.launch_file}:{entry.line}: parameter files missing from config/: {missing}"
 
 
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
+def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
+    """A params file whose top key is not the node's name is silently ignored by ROS."""
+    files = parameter_files()
+    for name in entry.parameter_files:
+        matches = [path for path in files if Path(path).name == name]
+        if not matches:
+            continue  # reported by test_launched_parameter_files_exist
+        keys = {key.strip("/") for path in matches for key in files[path]}
+        assert entry.name in keys or "**" in keys, (
+            f"{entry.launch_file}:{entry.line}: {name} has node key(s) {sorted(keys)}, the node is named '{entry.name}'")
+
+
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters], ids=_launch_id)
+def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
+    info = nodes.get((entry.package, entry.executable))
+    if info is None:
+        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    _require_started(info)
+    problems = []
+    for name, value in entry.inline_parameters:
+        if name not in info.parameters:
+            problems.append(f"'{name}' is not declared by {info.class_name}")
+        elif value is not _NOT_LITERAL:
+            problems += config_problems(info, {name: value})[:1] if Parameter.Type.from_parameter_value(value) \
+                != info.parameter_types[name] else []
+    assert not problems, f"{entry.launch_file}:{entry.line}: " + "; ".join(problems)
+    literals = [(n, v) for n, v in entry.inline_parameters if v is not _NOT_LITERAL]
+    if literals:  # the node starts with exactly these values (e.g. the sim backends of hand.launch.py)
+        module = importlib.import_module(info.script.module)
+        if rclpy.ok():
+            rclpy.shutdown()
+        rclpy.init()
+        try:
+            node = getattr(module, info.class_name)(
+                parameter_overrides=[Parameter(n, value=v) for n, v in literals])
+            node.destroy_node()
+        finally:
+            rclpy.shutdown()
+
+
+@pytest.mark.parametrize("launch_file", sorted(ROOT.glob("launch/*.launch.py")), ids=lambda p: p.name)
+def test_launch_configurations_are_declared_arguments(launch_file: Path):
+    declared = declared_launch_arguments(launch_file)
+    undeclared = [(line, name) for line, name in used_launch_configurations(launch_file) if name not in declared]
+    assert not undeclared, f"{launch_file.name}: LaunchConfiguration without DeclareLaunchArgument: {undeclared}"
+
+
+@pytest.mark.parametrize("include", [i for p in sorted(ROOT.glob("launch/*.launch.py")) for i in launch_includes(p)],
+                         ids=lambda i: f"{i.launch_file}:{i.line}")
+def test_included_launch_files_exist_and_declare_their_arguments(include: Include):
+    assert include.target, f"{include.launch_file}:{include.line}: include names no *.launch.py literal"
+    target = ROOT / "launch" / include.target
+    assert target.exists(), f"{include.launch_file}:{include.line}: {include.target} is not in launch/"
+    missing = sorted(set(include.arguments) - declared_launch_arguments(target))
+    assert not missing, f"{include.launch_file}:{include.line}: {include.target} declares no argument(s) {missing}"
+
+
+def test_every_launch_file_starts_something():
+    files = sorted(ROOT.glob("launch/*.launch.py"))
+    assert {p.name for p in files} >= {"hand.launch.py", "glove.launch.py", "calibration.launch.py", "all.launch.py"}
+    for path in files:
+        tree = ast.parse(path.read_text())
+        assert _calls(tree, "Node") or _calls(tree, "IncludeLaunchDescription"), path.name
+
+
 def test_console_scripts_point_at_modules_with_main():
     for (package, executable), script in all_console_scripts().items():
         module_file = ROOT / "src" / package / (script.module.replace(".", "/") + ".py")
@@ -442,6 +563,22 @@ def generate_launch_description():
     ])
 """
 
+_INCLUDE = """
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
+from launch.launch_description_sources import PythonLaunchDescriptionSource
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+
+
+def generate_launch_description():
+    return LaunchDescription([
+        DeclareLaunchArgument("sim", default_value="true"),
+        IncludeLaunchDescription(
+            PythonLaunchDescriptionSource(PathJoinSubstitution(["launch", "demo.launch.py"])),
+            launch_arguments={"sim": LaunchConfiguration("sim"), "rate": "10"}.items()),
+    ])
+"""
+
 _NODE = """
 import rclpy
 from rclpy.node import Node
@@ -475,7 +612,14 @@ def test_checks_parse_setup_and_launch_sources(tmp_path):
     first, second = launched_nodes(tmp_path / "demo.launch.py")
     assert (first.package, first.executable, first.name, first.parameter_files) == (
         "demo_pkg", "talker", "chatty", ("talker.yaml",))
+    assert first.inline_parameters == (("rate", _NOT_LITERAL),)
     assert second.package is None  # not a literal: reported by the launch test
+    assert used_launch_configurations(tmp_path / "demo.launch.py") == [(9, "rate"), (10, "pkg")]
+    assert declared_launch_arguments(tmp_path / "demo.launch.py") == set()  # both undeclared: a test fails
+    (tmp_path / "outer.launch.py").write_text(_INCLUDE)
+    (include,) = launch_includes(tmp_path / "outer.launch.py")
+    assert (include.target, include.arguments) == ("demo.launch.py", ("sim", "rate"))
+    assert declared_launch_arguments(tmp_path / "outer.launch.py") == {"sim"}
 
 
 def test_checks_find_what_a_node_declares_publishes_and_serves(tmp_path, monkeypatch):
