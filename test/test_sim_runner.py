@@ -255,3 +255,17 @@ def test_offline_estimator_reproduces_the_recorded_wrenches(run, tmp_path):
     recorded = wrenches(bag)
     assert len(recorded) == 5 * run.summaries["horizontal"]["samples"]
     assert wrenches(tmp_path / "estimated") == recorded
+
+
+def test_cli_lists_scenarios_and_reports_a_missing_bundle(tmp_path, capsys):
+    assert main(["--list"]) == 0
+    listed = capsys.readouterr().out
+    assert all(name in listed for name in list(EXPECTED) + ["glove"])
+    assert main(["--scenarios", "horizontal", "--no-plots", "--out", str(tmp_path), "--bundle",
+                 str(tmp_path / "no_bundle")]) == 2
+    assert f"model bundle {tmp_path / 'no_bundle'}" in capsys.readouterr().err
+    # a directory in the way of a bag that is not a bag is left alone
+    (tmp_path / "bags" / "horizontal").mkdir(parents=True)
+    (tmp_path / "bags" / "horizontal" / "notes.txt").write_text("mine")
+    assert main(["--scenarios", "horizontal", "--no-plots", "--out", str(tmp_path)]) == 2
+    assert (tmp_path / "bags" / "horizontal" / "notes.txt").read_text() == "mine"

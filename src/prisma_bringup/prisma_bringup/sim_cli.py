@@ -49,7 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     options = SimOptions(out=args.out, scenarios=list(dict.fromkeys(args.scenarios)), bundle=args.bundle,
                          glove_objects=glove_objects, plots=not args.no_plots)
     started = time.perf_counter()
-    summaries = run(options, progress=lambda line: print(line, flush=True))
+    try:
+        summaries = run(options, progress=lambda line: print(line, flush=True))
+    except (OSError, ValueError) as exc:  # an output path in the way, a missing or mismatched bundle
+        print(f"prisma-sim: error: {exc}", file=sys.stderr)
+        return 2
     print()
     print(markdown(summaries))
     print(f"{len(summaries)} scenario(s) in {time.perf_counter() - started:.1f} s; "

@@ -52,10 +52,12 @@ class SimOptions:
 
 
 def _fresh_dir(path: Path) -> Path:
-    """A bag directory to write: an earlier run's bag of the same scenario is replaced."""
+    """A bag directory to write: an earlier (or interrupted) run's bag of the same scenario is replaced;
+    anything else there is left alone."""
     if path.exists():
-        if not (path / "metadata.yaml").exists() and any(path.iterdir()):
-            raise FileExistsError(f"{path} exists and is not a bag written by prisma-sim; not overwriting")
+        foreign = [p.name for p in path.iterdir() if p.name != "metadata.yaml" and p.suffix not in (".mcap", ".db3")]
+        if foreign or not path.is_dir():
+            raise FileExistsError(f"{path} holds files that are not a bag ({', '.join(foreign[:3])}); not overwriting")
         shutil.rmtree(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
