@@ -63,11 +63,20 @@ class Script:
 
 
 def run_hub(port: PtyHubPort, script: Script, backend: SerialHubBackend, errors: list) -> None:
+    written = 0
     try:
         for seq, chunk in enumerate(script.chunks):
             if seq == HANG_UP_AT:
-                port.write(chunk[:len(chunk) // 2])
-                assert port.drain(), "driver stopped reading"
+                half = chunk[:len(chunk) // 2]
+                port.write(half)
+                written += len(half)
+                # Hang up only once the driver has read every byte sent so far: a pty's FIONREAD
+                # does not count bytes still in the kernel's flip buffer, so port.drain() alone
+                # can return early under load and the hang-up would discard whole frames.
+                deadline = time.monotonic() + 10
+                while backend.link.bytes_read < written:
+                    assert time.monotonic() < deadline, "driver stopped reading"
+                    time.sleep(0.001)
                 port.hang_up()
                 time.sleep(0.05)  # unplugged for a while: the driver's open attempts fail
                 port.open()
@@ -77,6 +86,7 @@ def run_hub(port: PtyHubPort, script: Script, backend: SerialHubBackend, errors:
                     time.sleep(0.001)
                 continue
             port.write(chunk)
+            written += len(chunk)
     except Exception as exc:  # surfaced by the test thread
         errors.append(exc)
 
@@ -88,6 +98,9 @@ def test_ten_thousand_frames_with_corruption_and_a_hang_up(tmp_path):
     port.open()
     backend = SerialHubBackend(str(port.link_path), 1_000_000, read_timeout_s=0.005,
                                backoff_initial_s=0.01, backoff_max_s=0.2)
+    # pyserial flushes the input buffer when it opens the port, so the hub starts streaming only
+    # once the driver has opened it (the first poll does); frame 0 is then intact on the link.
+    assert backend.poll_frames() == []
     errors: list = []
     writer = threading.Thread(target=run_hub, args=(port, script, backend, errors), daemon=True)
     writer.start()
