@@ -151,3 +151,21 @@ def test_pearson_and_cca_maps():
     assert cca[i, j] > 0.95 and cca[i, k] < cca[i, j]
     with pytest.raises(ValueError, match="not a sensor"):
         pearson_map(signal, layout.mask, (0, 0))
+
+
+def test_live_stream_puts_each_object_down_long_enough_for_perception_to_reset():
+    from itertools import islice
+
+    from stag_glove.perception import PerceptionConfig
+
+    glove = SyntheticGlove(SyntheticConfig(n_objects=8, frames_per_session=4, seed=3))
+    frames = list(islice(glove.stream(episode_frames=30, empty_first=20, release_frames=22), 20 + 3 * 52))
+    labels = [label for _, label, _ in frames]
+    contact = [touching for _, _, touching in frames]
+    assert labels[:20] == [EMPTY_HAND] * 20 and not any(contact[:20])
+    for episode in range(3):
+        start = 20 + episode * 52
+        grasp, release = labels[start:start + 30], labels[start + 30:start + 52]
+        assert len(set(grasp)) == 1 and grasp[0] != EMPTY_HAND
+        assert release == [EMPTY_HAND] * 22 and not any(contact[start + 30:start + 52])
+    assert 22 > PerceptionConfig().release_frames  # perception clears its buffer in each pause

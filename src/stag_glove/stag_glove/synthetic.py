@@ -441,10 +441,13 @@ class SyntheticGlove:
         return ds
 
     # ------------------------------------------------------------------------------ live stream
-    def stream(self, episode_frames: int = 60, empty_first: int = 60) -> Iterator[tuple[np.ndarray, str, bool]]:
+    def stream(self, episode_frames: int = 60, empty_first: int = 60,
+               release_frames: int = 22) -> Iterator[tuple[np.ndarray, str, bool]]:
         """Endless glove stream for the sim backend: (raw frame, class name, contact truth).
         Starts with ~8 s of the empty hand moving through its range (what the empty-hand capture
-        should record), then grasps random objects."""
+        should record), then grasps random objects, putting each down for `release_frames` empty-hand
+        frames (~3 s) before the next: perception clears its frame buffer on such a release, so
+        without it every decision would mix two objects."""
         session = self.new_session()
         classes = self.class_names()
         rec = self.record(None, session, empty_first)
@@ -455,6 +458,8 @@ class SyntheticGlove:
             rec = self.record(self.objects[k], session, episode_frames)
             for frame, touching in zip(rec.raw, rec.contact):
                 yield frame, classes[k], bool(touching)
+            for frame in self.record(None, session, release_frames).raw:
+                yield frame, EMPTY_HAND, False
 
 
 def balance_mask(object_id: np.ndarray, split: np.ndarray, valid: np.ndarray, rng: np.random.Generator) -> np.ndarray:
