@@ -28,7 +28,7 @@ def generate_launch_description():
                               description="Fingertip pressed against the reference sensor"),
         DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c"],
                               description="Fingertip hub link"),
-        DeclareLaunchArgument("tactile_port", default_value="/dev/ttyUSB0",
+        DeclareLaunchArgument("tactile_port", default_value="/dev/ttyUSB1",
                               description="Serial port of the fingertip hub (tactile_backend:=serial)"),
         DeclareLaunchArgument("reference_topic", default_value="/ft_sensor/wrench",
                               description="geometry_msgs/WrenchStamped from the reference F/T sensor"),

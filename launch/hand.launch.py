@@ -29,7 +29,7 @@ def generate_launch_description():
                               description="Simulated motors and fingertip sensors instead of the hardware"),
         DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c", "sim"],
                               description="Fingertip hub link when sim:=false (serial: Arduino hub, i2c: host bus)"),
-        DeclareLaunchArgument("tactile_port", default_value="/dev/ttyUSB0",
+        DeclareLaunchArgument("tactile_port", default_value="/dev/ttyUSB1",
                               description="Serial port of the fingertip hub (tactile_backend:=serial)"),
         DeclareLaunchArgument("motor_backend", default_value="dynamixel", choices=["dynamixel", "sim"],
                               description="Motor bus when sim:=false"),

@@ -32,7 +32,7 @@ class DriverConfig:
     stale_timeout: float = 0.1  # s without a sample before a finger is reported stale
     diagnostics_period: float = 1.0  # s between /diagnostics messages
     # serial (Arduino hub)
-    port: str = "/dev/ttyUSB0"
+    port: str = "/dev/ttyUSB1"  # the Dynamixel adapter (motor_driver) defaults to ttyUSB0
     baud: int = 1_000_000
     serial_poll_hz: float = 500.0  # how often the port is drained
     reconnect_backoff_initial: float = 0.05  # s, doubled per failed reopen
