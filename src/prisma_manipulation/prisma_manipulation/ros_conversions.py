@@ -2,7 +2,8 @@
 
 Every function takes a message-class lookup `types(name)` (on the robot
 `rosidl_runtime_py.utilities.get_message`, off-robot `prisma_bringup.typestore.types`) and builds
-messages by keyword with every field. Header helpers come from prisma_tactile_driver.
+messages by keyword with every field. Header helpers and `sequence_field` (the container each
+message class takes for a numeric sequence or a bool array) come from prisma_tactile_driver.
 
 /joint_states units: position rad (motor shaft, from the configured zero), velocity rad/s (the
 JointState convention; MoveMotors feedback keeps rpm), effort = motor current in A (the servos
@@ -15,7 +16,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp
+from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp, sequence_field
 
 from .contact_monitor import EDGE_NAMES, ContactEvaluation
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
@@ -28,14 +29,15 @@ Types = Callable[[str], Any]
 
 
 def contact_state_to_msg(types: Types, e: ContactEvaluation, frame_id: str) -> Any:
-    return types("prisma_msgs/msg/ContactState")(
+    cls = types("prisma_msgs/msg/ContactState")
+    return cls(
         header=make_header(types, e.stamp_ns, frame_id),
         finger=e.finger,
         voltages=np.asarray(e.voltages, dtype=np.float32),
         mean_voltage=float(e.mean_voltage),
         k=float(e.k),
         threshold=float(e.threshold),
-        safe=np.asarray(e.safe, dtype=bool),
+        safe=sequence_field(cls, e.safe, bool),
         lost_edges=list(e.lost_edges),
         feasible=bool(e.feasible),
     )
@@ -50,12 +52,13 @@ def contact_state_from_msg(msg: Any) -> ContactEvaluation:
 
 def joint_state_to_msg(types: Types, stamp_ns: int, states: Mapping[str, MotorState], frame_id: str = "") -> Any:
     names = list(states)
-    return types("sensor_msgs/msg/JointState")(
+    cls = types("sensor_msgs/msg/JointState")
+    return cls(
         header=make_header(types, stamp_ns, frame_id),
         name=names,
-        position=np.array([states[n].position_rad for n in names], dtype=np.float64),
-        velocity=np.array([rpm_to_rad_s(states[n].velocity_rpm) for n in names], dtype=np.float64),
-        effort=np.array([states[n].current_ma / 1000.0 for n in names], dtype=np.float64),
+        position=sequence_field(cls, [states[n].position_rad for n in names], np.float64),
+        velocity=sequence_field(cls, [rpm_to_rad_s(states[n].velocity_rpm) for n in names], np.float64),
+        effort=sequence_field(cls, [states[n].current_ma / 1000.0 for n in names], np.float64),
     )
 
 
@@ -81,10 +84,11 @@ def normal_force_from_wrench(msg: Any) -> tuple[int, float]:
 
 # ---- MoveMotors ---------------------------------------------------------------------------------
 def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
-    return types("prisma_msgs/action/MoveMotors_Goal")(
+    cls = types("prisma_msgs/action/MoveMotors_Goal")
+    return cls(
         motors=list(goal.motors), mode=goal.mode,
-        targets=np.asarray(goal.targets, dtype=np.float64),
-        position_limits=np.asarray(goal.position_limits, dtype=np.float64),
+        targets=sequence_field(cls, goal.targets, np.float64),
+        position_limits=sequence_field(cls, goal.position_limits, np.float64),
         timeout=float(goal.timeout_s),
     )
 
@@ -99,16 +103,18 @@ def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float) -> Move
 
 
 def move_feedback_to_msg(types: Types, fb: MoveFeedback) -> Any:
-    return types("prisma_msgs/action/MoveMotors_Feedback")(
-        positions=np.asarray(fb.positions, dtype=np.float64),
-        velocities=np.asarray(fb.velocities, dtype=np.float64),
-        currents=np.asarray(fb.currents, dtype=np.float64),
+    cls = types("prisma_msgs/action/MoveMotors_Feedback")
+    return cls(
+        positions=sequence_field(cls, fb.positions, np.float64),
+        velocities=sequence_field(cls, fb.velocities, np.float64),
+        currents=sequence_field(cls, fb.currents, np.float64),
     )
 
 
 def move_result_to_msg(types: Types, result: MoveResult) -> Any:
-    return types("prisma_msgs/action/MoveMotors_Result")(
-        success=bool(result.success), final_positions=np.asarray(result.final_positions, dtype=np.float64),
+    cls = types("prisma_msgs/action/MoveMotors_Result")
+    return cls(
+        success=bool(result.success), final_positions=sequence_field(cls, result.final_positions, np.float64),
         reason=result.reason,
     )
 

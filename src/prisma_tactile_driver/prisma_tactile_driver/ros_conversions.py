@@ -1,4 +1,5 @@
-"""Core data <-> ROS messages for the tactile driver, plus the header helpers other packages reuse.
+"""Core data <-> ROS messages for the tactile driver, plus the helpers other packages reuse
+(headers and stamps, `sequence_field` for array fields).
 
 Every function takes a message-class lookup `types(name)`: on the robot
 `rosidl_runtime_py.utilities.get_message`, off-robot `prisma_bringup.typestore.types`.
@@ -6,6 +7,7 @@ Messages are built by keyword with every field (typestore classes have no defaul
 """
 from __future__ import annotations
 
+import array
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -32,6 +34,40 @@ def ns_from_stamp(stamp: Any) -> int:
 
 def make_header(types: Types, stamp_ns: int, frame_id: str) -> Any:
     return types("std_msgs/msg/Header")(stamp=stamp_from_ns(types, stamp_ns), frame_id=frame_id)
+
+
+# rosidl_generator_py's typecodes for numeric sequences (its SPECIAL_NESTED_BASIC_TYPES).
+_TYPECODES = {np.dtype(t): code for t, code in (
+    (np.float32, "f"), (np.float64, "d"), (np.int8, "b"), (np.uint8, "B"), (np.int16, "h"),
+    (np.uint16, "H"), (np.int32, "i"), (np.uint32, "I"), (np.int64, "q"), (np.uint64, "Q"))}
+
+
+def is_rosidl_class(message_class: Any) -> bool:
+    """True for rclpy's generated message classes (and the test stand-in's), False for rosbags
+    typestore classes, which have no get_fields_and_field_types()."""
+    return hasattr(message_class, "get_fields_and_field_types")
+
+
+def sequence_field(message_class: Any, values: Any, dtype: Any) -> np.ndarray | array.array | list[bool]:
+    """`values` (flattened, as `dtype`) in the container `message_class` takes for a numeric sequence
+    (T[], T[<=N]) or a bool array (bool[], bool[N]).
+
+    rosbags typestore classes pack numpy arrays only. rclpy stores numeric sequences as array.array
+    of the element's typecode and bool arrays as lists of bool. With field checks on, its setters
+    assert a collections.abc.Sequence, which a numpy array is not; with them off (Jazzy's default)
+    its C conversion compares each bool item with Python's True, so numpy bools in a bool[N] go out
+    as False. Fixed numeric arrays (T[N]) are numpy arrays everywhere: pass
+    `np.asarray(values, dtype)` for those.
+    """
+    data = np.array(values, dtype=dtype).reshape(-1)  # a copy: the message shares nothing with `values`
+    if not is_rosidl_class(message_class):
+        return data
+    if data.dtype == np.bool_:
+        return [bool(v) for v in data]
+    typecode = _TYPECODES.get(data.dtype)
+    if typecode is None:
+        raise ValueError(f"no ROS sequence element type for dtype {data.dtype}")
+    return array.array(typecode, data.tobytes())
 
 
 def taxel_frame_to_msg(frame: TaxelFrame, types: Types, frame_id: str) -> Any:
