@@ -1,6 +1,8 @@
 """The rclpy stand-in behaves as rclpy (Jazzy) documents, for every behaviour the nodes rely on."""
 from __future__ import annotations
 
+import array
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,13 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # n
 from geometry_msgs.msg import Pose, WrenchStamped  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors  # noqa: E402
 from prisma_msgs.msg import ContactState, GloveFrame, TaxelArray  # noqa: E402
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult  # noqa: E402
+from rcl_interfaces.msg import (  # noqa: E402
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterValue,
+    SetParametersResult,
+)
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse  # noqa: E402
 from rclpy.exceptions import (  # noqa: E402
     InvalidNodeNameException,
@@ -663,9 +671,9 @@ def test_message_defaults_and_fixed_array_sizes():
     assert taxels.counts.dtype == np.uint16 and taxels.counts.shape == (9,) and not taxels.counts.any()
     assert taxels.voltages.dtype == np.float32 and taxels.voltages.shape == (9,)
     contact = ContactState()
-    assert contact.safe.shape == (9,) and contact.lost_edges == [] and contact.feasible is False
-    assert GloveFrame().raw.shape == (0,) and Pose().orientation.w == 0.0
-    assert JointState().position.dtype == np.float64
+    assert contact.safe == [False] * 9 and contact.lost_edges == [] and contact.feasible is False
+    assert GloveFrame().raw == array.array("H") and Pose().orientation.w == 0.0
+    assert JointState().position == array.array("d")
     partial = TaxelArray(finger="thumb", counts=list(range(9)))
     assert partial.counts.tolist() == list(range(9)) and partial.voltages.shape == (9,)
 
@@ -692,6 +700,118 @@ def test_message_field_checks_match_rclpy():
         DiagnosticStatus(level=2)
 
 
+def test_numeric_sequence_setter_takes_array_array_or_a_list_and_rejects_numpy_like_rclpy():
+    msg = JointState()
+    with pytest.raises(AssertionError, match="The 'position' field must be a set or sequence"):
+        msg.position = np.array([1.0, 2.0])  # an ndarray is no collections.abc.Sequence
+    with pytest.raises(AssertionError, match="'position' array.array\\(\\) must have the type code of 'd'"):
+        msg.position = array.array("f", [1.0])
+    with pytest.raises(AssertionError, match="each value of type 'float'"):
+        msg.position = [1.0, 2]  # an int in a float64[]
+    with pytest.raises(AssertionError, match="each value of type 'float'"):
+        msg.position = [np.float32(1.0)]
+    with pytest.raises(AssertionError):
+        msg.position = "1.0"
+    values = array.array("d", [0.5, 1.5])
+    msg.position = values
+    assert msg.position is values  # stored as given, like rclpy
+    msg.velocity = [0.25, -0.5]
+    msg.effort = (1.0,)
+    assert msg.velocity == array.array("d", [0.25, -0.5]) and msg.effort == array.array("d", [1.0])
+    # What nodes do with a received sequence works on array.array.
+    assert list(msg.position) == [0.5, 1.5] and len(msg.position) == 2 and msg.position[-1] == 1.5
+    assert np.asarray(msg.position).dtype == np.float64 and np.asarray(msg.velocity).tolist() == [0.25, -0.5]
+    frame = GloveFrame()
+    with pytest.raises(AssertionError, match="'raw' field must be a set or sequence"):
+        frame.raw = np.arange(4, dtype=np.uint16)
+    with pytest.raises(AssertionError, match=r"each unsigned integer in \[0, 65535\]"):
+        frame.raw = [1, 70000]
+    frame.raw = array.array("H", [1, 2, 3])
+    frame.pressure = [0.5]
+    assert frame.pressure.typecode == "f" and frame.pressure[0] == 0.5
+
+
+def test_constructor_wraps_numeric_sequences_in_array_array_like_rclpy():
+    # rclpy's __init__ runs array.array(typecode, value) before the setter, so ndarrays pass there.
+    msg = JointState(position=np.array([1.0, 2.0]), velocity=[1, 2], effort=array.array("d", [3.0]))
+    assert msg.position == array.array("d", [1.0, 2.0]) and msg.velocity == array.array("d", [1.0, 2.0])
+    assert msg.effort == array.array("d", [3.0])
+    with pytest.raises(TypeError):
+        GloveFrame(raw=np.array([1.5, 2.5]))  # float elements for a uint16[]
+    with pytest.raises(OverflowError):
+        GloveFrame(raw=[70000])
+
+
+def test_bounded_numeric_sequence_checks_its_bound():
+    from rosidl_runtime_py.utilities import get_message
+
+    SolidPrimitive = get_message("shape_msgs/msg/SolidPrimitive")  # float64[<=3] dimensions
+    shape = SolidPrimitive(dimensions=[0.1, 0.2, 0.3])
+    assert shape.dimensions == array.array("d", [0.1, 0.2, 0.3])
+    with pytest.raises(AssertionError, match="with length <= 3"):
+        shape.dimensions = [0.1, 0.2, 0.3, 0.4]
+    with pytest.raises(AssertionError, match="must have a size <= 3"):
+        shape.dimensions = array.array("d", [0.1, 0.2, 0.3, 0.4])
+    with pytest.raises(AssertionError, match="'dimensions' field must be a set or sequence with length <= 3"):
+        shape.dimensions = np.array([0.1])
+    with pytest.raises(AssertionError):
+        SolidPrimitive(dimensions=np.zeros(4))
+    shape.dimensions = array.array("d", [0.5])
+    assert list(shape.dimensions) == [0.5]
+
+
+def test_fixed_numeric_arrays_are_numpy_and_take_an_ndarray_of_their_dtype():
+    taxels = TaxelArray(voltages=np.linspace(0.0, 3.3, 9))  # the constructor converts to float32
+    assert taxels.voltages.dtype == np.float32
+    exact = np.full(9, 1.5, dtype=np.float32)
+    taxels.voltages = exact
+    assert taxels.voltages is exact
+    with pytest.raises(AssertionError, match="'voltages' numpy.ndarray\\(\\) must have the dtype of 'numpy.float32'"):
+        taxels.voltages = np.ones(9)
+    with pytest.raises(AssertionError, match="must have a size of 9"):
+        taxels.voltages = np.ones(8, dtype=np.float32)
+    taxels.voltages = [0.5] * 9
+    assert isinstance(taxels.voltages, np.ndarray) and taxels.voltages.dtype == np.float32
+    with pytest.raises(AssertionError, match="with length 9 and each value of type 'float'"):
+        taxels.voltages = [1] * 9
+    taxels.counts = np.arange(9, dtype=np.uint16)
+    with pytest.raises(AssertionError, match="dtype of 'numpy.uint16'"):
+        taxels.counts = np.arange(9)
+
+
+def test_bool_and_string_arrays_are_lists_and_reject_numpy():
+    with pytest.raises(AssertionError, match="The 'safe' field must be a set or sequence with length 9"):
+        ContactState(safe=np.ones(9, dtype=bool))  # bool is not an array.array type: no wrapping
+    contact = ContactState(safe=[True] * 9, lost_edges=("left",))
+    with pytest.raises(AssertionError, match="each value of type 'bool'"):
+        contact.safe = [np.bool_(True)] * 9
+    with pytest.raises(AssertionError, match="with length 9"):
+        contact.safe = [True] * 8
+    contact.lost_edges = ["top", "left"]
+    with pytest.raises(AssertionError, match="'lost_edges' field must be a set or sequence"):
+        contact.lost_edges = np.array(["top"])
+    with pytest.raises(AssertionError, match="each value of type 'str'"):
+        contact.lost_edges = ["top", 1]
+    with pytest.raises(AssertionError):
+        contact.lost_edges = (edge for edge in ["top"])  # a generator is no sequence
+    with pytest.raises(AssertionError):
+        contact.lost_edges = "top"
+
+
+def test_a_received_message_holds_rclpy_containers(ros):
+    got = ros.collect(ContactState, "/c")
+    joints = ros.collect(JointState, "/j")
+    sent = ContactState(safe=(True,) * 9, voltages=[0.5] * 9, lost_edges=("left",))
+    ros.publish("/c", sent)
+    ros.publish("/j", JointState(name=["a"], position=[0.5]))
+    ros.process()
+    (contact,), (joint,) = got, joints
+    assert contact == sent and contact is not sent
+    assert contact.safe == [True] * 9 and contact.lost_edges == ["left"]  # tuples arrive as lists
+    assert contact.voltages.dtype == np.float32 and isinstance(joint.position, array.array)
+    assert joint.position.typecode == "d" and list(joint.position) == [0.5]
+
+
 def test_message_equality_by_fields_and_copy():
     import copy
 
@@ -711,6 +831,10 @@ def test_stand_in_messages_serialise_with_the_shared_typestore():
         DiagnosticArray(status=[DiagnosticStatus(level=DiagnosticStatus.WARN, name="hub",
                                                  values=[KeyValue(key="crc", value="3")])]),
         JointState(name=["fingers"], position=[0.5], velocity=[0.0], effort=[]),
+        GloveFrame(rows=1, cols=2, raw=array.array("H", [1, 1023]), pressure=[0.5, 0.25]),
+        ParameterValue(type=4, byte_array_value=[b"\x01", b"\xff"], bool_array_value=[True, False],
+                       integer_array_value=[1, -2], double_array_value=array.array("d", [0.5]),
+                       string_array_value=["a"]),
         Grasp.Goal(grasp="power", finger_force=2.0), MoveMotors.Result(final_positions=[1.0]),
         Grasp.Impl.FeedbackMessage(feedback=Grasp.Feedback(phase="closing")),
     ]

@@ -1,7 +1,6 @@
 """rclpy.node.Node of the stand-in: Jazzy signatures over the in-memory graph of the context."""
 from __future__ import annotations
 
-import copy
 import inspect
 import math
 import warnings
@@ -85,7 +84,7 @@ class Publisher:
         if not context.ok():
             raise RuntimeError("publish on a shut down context")
         if self._latched is not None:
-            self._latched.append(copy.deepcopy(msg))
+            self._latched.append(_convert(msg))
         for subscription in list(context.graph.subscriptions):
             if subscription.topic_name == self.topic and subscription._accepts(self):
                 subscription._enqueue(msg)
@@ -130,7 +129,8 @@ class Subscription:
                 and _qos.compatible(publisher.qos_profile, self.qos_profile))
 
     def _enqueue(self, msg) -> None:
-        self._inbox.append(copy.deepcopy(msg))
+        # What the subscriber's rclpy would build from the wire: a fresh message, rclpy containers.
+        self._inbox.append(_convert(msg))
         self._node.context.post(self._node, self._take_and_call, f"message on {self.topic}")
 
     def _take_and_call(self) -> bool:
@@ -284,10 +284,10 @@ class Client:
         self._pending[sequence] = future
         server = self._server()
         if server is not None:
-            request = copy.deepcopy(request)
+            request = _convert(request)
 
             def respond(response, sequence=sequence):
-                response = copy.deepcopy(response)
+                response = _convert(response)
                 self._node.context.post(
                     self._node, lambda: self._deliver(sequence, response), f"response on {self.srv_name}")
 

@@ -1,27 +1,44 @@
 """Message, service and action classes with rclpy semantics, generated from the typestore.
 
 Each message class subclasses the rosbags dataclass of the same type from
-`prisma_bringup.typestore.get_typestore()`, so `get_typestore().serialize_cdr(msg, msg.__msgtype__)`
+`prisma_bringup.typestore.get_typestore()`, and `get_typestore().serialize_cdr(msg, msg.__msgtype__)`
 works on any stand-in message (a message taken from a stand-in topic can go straight into a bag).
 
-On top of that the classes behave like rosidl_generator_py classes:
+The classes behave like rosidl_generator_py classes with their field checks on (always on in
+Humble; in Jazzy when ROS_PYTHON_CHECK_FIELDS=1). Jazzy's default skips the checks, and a wrong value
+then reaches the C conversion, which e.g. compares each item of a bool[9] with Python's True, so
+numpy bools go out as False. A node that passes these checks publishes what it means either way.
 - keyword-only construction of any subset of fields; every other field gets its ROS default
   (0, 0.0, False, '', nested message constructed, fixed arrays sized, sequences empty);
-  an unknown keyword raises AssertionError naming it, as rclpy does;
-- assignments are checked like rclpy's property setters: float fields take `float` only
-  (not int, not numpy.float32), integer fields take `int` within range, fixed arrays must have
-  their exact length, byte fields take a one-byte `bytes` (use the class constants);
-- equality by fields.
+  an unknown keyword raises AssertionError naming it;
+- scalar setters: float fields take `float` only (not int, not numpy.float32), integer fields take
+  `int` within range, byte fields take a one-byte `bytes` (use the class constants);
+- numeric sequences (`float64[]`, `uint16[<=8]`, ...) are `array.array` of the element's typecode
+  ('d', 'H', ...). The setter takes an array.array of that typecode or a list/tuple/set of Python
+  numbers of the element type; a numpy array is not a `collections.abc.Sequence` and raises
+  AssertionError. The constructor first wraps the value in `array.array(typecode, value)`, as
+  rclpy's `__init__` does, so `JointState(position=ndarray)` works where `msg.position = ndarray`
+  fails;
+- fixed numeric arrays (`float32[9]`) are numpy arrays: the setter takes an ndarray of exactly that
+  dtype and length, or a sequence of that length; the constructor converts with
+  `numpy.array(value, dtype)` first;
+- bool, byte and string arrays and sequences are lists (`bool[9]` defaults to nine False); their
+  elements must be `bool`, `bytes` and `str`, and a numpy array raises AssertionError;
+- a message crossing a topic, service or action arrives as rclpy's C conversion builds it: numeric
+  sequences as array.array, fixed numeric arrays as numpy arrays, everything else as lists;
+- equality by fields (also against a typestore instance of the same type).
 
-Where the storage differs from rclpy (because rosbags' serializer needs it): every numeric or
-bool array/sequence is a numpy array of the field's dtype (rclpy uses numpy only for fixed numeric
-arrays and array.array / lists otherwise). Assign a list or array; `.append` is not available.
+rosbags' serializer needs numpy arrays in every non-string array field, so the stand-in wraps
+`serialize_cdr`/`serialize_ros1` of the typestore it is built from: a stand-in message is first
+turned into the plain typestore dataclass (`to_typestore`); other messages pass through unchanged.
 """
 from __future__ import annotations
 
-import copy
+import array
 import math
 import types as pytypes
+from collections import UserList, UserString
+from collections.abc import Sequence, Set
 from typing import Any
 
 import numpy as np
@@ -30,9 +47,25 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore as _rosbag
 
 from prisma_bringup.typestore import get_typestore
 
+# rosidl_generator_py's SPECIAL_NESTED_BASIC_TYPES: element types held in array.array (sequences)
+# and numpy arrays (fixed arrays). ROS 2 `char` is uint8.
+_TYPECODES = {
+    "float32": "f",
+    "float64": "d",
+    "int8": "b",
+    "uint8": "B",
+    "char": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+}
+# numpy dtypes rosbags uses for every non-string base type.
 _DTYPES = {
     "bool": np.bool_,
-    "byte": np.uint8,
+    "byte": np.int8,
     "char": np.uint8,
     "int8": np.int8,
     "uint8": np.uint8,
@@ -56,7 +89,7 @@ _INT_RANGES = {
     "int64": (-(2**63), 2**63 - 1),
     "uint64": (0, 2**64 - 1),
 }
-_FLOAT32_MAX = 3.402823466e38
+_FLOAT_MAX = {"float32": 3.402823466e38, "float64": 1.7976931348623157e308}
 
 # Interfaces the Jazzy typestore of rosbags does not carry (it holds messages only) but the
 # nodes use: services and the action protocol services. Definitions as in ROS 2 Jazzy.
@@ -118,6 +151,8 @@ class _Store:
             extra_types[name] = parsed
         self.extra.register(extra_types)
         self.classes: dict[str, type] = {}
+        for store in (self.shared, self.extra):
+            _serialise_stand_in_messages(store)
 
     def has(self, typename: str) -> bool:
         return typename in self.shared.types or typename in self.extra.types
@@ -128,6 +163,9 @@ class _Store:
         if typename in self.extra.types:
             return self.extra
         raise KeyError(f"unknown interface type {typename!r}")
+
+    def fields_of(self, typename: str) -> list:
+        return self.store_of(typename).fielddefs[typename][1]
 
     def all_typenames(self) -> list[str]:
         return sorted(set(self.shared.types) | set(self.extra.types))
@@ -143,8 +181,12 @@ def _store() -> _Store:
     return _STORE
 
 
+def _is_stand_in(message: Any) -> bool:
+    return getattr(type(message), "__standin__", False)
+
+
 # ----------------------------------------------------------------------------------------------
-# Field checks (rclpy property-setter semantics)
+# Field checks (rosidl_generator_py property setters with field checks on)
 
 
 def _check_base(cls_name: str, field: str, basetype: str, bound: int, value: Any) -> Any:
@@ -170,12 +212,12 @@ def _check_base(cls_name: str, field: str, basetype: str, bound: int, value: Any
         low, high = _INT_RANGES[basetype]
         assert low <= value <= high, f"{where} must be an integer in [{low}, {high}]"
         return value
-    if basetype in ("float32", "float64"):
+    if basetype in _FLOAT_MAX:
         assert isinstance(value, float), f"{where} must be of type 'float'"
-        if basetype == "float32":
-            assert not (value < -_FLOAT32_MAX or value > _FLOAT32_MAX) or math.isinf(value), (
-                f"{where} must be a float in [{-_FLOAT32_MAX}, {_FLOAT32_MAX}]"
-            )
+        limit = _FLOAT_MAX[basetype]
+        assert not (value < -limit or value > limit) or math.isinf(value), (
+            f"{where} must be a float in [{-limit}, {limit}]"
+        )
         return float(value)
     raise AssertionError(f"{where} has unsupported type {basetype!r}")
 
@@ -184,8 +226,80 @@ def _check_nested(field: str, typename: str, value: Any) -> Any:
     assert getattr(value, "__msgtype__", None) == typename, (
         f"The '{field}' field must be a sub message of type '{typename.replace('/msg/', '/')}'"
     )
-    cls = get_class(typename)
-    return value if type(value) is cls else convert(value)
+    return value if type(value) is get_class(typename) else convert(value)
+
+
+def _python_type(elem_kind: Any, elem_detail: Any) -> type | None:
+    """The element type rclpy's sequence setter asserts (None: a nested message)."""
+    if elem_kind != Nodetype.BASE:
+        return None
+    basetype = elem_detail[0]
+    if basetype in _FLOAT_MAX:
+        return float
+    if basetype in _INT_RANGES:
+        return int
+    return {"bool": bool, "byte": bytes, "string": str}[basetype]
+
+
+def _elements_ok(elem_kind: Any, elem_detail: Any, values: Any) -> tuple[bool, str]:
+    """Whether every element has rclpy's element type and range, and the wording of that rule."""
+    if elem_kind == Nodetype.NAME:
+        name = elem_detail.rsplit("/", 1)[-1]
+        return all(getattr(v, "__msgtype__", None) == elem_detail for v in values), f"each value of type '{name}'"
+    basetype, bound = elem_detail
+    pytype = _python_type(elem_kind, elem_detail)
+    rule = f"each value of type '{pytype.__name__}'"
+    ok = all(isinstance(v, pytype) for v in values)
+    if ok and basetype in _INT_RANGES:
+        low, high = _INT_RANGES[basetype]
+        rule += f" and each {'unsigned ' if low == 0 else ''}integer in [{low}, {high}]"
+        ok = all(low <= v <= high for v in values)
+    elif ok and basetype in _FLOAT_MAX:
+        limit = _FLOAT_MAX[basetype]
+        rule += f" and each {'float' if basetype == 'float32' else 'double'} in [{-limit}, {limit}]"
+        ok = all(not (v < -limit or v > limit) or math.isinf(v) for v in values)
+    elif ok and basetype == "string" and bound:
+        rule += f" and each string value not longer than {bound}"
+        ok = all(len(v) <= bound for v in values)
+    return ok, rule
+
+
+def _check_collection(field: str, spec: tuple, value: Any) -> Any:
+    kind, ((elem_kind, elem_detail), size) = spec
+    fixed = kind == Nodetype.ARRAY
+    typecode = _TYPECODES.get(elem_detail[0]) if elem_kind == Nodetype.BASE else None
+    if typecode and fixed and isinstance(value, np.ndarray):
+        dtype = np.dtype(_DTYPES[elem_detail[0]])
+        assert value.dtype == dtype, f"The '{field}' numpy.ndarray() must have the dtype of 'numpy.{dtype.name}'"
+        assert value.size == size, f"The '{field}' numpy.ndarray() must have a size of {size}"
+        # rclpy's setter stops here; its C conversion then asserts a one-dimensional array.
+        assert value.ndim == 1, f"The '{field}' numpy.ndarray() must be one-dimensional"
+        return value
+    if typecode and not fixed and isinstance(value, array.array):
+        assert value.typecode == typecode, f"The '{field}' array.array() must have the type code of '{typecode}'"
+        if size:
+            assert len(value) <= size, f"The '{field}' array.array() must have a size <= {size}"
+        return value
+    container = isinstance(value, (Sequence, Set, UserList)) and not isinstance(value, (str, UserString))
+    length_rule = f" with length {size}" if fixed else f" with length <= {size}" if size else ""
+    length_ok = container and (len(value) == size if fixed else not size or len(value) <= size)
+    elements_ok, element_rule = _elements_ok(elem_kind, elem_detail, value) if container else (False, "")
+    if not (container and length_ok and elements_ok):
+        if not element_rule:
+            element_rule = _elements_ok(elem_kind, elem_detail, ())[1]
+        hint = ""
+        if isinstance(value, np.ndarray):
+            wanted = (f"array.array('{typecode}')" if typecode and not fixed else
+                      f"a numpy.{np.dtype(_DTYPES[elem_detail[0]]).name} array" if typecode else "a list")
+            hint = (f" (got a numpy.ndarray, which is no collections.abc.Sequence: pass {wanted}, e.g. from "
+                    f"prisma_tactile_driver.ros_conversions.sequence_field)")
+        raise AssertionError(
+            f"The '{field}' field must be a set or sequence{length_rule} and {element_rule}{hint}")
+    if typecode:
+        return np.array(value, dtype=_DTYPES[elem_detail[0]]) if fixed else array.array(typecode, value)
+    if elem_kind == Nodetype.NAME and any(type(v) is not get_class(elem_detail) for v in value):
+        return [v if type(v) is get_class(elem_detail) else convert(v) for v in value]
+    return value
 
 
 def _check_field(cls_name: str, field: str, spec: tuple, value: Any) -> Any:
@@ -194,34 +308,23 @@ def _check_field(cls_name: str, field: str, spec: tuple, value: Any) -> Any:
         return _check_base(cls_name, field, detail[0], detail[1], value)
     if kind == Nodetype.NAME:
         return _check_nested(field, detail, value)
+    return _check_collection(field, spec, value)
+
+
+def _constructor_value(field: str, spec: tuple, value: Any) -> Any:
+    """What rclpy's __init__ does to a keyword before the setter sees it (numeric arrays only)."""
+    kind, detail = spec
+    if kind not in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        return value
     (elem_kind, elem_detail), size = detail
-    fixed = kind == Nodetype.ARRAY
-    if elem_kind == Nodetype.BASE and elem_detail[0] in _DTYPES:
-        dtype = _DTYPES[elem_detail[0]]
-        if isinstance(value, (bytes, bytearray)) and elem_detail[0] in ("byte", "uint8", "char"):
-            value = np.frombuffer(bytes(value), dtype=np.uint8)
-        try:
-            array = np.array(value, dtype=dtype, copy=True)
-        except (TypeError, ValueError, OverflowError) as exc:
-            raise AssertionError(f"The '{field}' field must be a sequence of {elem_detail[0]}: {exc}")
-        assert array.ndim == 1, f"The '{field}' field must be a one-dimensional sequence"
-        if fixed:
-            assert len(array) == size, (
-                f"The '{field}' field must be a sequence with length {size}, got {len(array)}"
-            )
-        elif size:
-            assert len(array) <= size, f"The '{field}' field must have at most {size} elements"
-        return array
-    assert not isinstance(value, (str, bytes)) and hasattr(value, "__iter__"), (
-        f"The '{field}' field must be a sequence"
-    )
-    items = list(value)
-    if fixed:
-        assert len(items) == size, f"The '{field}' field must be a sequence with length {size}"
-    elif size:
-        assert len(items) <= size, f"The '{field}' field must have at most {size} elements"
-    spec_elem = (elem_kind, elem_detail)
-    return [_check_field(cls_name, field, spec_elem, item) for item in items]
+    if elem_kind != Nodetype.BASE or elem_detail[0] not in _TYPECODES:
+        return value
+    if kind == Nodetype.SEQUENCE:
+        return array.array(_TYPECODES[elem_detail[0]], value)
+    converted = np.array(value, dtype=_DTYPES[elem_detail[0]])
+    assert converted.shape == (size,), (
+        f"The '{field}' field must be a sequence with length {size}, got shape {converted.shape}")
+    return converted
 
 
 def _default(spec: tuple) -> Any:
@@ -234,25 +337,53 @@ def _default(spec: tuple) -> Any:
             return _Byte(b"\x00")
         if basetype == "string":
             return ""
-        if basetype in ("float32", "float64"):
+        if basetype in _FLOAT_MAX:
             return 0.0
         return 0
     if kind == Nodetype.NAME:
         return get_class(detail)()
     (elem_kind, elem_detail), size = detail
-    if elem_kind == Nodetype.BASE and elem_detail[0] in _DTYPES:
-        return np.zeros(size if kind == Nodetype.ARRAY else 0, dtype=_DTYPES[elem_detail[0]])
+    if elem_kind == Nodetype.BASE and elem_detail[0] in _TYPECODES:
+        if kind == Nodetype.ARRAY:
+            return np.zeros(size, dtype=_DTYPES[elem_detail[0]])
+        return array.array(_TYPECODES[elem_detail[0]])
     if kind == Nodetype.ARRAY:
+        if elem_kind == Nodetype.BASE and elem_detail[0] == "byte":
+            return [bytes([0]) for _ in range(size)]
         return [_default((elem_kind, elem_detail)) for _ in range(size)]
     return []
 
 
-def _values_equal(a: Any, b: Any) -> bool:
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        return np.array_equal(np.asarray(a), np.asarray(b))
-    if isinstance(a, list) and isinstance(b, list):
-        return len(a) == len(b) and all(_values_equal(x, y) for x, y in zip(a, b))
-    return a == b
+def _byte_value(value: Any) -> int:
+    # rosbags holds byte arrays as int8, rclpy as one-byte bytes: both as 0..255 here.
+    return value[0] if isinstance(value, (bytes, bytearray)) else int(value) & 0xFF
+
+
+def _for_rosbags(spec: tuple, value: Any) -> Any:
+    """A field value as the typestore dataclass holds it (numpy arrays, int bytes)."""
+    kind, detail = spec
+    if kind == Nodetype.BASE:
+        return _byte_value(value) if detail[0] == "byte" else value
+    if kind == Nodetype.NAME:
+        return to_typestore(value)
+    (elem_kind, elem_detail), _ = detail
+    if elem_kind == Nodetype.NAME:
+        return [to_typestore(v) for v in value]
+    if elem_detail[0] == "string":
+        return list(value)
+    if elem_detail[0] == "byte":
+        return np.array([_byte_value(v) for v in value], dtype=np.uint8).view(np.int8)
+    return np.ascontiguousarray(np.asarray(value, dtype=_DTYPES[elem_detail[0]]).reshape(-1))
+
+
+def _field_equal(spec: tuple, a: Any, b: Any) -> bool:
+    kind, detail = spec
+    if kind in (Nodetype.BASE, Nodetype.NAME):
+        return bool(a == b)
+    (elem_kind, elem_detail), _ = detail
+    if elem_kind == Nodetype.BASE and elem_detail[0] != "string":
+        return np.array_equal(_for_rosbags(spec, a), _for_rosbags(spec, b))
+    return len(a) == len(b) and all(x == y for x, y in zip(a, b))
 
 
 def _type_string(spec: tuple) -> str:
@@ -287,7 +418,7 @@ def _make_class(typename: str) -> type:
         assert not unknown, "Invalid arguments passed to constructor: %s" % ", ".join(unknown)
         for name in order:
             if name in kwargs:
-                setattr(self, name, kwargs[name])
+                setattr(self, name, _constructor_value(name, specs[name], kwargs[name]))
             else:
                 object.__setattr__(self, name, _default(specs[name]))
 
@@ -300,7 +431,7 @@ def _make_class(typename: str) -> type:
     def __eq__(self, other: object) -> bool:
         if getattr(other, "__msgtype__", None) != typename:
             return NotImplemented if not hasattr(other, "__msgtype__") else False
-        return all(_values_equal(getattr(self, n), getattr(other, n)) for n in order)
+        return all(_field_equal(specs[n], getattr(self, n), getattr(other, n)) for n in order)
 
     def __repr__(self) -> str:
         inner = ", ".join(f"{n}={getattr(self, n)!r}" for n in order)
@@ -318,6 +449,7 @@ def _make_class(typename: str) -> type:
         "__hash__": None,
         "__repr__": __repr__,
         "__msgtype__": typename,
+        "__standin__": True,
         "__module__": typename.rsplit("/", 1)[0].replace("/", "."),
         "__qualname__": short,
         "get_fields_and_field_types": get_fields_and_field_types,
@@ -342,21 +474,50 @@ def get_class(typename: str) -> type:
 
 
 def convert(message: Any) -> Any:
-    """Copy of any message object (e.g. a rosbags typestore instance) as the stand-in class."""
-    cls = get_class(message.__msgtype__)
-    _, fields = _store().store_of(message.__msgtype__).fielddefs[message.__msgtype__]
+    """The stand-in message a subscriber gets for `message` (a stand-in or typestore instance).
+
+    Like rclpy's C conversion of a received message: a fresh object whose numeric sequences are
+    array.array, fixed numeric arrays numpy arrays and other arrays lists, sharing nothing."""
+    typename = message.__msgtype__
+    cls = get_class(typename)
     out = cls.__new__(cls)
-    for name, spec in fields:
-        object.__setattr__(out, name, _check_field(cls.__qualname__, name, spec, _plain(getattr(message, name), spec)))
+    for name, spec in _store().fields_of(typename):
+        object.__setattr__(out, name, _received(name, spec, getattr(message, name)))
     return out
+
+
+def copy_message(message: Any) -> Any:
+    return convert(message)
+
+
+def _received(field: str, spec: tuple, value: Any) -> Any:
+    kind, detail = spec
+    if kind == Nodetype.BASE:
+        return _plain(value, spec)
+    if kind == Nodetype.NAME:
+        return convert(value)
+    (elem_kind, elem_detail), size = detail
+    if kind == Nodetype.ARRAY:
+        assert len(value) == size, f"The '{field}' field must be a sequence with length {size}"
+    if elem_kind == Nodetype.NAME:
+        return [convert(v) for v in value]
+    basetype = elem_detail[0]
+    if basetype in _TYPECODES:
+        data = np.asarray(value, dtype=_DTYPES[basetype]).reshape(-1)
+        return data.copy() if kind == Nodetype.ARRAY else array.array(_TYPECODES[basetype], data.tobytes())
+    if basetype == "bool":
+        return [bool(v) for v in value]
+    if basetype == "byte":
+        return [bytes([_byte_value(v)]) for v in value]
+    return [str(v) for v in value]
 
 
 def _plain(value: Any, spec: tuple) -> Any:
     # Values read from a typestore instance: byte fields come as int, turn them into bytes.
     kind, detail = spec
-    if kind == Nodetype.BASE and detail[0] == "byte" and isinstance(value, int):
-        return _Byte(bytes([value]))
-    if kind == Nodetype.BASE and detail[0] in ("float32", "float64") and not isinstance(value, float):
+    if kind == Nodetype.BASE and detail[0] == "byte":
+        return value if isinstance(value, _Byte) else _Byte(bytes([_byte_value(value)]))
+    if kind == Nodetype.BASE and detail[0] in _FLOAT_MAX and not isinstance(value, float):
         return float(value)
     if kind == Nodetype.BASE and detail[0] in _INT_RANGES and not isinstance(value, int):
         return int(value)
@@ -365,8 +526,33 @@ def _plain(value: Any, spec: tuple) -> Any:
     return value
 
 
-def copy_message(message: Any) -> Any:
-    return copy.deepcopy(message)
+# ----------------------------------------------------------------------------------------------
+# Serialisation through the typestore
+
+
+def to_typestore(message: Any) -> Any:
+    """The typestore dataclass instance of a stand-in message (others are returned unchanged)."""
+    if not _is_stand_in(message):
+        return message
+    typename = message.__msgtype__
+    store = _store().store_of(typename)
+    fields = store.fielddefs[typename][1]
+    return store.types[typename](**{name: _for_rosbags(spec, getattr(message, name)) for name, spec in fields})
+
+
+def _serialise_stand_in_messages(store: Any) -> None:
+    """Let `store.serialize_cdr/serialize_ros1` take stand-in messages, whose arrays rosbags cannot pack."""
+    for method in ("serialize_cdr", "serialize_ros1"):
+        original = getattr(store, method)
+        if getattr(original, "takes_stand_in_messages", False):
+            continue
+
+        def serialize(message: Any, typename: str, *args: Any, _original: Any = original, **kwargs: Any) -> Any:
+            return _original(to_typestore(message), typename, *args, **kwargs)
+
+        serialize.takes_stand_in_messages = True  # type: ignore[attr-defined]
+        serialize.__doc__ = original.__doc__
+        setattr(store, method, serialize)
 
 
 # ----------------------------------------------------------------------------------------------

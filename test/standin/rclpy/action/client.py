@@ -112,7 +112,7 @@ class ActionClient:
         future = Future()
         if feedback_callback is not None:
             self._feedback_callbacks[goal_uuid] = feedback_callback
-        goal = copy.deepcopy(_convert(goal))
+        goal = _convert(goal)
         server = self._server()
         if server is None:
             return future  # like a request nobody answers

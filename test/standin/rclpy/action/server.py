@@ -237,7 +237,7 @@ class ActionServer:
             status=goal_handle.status, result=_convert(result))
         self._results[goal_uuid] = response
         for respond in self._result_waiters.pop(goal_uuid, []):
-            respond(copy.deepcopy(response))
+            respond(_convert(response))
 
     def _handle_result_request(self, goal_uuid: bytes, respond) -> bool:
         if not self._alive():
@@ -245,7 +245,7 @@ class ActionServer:
         if goal_uuid not in self._goal_handles:
             respond(self._action_type.Impl.GetResultService.Response(status=GoalStatus.STATUS_UNKNOWN))
         elif goal_uuid in self._results:
-            respond(copy.deepcopy(self._results[goal_uuid]))
+            respond(_convert(self._results[goal_uuid]))
         else:
             self._result_waiters.setdefault(goal_uuid, []).append(respond)
         return True
@@ -275,7 +275,7 @@ class ActionServer:
 
     def _publish_feedback(self, message) -> None:
         for client in self._clients():
-            client._post_feedback(copy.deepcopy(message))
+            client._post_feedback(_convert(message))
 
     def _publish_status(self, goal_handle: ServerGoalHandle) -> None:
         goal_uuid = bytes(goal_handle.goal_id.uuid)

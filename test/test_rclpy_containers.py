@@ -1,0 +1,129 @@
+"""Converters fill array fields with what each message class takes: numpy arrays for the rosbags
+typestore (bags), rclpy's containers for the generated classes on the robot (here the stand-in's,
+which check fields like rclpy with ROS_PYTHON_CHECK_FIELDS=1): array.array for numeric sequences,
+lists of bool for bool arrays. Each converter is run on both kinds of class and read back."""
+from __future__ import annotations
+
+import array
+
+import numpy as np
+import pytest
+
+import rclpy
+from prisma_bringup.typestore import get_typestore
+from prisma_bringup.typestore import types as typestore_types
+from prisma_manipulation.contact_monitor import ContactMonitor
+from prisma_manipulation.motor_bus import MotorState
+from prisma_manipulation.motor_goals import MoveFeedback, MoveGoal, MoveResult
+from prisma_manipulation.ros_conversions import (
+    contact_state_from_msg,
+    contact_state_to_msg,
+    joint_sample_from_msg,
+    joint_state_to_msg,
+    move_goal_from_msg,
+    move_goal_to_msg,
+    move_feedback_to_msg,
+    move_result_from_msg,
+    move_result_to_msg,
+    robot_types,
+)
+from prisma_tactile_driver.ros_conversions import is_rosidl_class, sequence_field
+from stag_glove.processing import FrameProcessor
+from stag_glove.ros_conversions import (
+    Estimate,
+    estimate_from_msg,
+    estimate_to_msg,
+    glove_frame_from_msg,
+    glove_frame_to_msg,
+    image_to_pressure,
+    pressure_image_msg,
+)
+
+pytestmark = pytest.mark.skipif(
+    not hasattr(rclpy.get_default_context(), "graph"), reason="builds messages with the stand-in's classes")
+
+
+@pytest.fixture(scope="module")
+def rclpy_types():
+    from rosidl_runtime_py.utilities import get_action, get_message
+
+    return robot_types(get_message, get_action)
+
+
+def cdr_round_trip(msg):
+    store = get_typestore()
+    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
+
+
+def test_sequence_field_gives_numpy_to_typestore_classes(rclpy_types):
+    joint_state = typestore_types("sensor_msgs/msg/JointState")
+    assert not is_rosidl_class(joint_state) and is_rosidl_class(rclpy_types("sensor_msgs/msg/JointState"))
+    source = np.array([[1, 2], [3, 4]], dtype=np.int64)
+    value = sequence_field(joint_state, source, np.float64)
+    assert value.dtype == np.float64 and value.tolist() == [1.0, 2.0, 3.0, 4.0]  # flattened in C order
+    source[0, 0] = 9
+    assert value[0] == 1.0  # a copy: the message shares nothing with the caller's array
+    safe = sequence_field(typestore_types("prisma_msgs/msg/ContactState"), [1, 0, 1], bool)
+    assert safe.dtype == np.bool_ and safe.tolist() == [True, False, True]
+
+
+def test_sequence_field_gives_rclpy_containers_to_generated_classes(rclpy_types):
+    joint_state = rclpy_types("sensor_msgs/msg/JointState")
+    position = sequence_field(joint_state, np.array([0.5, -1.25]), np.float64)
+    assert isinstance(position, array.array) and position.typecode == "d" and list(position) == [0.5, -1.25]
+    msg = joint_state()
+    msg.position = position  # the setter that rejects a numpy array takes it
+    frame = rclpy_types("prisma_msgs/msg/GloveFrame")()
+    frame.raw = sequence_field(type(frame), np.arange(6).reshape(2, 3), np.uint16)
+    frame.pressure = sequence_field(type(frame), [0.25, 0.5], np.float32)
+    assert (frame.raw.typecode, list(frame.raw)) == ("H", [0, 1, 2, 3, 4, 5])
+    assert (frame.pressure.typecode, list(frame.pressure)) == ("f", [0.25, 0.5])
+    contact = rclpy_types("prisma_msgs/msg/ContactState")()
+    contact.safe = sequence_field(type(contact), np.arange(9) % 2 == 0, bool)
+    assert contact.safe == [True, False] * 4 + [True] and all(type(v) is bool for v in contact.safe)
+    with pytest.raises(ValueError, match="no ROS sequence element type"):
+        sequence_field(joint_state, ["a"], np.str_)
+
+
+def test_manipulation_converters_on_both_kinds_of_class(rclpy_types):
+    volts = np.full(9, 1.2, dtype=np.float32)
+    volts[[2, 5, 8]] = 0.1  # one column of the 3x3 pad lost
+    e = ContactMonitor(0.8).evaluate("middle", 1_700_000_000_123_456_789, volts)
+    states = {"fingers": MotorState("fingers", 1.5, 60.0, 250.0),
+              "thumb_rotation": MotorState("thumb_rotation", -0.5, -20.0, 10.0)}
+    goal = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, -5.0], [8.0, 0.5], 2.5)
+    result = MoveResult(False, [1.0, 2.0], "motor_fault")
+    for types in (rclpy_types, typestore_types):
+        contact = contact_state_to_msg(types, e, "prisma_middle_pad")
+        back = contact_state_from_msg(cdr_round_trip(contact))
+        assert np.array_equal(back.safe, e.safe) and back.safe.sum() == 6 and back.lost_edges == e.lost_edges
+        joints = joint_state_to_msg(types, 2_000_000_000, states)
+        sample = joint_sample_from_msg(cdr_round_trip(joints))
+        assert sample.positions == {"fingers": 1.5, "thumb_rotation": -0.5}
+        assert move_goal_from_msg(cdr_round_trip(move_goal_to_msg(types, goal))) == goal
+        assert move_result_from_msg(cdr_round_trip(move_result_to_msg(types, result))) == result
+        feedback = move_feedback_to_msg(types, MoveFeedback([1.0], [2.0], [3.0]))
+        assert list(cdr_round_trip(feedback).currents) == [3.0]
+        if types is rclpy_types:
+            assert contact.safe == [bool(v) for v in e.safe]  # bool[9]: a list of bool on the robot
+            assert isinstance(joints.position, array.array) and isinstance(feedback.currents, array.array)
+            assert joint_sample_from_msg(joints).positions == sample.positions  # reads array.array too
+        else:
+            assert contact.safe.dtype == np.bool_ and joints.position.dtype == np.float64
+
+
+def test_glove_converters_on_both_kinds_of_class(rclpy_types):
+    raw = np.random.default_rng(0).integers(450, 700, (32, 32)).astype(np.uint16)
+    frame = FrameProcessor().process(raw, stamp_ns=1_700_000_000_123_456_789)
+    estimate = Estimate("mug", 0.75, ["mug", "ball"], np.array([0.75, 0.25], dtype=np.float32), 12)
+    for types in (rclpy_types, typestore_types):
+        msg = glove_frame_to_msg(frame, types, "stag_glove")
+        for received in (msg, cdr_round_trip(msg)):
+            np.testing.assert_array_equal(glove_frame_from_msg(received).raw, frame.raw)
+        image = pressure_image_msg(frame, types, "stag_glove")
+        np.testing.assert_array_equal(image_to_pressure(image), frame.pressure)
+        back = estimate_from_msg(cdr_round_trip(estimate_to_msg(estimate, types, 5, "stag_glove")))
+        assert back.labels == ["mug", "ball"] and back.probabilities.tolist() == [0.75, 0.25]
+        if types is rclpy_types:
+            assert isinstance(msg.raw, array.array) and msg.raw.typecode == "H"
+            assert isinstance(image.data, array.array) and image.data.typecode == "B"
