@@ -7,11 +7,19 @@ Fixtures:
 """
 from __future__ import annotations
 
-import sys
-import time
-from pathlib import Path
+import os
 
-import pytest
+# One BLAS/OpenMP thread per process, set before anything loads numpy or torch (they read these at
+# load time; subprocesses inherit them). On a shared 2-core machine multi-threaded BLAS spins
+# against the other jobs and makes small matrix work 10-20x slower.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import pytest  # noqa: E402
 
 STANDIN_DIR = Path(__file__).resolve().parent / "standin"
 

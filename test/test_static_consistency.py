@@ -23,8 +23,10 @@ import ast
 import importlib
 import inspect
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import pytest
 import yaml
@@ -274,6 +276,21 @@ def _node_class(module) -> type | None:
     return classes[0] if classes else None
 
 
+@contextmanager
+def _thread_settings_kept() -> Iterator[None]:
+    """A node started here must not change process-wide settings for the tests that follow:
+    glove_perception sets torch's and the BLAS pools' thread counts for its process."""
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    torch_threads = torch.get_num_threads()
+    with threadpool_limits(limits=None):  # sets nothing; on exit restores every pool's thread count
+        try:
+            yield
+        finally:
+            torch.set_num_threads(torch_threads)
+
+
 def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
     info = NodeInfo(script)
     try:
@@ -285,27 +302,28 @@ def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
     if cls is None:
         return None  # a ROS-free console script, not a node
     info.class_name = cls.__name__
-    rclpy.init()
-    try:
-        node = cls()
-    except Exception as exc:  # noqa: BLE001
-        info.error = f"{cls.__name__}() with default parameters failed: {exc!r}"
-        rclpy.shutdown()
-        return info
-    try:
-        from rclpy.action import get_action_server_names_and_types_by_node
+    with _thread_settings_kept():
+        rclpy.init()
+        try:
+            node = cls()
+        except Exception as exc:  # noqa: BLE001
+            info.error = f"{cls.__name__}() with default parameters failed: {exc!r}"
+            rclpy.shutdown()
+            return info
+        try:
+            from rclpy.action import get_action_server_names_and_types_by_node
 
-        info.name = node.get_name()
-        names = node.list_parameters([], 0).names
-        for name, descriptor in zip(names, node.describe_parameters(names)):
-            info.parameters[name] = node.get_parameter_or(name)
-            info.parameter_types[name] = Parameter.Type(descriptor.type)
-        fqn = (node.get_name(), node.get_namespace())
-        info.publishers = dict(node.get_publisher_names_and_types_by_node(*fqn))
-        info.action_servers = dict(get_action_server_names_and_types_by_node(node, *fqn))
-    finally:
-        node.destroy_node()
-        rclpy.shutdown()
+            info.name = node.get_name()
+            names = node.list_parameters([], 0).names
+            for name, descriptor in zip(names, node.describe_parameters(names)):
+                info.parameters[name] = node.get_parameter_or(name)
+                info.parameter_types[name] = Parameter.Type(descriptor.type)
+            fqn = (node.get_name(), node.get_namespace())
+            info.publishers = dict(node.get_publisher_names_and_types_by_node(*fqn))
+            info.action_servers = dict(get_action_server_names_and_types_by_node(node, *fqn))
+        finally:
+            node.destroy_node()
+            rclpy.shutdown()
     return info
 
 
@@ -403,13 +421,14 @@ def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
         module = importlib.import_module(info.script.module)
         if rclpy.ok():
             rclpy.shutdown()
-        rclpy.init()
-        try:
-            node = getattr(module, info.class_name)(
-                parameter_overrides=[Parameter(n, value=v) for n, v in literals])
-            node.destroy_node()
-        finally:
-            rclpy.shutdown()
+        with _thread_settings_kept():
+            rclpy.init()
+            try:
+                node = getattr(module, info.class_name)(
+                    parameter_overrides=[Parameter(n, value=v) for n, v in literals])
+                node.destroy_node()
+            finally:
+                rclpy.shutdown()
 
 
 @pytest.mark.parametrize("launch_file", sorted(ROOT.glob("launch/*.launch.py")), ids=lambda p: p.name)
