@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from prisma_bringup.bag import read_bag
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
 from .dataset import ForceDataset
@@ -65,6 +64,10 @@ def load_calibration_bag(path: str | Path, taxel_topic: str = "/prisma/thumb/tax
     if tolerance_ns < 0:
         raise ValueError(f"tolerance_ns must be >= 0, got {tolerance_ns}")
     taxel_stamps, voltages, wrench_stamps, wrenches = [], [], [], []
+    # prisma_bringup depends on this package; importing its bag layer here, not at module level,
+    # keeps the ROS package graph acyclic (colcon refuses cycles).
+    from prisma_bringup.bag import read_bag
+
     for record in read_bag(path, topics=[taxel_topic, wrench_topic]):
         if record.topic == taxel_topic:
             frame = taxel_frame_from_msg(record.message)

@@ -3,12 +3,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from prisma_bringup.bag import BagWriter, read_bag
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
 from .pipeline import TaxelSample, WrenchPipeline
 from .ros_conversions import MessageLookup, wrench_to_msg
+
+if TYPE_CHECKING:
+    from prisma_bringup.bag import BagWriter
 
 TAXEL_TOPIC = "/prisma/{finger}/taxels"
 WRENCH_TOPIC = "/prisma/{finger}/wrench"
@@ -31,11 +34,15 @@ def estimate_bag(in_path: str | Path, out_path: str | Path, pipeline: WrenchPipe
                  taxel_topic: str = TAXEL_TOPIC, wrench_topic: str = WRENCH_TOPIC,
                  storage: str = "mcap") -> EstimateBagReport:
     """Estimate a wrench for every taxel message of the pipeline's fingers in `in_path`."""
+    # prisma_bringup depends on this package; importing its bag layer here, not at module level,
+    # keeps the ROS package graph acyclic (colcon refuses cycles).
+    from prisma_bringup.bag import BagWriter, read_bag
+
     topics = {taxel_topic.format(finger=f): f for f in pipeline.fingers}
     report = EstimateBagReport({f: 0 for f in pipeline.fingers}, {f: 0 for f in pipeline.fingers},
                                {f: 0 for f in pipeline.fingers})
 
-    def write(writer: BagWriter, results) -> None:
+    def write(writer: "BagWriter", results) -> None:
         for finger, sample in results:
             writer.write(wrench_topic.format(finger=finger), wrench_to_msg(types, sample))
             report.wrenches_written[finger] += 1
