@@ -5,18 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from prisma_tactile_driver.driver_config import ParameterError
+from prisma_tactile_driver.taxels import FINGERS
+
 from .bundle import DEFAULT_BUNDLE
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+__all__ = ["EstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
 OVERRIDE_PREFIX = "finger_bundles."
-
-
-class ParameterError(ValueError):
-    """An invalid parameter; the message names the parameter and the bad value."""
-
-    def __init__(self, name: str, value: Any, expected: str) -> None:
-        super().__init__(f"invalid parameter '{name}' = {value!r}: {expected}")
-        self.name, self.value = name, value
 
 
 @dataclass

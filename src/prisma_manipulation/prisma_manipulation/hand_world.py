@@ -263,7 +263,7 @@ class HandWorld:
         return points[-1] + values[-1] / (kfix + k)
 
     def _solve(self, stamp_ns: int) -> WorldState:
-        p, k = self.params, self.k
+        k = self.k
         s_f, s_t = self._free_travel()
         h_f, h_t = self._contact_travel()
         u = self._balance(s_f, h_f, s_t, h_t)

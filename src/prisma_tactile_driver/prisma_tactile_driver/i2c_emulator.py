@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import smbus2
-from smbus2.smbus2 import I2C_M_RD, I2C_RDWR, i2c_rdwr_ioctl_data
+from smbus2.smbus2 import I2C_M_RD, I2C_RDWR
 
 MUX_ADDRESS = 0x70
 ADC_ADDRESS = 0x35
