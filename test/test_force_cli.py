@@ -37,6 +37,24 @@ def test_train_on_synthetic_writes_a_loadable_bundle(tmp_path, capsys):
     assert meta.training["epochs_run"] == 2 and set(meta.validation_mse) == set(meta.axes)
 
 
+def test_train_variance_options_reach_the_bundle(tmp_path, capsys):
+    out = tmp_path / "cnn2_reg"
+    assert train_main(["--model", "cnn2", "--samples", "6000", "--epochs", "1", "--max-steps-per-epoch", "4",
+                       "--weight-decay", "0.05", "--ema-decay", "0.99", "--loss-weights", "tz=0.25, tx=0.5",
+                       "--out", str(out)]) == 0
+    t = load_bundle(out)[1].training
+    assert t["optimiser"] == "AdamW" and t["weight_decay"] == 0.05
+    assert t["ema_decay"] == 0.99 and t["weight_averaging"] == "EMA, decay 0.99 per step"
+    assert t["loss_weights"] == {"tz": 0.25, "tx": 0.5}
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        train_main(["--model", "cnn2", "--loss-weights", "tz:0.25"])
+    assert "'tz:0.25' is not AXIS=WEIGHT" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        train_main(["--model", "cnn", "--loss-weights", "tz=0.25"])
+    assert "axes ['tz'] are not outputs of cnn" in capsys.readouterr().err
+
+
 def test_train_on_a_calibration_bag(tmp_path, capsys):
     from prisma_tactile_driver.calibration import generate_calibration_set
 

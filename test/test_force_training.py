@@ -1,4 +1,6 @@
 """Training loop: a handful of steps only (full training is the documented command)."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -107,3 +109,50 @@ def test_input_noise_augmentation_changes_training_but_not_validation_data(small
     assert np.array_equal(plain.metadata.input_normaliser.mean, noisy.metadata.input_normaliser.mean)
     with pytest.raises(ValueError, match="input_noise must be >= 0"):
         train(small_set, _config(input_noise=-1.0), progress=None)
+
+
+def test_weight_decay_trains_with_adamw_and_shrinks_the_weights(small_set):
+    plain = train(small_set, _config(model_kind="ann", epochs=1, learning_rate=1e-3), progress=None)
+    decayed = train(small_set, _config(model_kind="ann", epochs=1, learning_rate=1e-3, weight_decay=50.0),
+                    progress=None)
+    # 15 steps of decoupled decay at lr*wd = 0.05 shrink every weight by 1 - 0.95**15 ~ 54% (plus Adam's
+    # own step of at most lr per parameter); plain Adam cannot move the norm that far in 15 steps.
+    norm = lambda r: float(torch.sqrt(sum((p.detach() ** 2).sum() for p in r.model.parameters())))
+    assert norm(decayed) < 0.6 * norm(plain)
+    assert decayed.metadata.training["optimiser"] == "AdamW" and decayed.metadata.training["weight_decay"] == 50.0
+    assert plain.metadata.training["optimiser"] == "Adam"
+    with pytest.raises(ValueError, match="weight_decay must be >= 0"):
+        train(small_set, _config(weight_decay=-0.1), progress=None)
+
+
+def test_ema_saves_the_average_of_the_weights_along_the_way(small_set):
+    # Decay 0.5 over 3 steps: ema = 0.25*w1 + 0.25*w2 + 0.5*w3, where wk are the raw weights after k
+    # steps; the same seed gives the same raw trajectory, so runs of 1, 2 and 3 steps provide wk.
+    config = _config(model_kind="ann", epochs=1, max_steps_per_epoch=3)
+    result = train(small_set, replace(config, ema_decay=0.5), progress=None)
+    w = [train(small_set, replace(config, max_steps_per_epoch=k), progress=None).model.state_dict()
+         for k in (1, 2, 3)]
+    for name, value in result.model.state_dict().items():
+        assert torch.allclose(value, 0.25 * w[0][name] + 0.25 * w[1][name] + 0.5 * w[2][name], atol=1e-6), name
+    assert not torch.allclose(result.model.state_dict()["net.1.weight"], w[2]["net.1.weight"])
+    assert type(result.model).__name__ == "ANN"  # the plain network, not the AveragedModel wrapper
+    assert result.metadata.training["weight_averaging"] == "EMA, decay 0.5 per step"
+    with pytest.raises(ValueError, match="ema_decay must be in"):
+        train(small_set, _config(ema_decay=1.0), progress=None)
+
+
+def test_loss_weights_scale_each_axis_and_the_selection_loss(small_set):
+    from prisma_force_estimator.training import weighted_mse
+
+    pred = torch.zeros(4, 6)
+    target = torch.tensor([[1.0, 0, 0, 0, 0, 2.0]] * 4)
+    w = torch.tensor([1, 1, 1, 1, 1, 0.25]) * 6 / 5.25
+    assert float(weighted_mse(pred, target, w)) == pytest.approx((1 + 0.25 * 4) * 6 / 5.25 / 6)
+    assert float(weighted_mse(pred, target, None)) == pytest.approx(5 / 6)
+    result = train(small_set, _config(epochs=1, loss_weights={"tz": 0.25}), progress=None)
+    assert result.metadata.training["loss_weights"] == {"tz": 0.25}
+    assert "tz 0.25" in result.metadata.training["loss"]
+    with pytest.raises(ValueError, match=r"axes \['tz'\] are not outputs of cnn"):
+        train(small_set, _config(model_kind="cnn", loss_weights={"tz": 0.5}), progress=None)
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        train(small_set, _config(loss_weights={"fx": -1.0}), progress=None)

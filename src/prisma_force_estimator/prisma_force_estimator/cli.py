@@ -38,6 +38,20 @@ def load_training_data(args: argparse.Namespace):
     raise SystemExit(f"--data {args.data}: not 'synthetic', a bag directory/.mcap/.db3 or a .npz calibration set")
 
 
+def parse_loss_weights(text: str) -> dict[str, float]:
+    """'tz=0.25,tx=0.5' -> {'tz': 0.25, 'tx': 0.5} (axis names are checked against the model later)."""
+    weights: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        axis, sep, value = item.partition("=")
+        try:
+            weights[axis.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise argparse.ArgumentTypeError(f"{item!r} is not AXIS=WEIGHT (e.g. tz=0.25)")
+    return weights
+
+
 def train_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="prisma-train-force",
                                      description="Train a taxel-to-wrench network and write a model bundle.")
@@ -62,6 +76,15 @@ def train_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--input-noise", type=float, default=0.0,
                         help="V rms Gaussian noise added to training inputs (augmentation; 0 = off)")
+    parser.add_argument("--weight-decay", type=float, default=0.0,
+                        help="decoupled weight decay; > 0 trains with AdamW instead of Adam (0 = off)")
+    parser.add_argument("--ema-decay", type=float, default=0.0,
+                        help="per-step decay of an exponential moving average of the weights, e.g. 0.999; "
+                             "the averaged network is validated, selected and saved (0 = off)")
+    parser.add_argument("--loss-weights", type=parse_loss_weights, default={}, metavar="AXIS=W,...",
+                        help="per-axis weights of the normalised MSE, e.g. 'tx=0.5,ty=0.5,tz=0.25'; "
+                             "unnamed axes weigh 1; the validation loss that picks the saved epoch "
+                             "uses the same weights")
     parser.add_argument("--max-steps-per-epoch", type=int, default=0, help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help="bundle directory (default out/force/<model>)")
     args = parser.parse_args(argv)
@@ -72,6 +95,7 @@ def train_main(argv: list[str] | None = None) -> int:
     config = TrainConfig(model_kind=args.model, epochs=args.epochs, batch=args.batch, learning_rate=args.lr,
                          lr_schedule=args.lr_schedule, seed=args.seed, patience=args.patience,
                          val_fraction=args.val_fraction, threads=args.threads, input_noise=args.input_noise,
+                         weight_decay=args.weight_decay, ema_decay=args.ema_decay, loss_weights=args.loss_weights,
                          max_steps_per_epoch=args.max_steps_per_epoch)
     try:
         config.validate()

@@ -1,7 +1,10 @@
 """Training loop: Adam on normalised data, seeded, one progress line per epoch.
 
-The loss is the MSE over the normalised output axes, so a torque axis (milli-newton-metres)
-weighs as much as a force axis; validation MSE is reported per axis in physical units.
+The loss is the MSE over the normalised output axes, so by default a torque axis
+(milli-newton-metres) weighs as much as a force axis; `loss_weights` changes that, and the
+validation loss that picks the saved epoch uses the same weights. Validation MSE is reported per
+axis in physical units. Optional variance reducers: decoupled weight decay (AdamW) and an
+exponential moving average of the weights (the averaged network is validated and saved).
 """
 from __future__ import annotations
 
@@ -32,6 +35,10 @@ class TrainConfig:
     val_fraction: float = 0.2
     threads: int = 1
     input_noise: float = 0.0  # V rms of Gaussian noise added to training inputs (augmentation); 0 = off
+    weight_decay: float = 0.0  # decoupled weight decay (AdamW); 0 = plain Adam
+    ema_decay: float = 0.0  # per-step decay of an exponential moving average of the weights; 0 = off
+    # per-axis weight of the normalised MSE, e.g. {"tz": 0.25}; axes not named weigh 1
+    loss_weights: dict[str, float] = field(default_factory=dict)
     max_steps_per_epoch: int = 0  # 0 = full epochs; tests use a handful of steps
 
     def validate(self) -> None:
@@ -48,6 +55,23 @@ class TrainConfig:
             raise ValueError("patience and max_steps_per_epoch must be >= 0")
         if not self.input_noise >= 0:
             raise ValueError(f"input_noise must be >= 0, got {self.input_noise}")
+        if not self.weight_decay >= 0:
+            raise ValueError(f"weight_decay must be >= 0, got {self.weight_decay}")
+        if not 0 <= self.ema_decay < 1:
+            raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
+        axes = MODEL_SPECS[self.model_kind].axes
+        unknown = [a for a in self.loss_weights if a not in axes]
+        if unknown:
+            raise ValueError(f"loss_weights: axes {unknown} are not outputs of {self.model_kind} {list(axes)}")
+        bad = {a: w for a, w in self.loss_weights.items() if not (w >= 0 and math.isfinite(w))}
+        if bad:
+            raise ValueError(f"loss_weights must be finite and >= 0, got {bad}")
+        if not any(self.axis_weights()):
+            raise ValueError(f"loss_weights leave every axis at weight 0: {self.loss_weights}")
+
+    def axis_weights(self) -> list[float]:
+        """Loss weight of each output axis, in the model's axis order."""
+        return [float(self.loss_weights.get(a, 1.0)) for a in MODEL_SPECS[self.model_kind].axes]
 
 
 @dataclass
@@ -81,6 +105,13 @@ def format_epoch(record: EpochRecord, epochs: int, axes: list[str]) -> str:
             f"val MSE [{per_axis}]  lr {record.learning_rate:.2e}  {record.seconds:.1f} s")
 
 
+def weighted_mse(pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor | None) -> torch.Tensor:
+    """MSE over samples and axes; `weights` (one per axis, mean 1) scale each axis' share."""
+    if weights is None:
+        return torch.nn.functional.mse_loss(pred, target)
+    return torch.mean(weights * (pred - target) ** 2)
+
+
 def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], None] | None = print,
           split: Split | None = None, clock: Callable[[], float] = time.perf_counter) -> TrainResult:
     """Train `config.model_kind` on `dataset`; returns the best-validation model and its metadata."""
@@ -103,7 +134,19 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
     y_val = torch.from_numpy(out_norm.apply(y_val_raw))
 
     model = build_model(config.model_kind)
-    optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    if config.weight_decay:
+        optimiser = torch.optim.AdamW(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    else:
+        optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    # The averaged copy is what gets validated and saved; the raw weights keep training.
+    ema = (torch.optim.swa_utils.AveragedModel(
+        model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema_decay))
+        if config.ema_decay else None)
+    evaluated = ema.module if ema is not None else model
+    raw_weights = config.axis_weights()
+    # Scaled to mean 1 so the loss stays comparable with the unweighted one.
+    weights = (None if all(w == 1.0 for w in raw_weights)
+               else torch.tensor(raw_weights, dtype=torch.float32) * len(raw_weights) / sum(raw_weights))
     shuffle = torch.Generator().manual_seed(config.seed)
     # noise in volts, per taxel in normalised units
     noise_scale = torch.from_numpy((config.input_noise / in_norm.std).astype(np.float32)).reshape(1, 1, 3, 3)
@@ -112,7 +155,7 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
         steps = min(steps, config.max_steps_per_epoch)
 
     history: list[EpochRecord] = []
-    best_loss, best_epoch, best_state = math.inf, 0, copy.deepcopy(model.state_dict())
+    best_loss, best_epoch, best_state = math.inf, 0, copy.deepcopy(evaluated.state_dict())
     stopped_early = False
     start = clock()
     for epoch in range(1, config.epochs + 1):
@@ -131,13 +174,16 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
             x = x_train[index]
             if config.input_noise:
                 x = x + noise_scale * torch.randn(x.shape, generator=shuffle)
-            loss = torch.nn.functional.mse_loss(model(x), y_train[index])
+            loss = weighted_mse(model(x), y_train[index], weights)
             loss.backward()
             optimiser.step()
+            if ema is not None:
+                ema.update_parameters(model)
             total += loss.item()
         model.eval()
-        pred = predict_normalised(model, x_val)
-        val_loss = float(torch.nn.functional.mse_loss(pred, y_val))
+        evaluated.eval()
+        pred = predict_normalised(evaluated, x_val)
+        val_loss = float(weighted_mse(pred, y_val, weights))
         physical = out_norm.invert(pred.numpy())
         val_mse = {a: float(np.mean((physical[:, i] - y_val_raw[:, i]) ** 2)) for i, a in enumerate(axes)}
         record = EpochRecord(epoch, total / steps, val_loss, val_mse, clock() - epoch_start, lr)
@@ -145,7 +191,7 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
         if progress:
             progress(format_epoch(record, config.epochs, axes))
         if val_loss < best_loss:
-            best_loss, best_epoch, best_state = val_loss, epoch, copy.deepcopy(model.state_dict())
+            best_loss, best_epoch, best_state = val_loss, epoch, copy.deepcopy(evaluated.state_dict())
         elif config.patience and epoch - best_epoch >= config.patience:
             stopped_early = True
             if progress:
@@ -153,6 +199,8 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
                          f"keeping epoch {best_epoch}")
             break
     seconds = clock() - start
+    # With EMA this is the averaged copy (a plain network; the AveragedModel wrapper is dropped).
+    model = evaluated
     model.load_state_dict(best_state)
     model.eval()
     best = history[best_epoch - 1]
@@ -163,8 +211,11 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
         output_normaliser=out_norm,
         training={
             **asdict(config),
-            "optimiser": "Adam",
-            "loss": "MSE on normalised outputs",
+            "optimiser": "AdamW" if config.weight_decay else "Adam",
+            "loss": ("MSE on normalised outputs" if weights is None else
+                     "weighted MSE on normalised outputs, axis weights "
+                     + ", ".join(f"{a} {w:g}" for a, w in zip(axes, raw_weights))),
+            "weight_averaging": f"EMA, decay {config.ema_decay:g} per step" if ema is not None else "none",
             "data": dataset.source,
             "samples_train": int(len(split.train)),
             "samples_validation": int(len(split.validation)),
