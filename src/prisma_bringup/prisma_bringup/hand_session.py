@@ -31,13 +31,11 @@ from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.node_config import EstimatorConfig
 from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
 from prisma_force_estimator.ros_conversions import wrench_to_msg
-from prisma_manipulation.closed_loop import ClosedLoop
 from prisma_manipulation.contact_monitor import ContactMonitor
-from prisma_manipulation.controllers import ControlInput, ControlLimits, ControlOutput, JointSample
+from prisma_manipulation.controllers import ControlInput, ControlOutput, JointSample
 from prisma_manipulation.grasp_controller import GraspController
-from prisma_manipulation.hand_world import HandWorld
 from prisma_manipulation.manipulation_core import Feedback
-from prisma_manipulation.motor_bus import MOTOR_NAMES, MotorState, default_motors
+from prisma_manipulation.motor_bus import MOTOR_NAMES, MotorState
 from prisma_manipulation.motor_driver_core import MotorDriverCore
 from prisma_manipulation.motor_goals import MoveFeedback
 from prisma_manipulation.node_config import ManipulationConfig, MotorDriverConfig
@@ -49,7 +47,6 @@ from prisma_manipulation.ros_conversions import (
     move_feedback_to_msg,
 )
 from prisma_manipulation.scenarios import DEFAULT_K, Scenario, build
-from prisma_manipulation.sim_motors import SimMotorBus
 from prisma_tactile_driver.backend import HubReading
 from prisma_tactile_driver.driver_config import DriverConfig
 from prisma_tactile_driver.hub import TactileHub
@@ -94,17 +91,6 @@ class HandScenarioSpec:
     description: str
 
 
-def lateral_grasp(seed: int = 0, rate_hz: float = 100.0) -> Scenario:
-    """Lateral grasp of a card (DESIGN.md section 6 presets): the fingers close to the lateral fist
-    by position, then the thumb flexes until its pad force reaches 1 N. Composed from the same
-    pieces as `prisma_manipulation.scenarios.build`."""
-    world = HandWorld(obj="lateral_card")
-    bus = SimMotorBus(default_motors(), initial_positions=world.positions)
-    loop = ClosedLoop(world, bus, ContactMonitor(DEFAULT_K), None, rate_hz=rate_hz, seed=seed)
-    controller = GraspController(ControlLimits(default_motors()), "lateral", 0.8, 1.0, 60.0)
-    return Scenario("lateral_grasp", loop, controller, 10.0, 0.5)
-
-
 def _renamed(name: str, scenario: Scenario) -> Scenario:
     return replace(scenario, name=name)
 
@@ -120,7 +106,7 @@ HAND_SCENARIOS: dict[str, HandScenarioSpec] = {
         HandScenarioSpec(
             "lateral_grasp", "grasp",
             {"grasp": "lateral", "finger_force": 0.8, "thumb_force": 1.0, "speed_rpm": 60.0, "timeout": 10.0},
-            lateral_grasp,
+            lambda: _renamed("lateral_grasp", build("lateral")),
             "card against the side of the index: fingers close to the lateral fist, thumb flexes at "
             "60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(

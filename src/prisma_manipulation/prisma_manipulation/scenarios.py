@@ -5,6 +5,8 @@
 - disturbance: same start; at 0.5 s an external push slips the object 4 mm toward the thumb pad's
   right side; HoldController at 20 rpm restores the left side.
 - grasp: hand open, a foam ball presented on a stand; GraspController (pinch, 60 rpm, 0.8 N / 1.0 N).
+- lateral: a card against the side of the index; the fingers close to the lateral fist by position,
+  then the thumb flexes to 1 N (GraspController lateral preset).
 - combined: pinch held with use_force; the object slips to a narrower section (grasp force drops)
   and is pushed sideways; the thumb restores 1 N while rotation restores the contact side.
 """
@@ -67,6 +69,10 @@ def build(name: str, force_fn: ForceFn | None = None, k: float = DEFAULT_K, seed
         world = HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
         loop = _loop(world, k, force_fn, seed, rate_hz)
         return Scenario(name, loop, GraspController(limits, "pinch", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
+    if name == "lateral":
+        # a card against the side of the index: the fingers close to the lateral fist by position
+        loop = _loop(HandWorld(obj="lateral_card"), k, force_fn, seed, rate_hz)
+        return Scenario(name, loop, GraspController(limits, "lateral", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
     if name == "combined":
         world = pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
         loop = _loop(world, k, force_fn, seed, rate_hz)
@@ -76,4 +82,4 @@ def build(name: str, force_fn: ForceFn | None = None, k: float = DEFAULT_K, seed
     raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
 
 
-SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "combined")
+SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "lateral", "combined")
