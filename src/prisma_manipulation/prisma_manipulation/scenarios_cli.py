@@ -29,7 +29,7 @@ def summarise(sc: Scenario, trace: Trace) -> dict:
     c = sc.controller
     t = np.asarray(trace.stamps_ns) * 1e-9
     out = {"scenario": sc.name, "reason": c.reason, "success": c.success,
-           "stop_time_s": None if c.stop_ns is None else c.stop_ns * 1e-9,
+           "stop_time_s": None if c.stop_ns is None else round(c.stop_ns * 1e-9, 6),
            "events": [{"t_s": e.stamp_ns * 1e-9, "what": e.what} for e in c.events if e.what != "start"],
            "thumb_force_final_n": float(trace.force("thumb")[-1]),
            "index_force_final_n": float(trace.force("index")[-1]),
