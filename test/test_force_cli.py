@@ -1,6 +1,5 @@
 """prisma-train-force, prisma-eval-force, prisma-estimate-bag end to end (a handful of steps)."""
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

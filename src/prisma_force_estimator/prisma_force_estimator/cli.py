@@ -6,9 +6,9 @@ import json
 import sys
 from pathlib import Path
 
-from .networks import MODEL_KINDS, MODEL_SPECS, parameter_count
+from prisma_tactile_driver.taxels import FINGERS
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+from .networks import MODEL_KINDS, MODEL_SPECS, parameter_count
 
 
 def _is_bag(path: Path) -> bool:
