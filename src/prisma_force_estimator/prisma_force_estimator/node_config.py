@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from prisma_tactile_driver.driver_config import ParameterError
+from prisma_tactile_driver.driver_config import ParameterError, check_fingers
 from prisma_tactile_driver.taxels import FINGERS
 
 from .bundle import DEFAULT_BUNDLE
@@ -59,13 +59,7 @@ class EstimatorConfig:
                 raise ParameterError(OVERRIDE_PREFIX + finger, path, f"{finger!r} is not one of {FINGERS}")
             if not isinstance(path, str):
                 raise ParameterError(OVERRIDE_PREFIX + finger, path, "a bundle directory path or ''")
-        if not self.fingers:
-            raise ParameterError("fingers", self.fingers, "at least one finger")
-        for finger in self.fingers:
-            if finger not in FINGERS:
-                raise ParameterError("fingers", self.fingers, f"{finger!r} is not one of {FINGERS}")
-        if len(set(self.fingers)) != len(self.fingers):
-            raise ParameterError("fingers", self.fingers, "each finger at most once")
+        check_fingers(self.fingers)
         try:
             self.frame_id_format.format(finger="thumb")
         except (KeyError, IndexError, ValueError, AttributeError) as exc:

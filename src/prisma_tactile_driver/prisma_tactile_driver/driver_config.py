@@ -21,6 +21,17 @@ class ParameterError(ValueError):
         self.name, self.value = name, value
 
 
+def check_fingers(fingers: list[str], name: str = "fingers") -> None:
+    """A non-empty list of distinct finger names (ParameterError naming `name` otherwise)."""
+    if not fingers:
+        raise ParameterError(name, fingers, "at least one finger")
+    for finger in fingers:
+        if finger not in FINGERS:
+            raise ParameterError(name, fingers, f"{finger!r} is not one of {FINGERS}")
+    if len(set(fingers)) != len(fingers):
+        raise ParameterError(name, fingers, "each finger at most once")
+
+
 @dataclass
 class DriverConfig:
     backend: str = "sim"  # serial | i2c | sim
@@ -61,13 +72,7 @@ class DriverConfig:
     def validate(self) -> "DriverConfig":
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
-        if not self.fingers:
-            raise ParameterError("fingers", self.fingers, "at least one finger")
-        for finger in self.fingers:
-            if finger not in FINGERS:
-                raise ParameterError("fingers", self.fingers, f"{finger!r} is not one of {FINGERS}")
-        if len(set(self.fingers)) != len(self.fingers):
-            raise ParameterError("fingers", self.fingers, "each finger at most once")
+        check_fingers(self.fingers)
         try:
             self.frame_id_format.format(finger="thumb")
         except (KeyError, IndexError, ValueError) as exc:
