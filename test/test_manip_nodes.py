@@ -266,7 +266,7 @@ def test_joint_states_at_100_hz_in_si_units(ros, hand):
 
 def test_invalid_parameters_fail_at_start_naming_them(ros):
     ros.override(node="manipulation", k=2.0)
-    with pytest.raises(ValueError, match=r"parameter k=2.0"):
+    with pytest.raises(ValueError, match=r"invalid parameter 'k' = 2.0"):
         ManipulationNode()
     ros.override(node="motor_driver", motor_ids=[1, 1, 3])
     with pytest.raises(ValueError, match=r"motor_ids \[1, 1, 3\] are not unique"):

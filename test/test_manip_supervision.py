@@ -238,13 +238,13 @@ def test_manipulation_limits_equal_the_motor_driver_limits():
 
 
 @pytest.mark.parametrize("cls, values, message", [
-    (MotorDriverConfig, {"backend": "can"}, "parameter backend='can'"),
-    (MotorDriverConfig, {"rate_hz": 0.0}, "parameter rate_hz=0.0"),
-    (MotorDriverConfig, {"motor_ids": [1, 2]}, "parameter motor_ids=[1, 2]"),
+    (MotorDriverConfig, {"backend": "can"}, "invalid parameter 'backend' = 'can'"),
+    (MotorDriverConfig, {"rate_hz": 0.0}, "invalid parameter 'rate_hz' = 0.0"),
+    (MotorDriverConfig, {"motor_ids": [1, 2]}, "invalid parameter 'motor_ids' = [1, 2]"),
     (MotorDriverConfig, {"max_positions": [9.0, 7.0, -4.0]}, "position limits"),
-    (ManipulationConfig, {"grasp_speed_rpm": 80.0}, "parameter grasp_speed_rpm=80.0: above max_speed_rpm"),
-    (ManipulationConfig, {"monitored_finger": "wrist"}, "parameter monitored_finger='wrist'"),
-    (ManipulationConfig, {"frame_id_format": "pad"}, "parameter frame_id_format='pad'"),
+    (ManipulationConfig, {"grasp_speed_rpm": 80.0}, "invalid parameter 'grasp_speed_rpm' = 80.0: above max_speed_rpm"),
+    (ManipulationConfig, {"monitored_finger": "wrist"}, "invalid parameter 'monitored_finger' = 'wrist'"),
+    (ManipulationConfig, {"frame_id_format": "pad"}, "invalid parameter 'frame_id_format' = 'pad'"),
 ])
 def test_bad_parameters_name_themselves(cls, values, message):
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):

@@ -17,11 +17,13 @@ from prisma_msgs.msg import ContactState, TaxelArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
+from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import ns_from_stamp
 
 from .contact_monitor import check_k
@@ -211,8 +213,12 @@ class ManipulationNode(Node):
             handle.succeed()
         else:
             handle.abort()
-        log = self.get_logger().info if done.success else self.get_logger().warning
-        log(f"{done.kind} goal ended: {done.reason}" + (f" ({done.detail})" if done.detail else ""))
+        message = f"{done.kind} goal ended: {done.reason}" + (f" ({done.detail})" if done.detail else "")
+        # rclpy fixes a call site's severity at its first call: one call site per severity
+        if done.success:
+            self.get_logger().info(message)
+        else:
+            self.get_logger().warning(message)
         convert = grasp_result_to_msg if done.kind == GRASP else manipulate_result_to_msg
         future.set_result(convert(self.types, done))
 
@@ -223,8 +229,12 @@ def main(args=None) -> None:
     try:
         node = ManipulationNode()
         rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except ParameterError as exc:
+        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
+        rclpy.logging.get_logger("manipulation").fatal(str(exc))
+        raise SystemExit(1) from None
     finally:
         if node is not None:
             node.destroy_node()

@@ -10,11 +10,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.action import MoveMotors
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
+from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 
 from .motor_bus import BusError
@@ -133,8 +135,12 @@ def main(args=None) -> None:
     try:
         node = MotorDriverNode()
         rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except ParameterError as exc:
+        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
+        rclpy.logging.get_logger("motor_driver").fatal(str(exc))
+        raise SystemExit(1) from None
     finally:
         if node is not None:
             node.destroy_node()

@@ -1,6 +1,6 @@
 """Parameters of the motor_driver and manipulation nodes: defaults (= config/*.yaml) and validation.
 
-`from_parameters` raises ValueError naming the parameter and the bad value, so a node with an
+`from_parameters` raises ParameterError naming the parameter and the bad value, so a node with an
 invalid parameter fails at start with that message.
 """
 from __future__ import annotations
@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, fields
 
+from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.taxels import FINGERS
 
 from .contact_monitor import K_RANGE
@@ -23,8 +24,8 @@ from .motor_bus import (
 from .scenarios import DEFAULT_K
 
 
-def _bad(name: str, value, why: str) -> ValueError:
-    return ValueError(f"parameter {name}={value!r}: {why}")
+def _bad(name: str, value, why: str) -> ParameterError:
+    return ParameterError(name, value, why)
 
 
 def _positive(name: str, value: float) -> None:

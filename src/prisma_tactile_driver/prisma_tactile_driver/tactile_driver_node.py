@@ -8,12 +8,13 @@ from __future__ import annotations
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import TaxelArray
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from .driver_config import DriverConfig, make_backend
+from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
 from .ros_conversions import diagnostics_to_msg, ns_from_stamp, taxel_frame_to_msg
 
@@ -79,7 +80,11 @@ class TactileDriverNode(Node):
         result = self.hub.tare()
         response.success = result.success
         response.message = result.message
-        (self.get_logger().info if result.success else self.get_logger().warning)(result.message)
+        # rclpy fixes a call site's severity at its first call: one call site per severity
+        if result.success:
+            self.get_logger().info(result.message)
+        else:
+            self.get_logger().warning(result.message)
         return response
 
     def destroy_node(self) -> None:
@@ -95,8 +100,12 @@ def main(args=None) -> None:
     try:
         node = TactileDriverNode()
         rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except ParameterError as exc:
+        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
+        rclpy.logging.get_logger("tactile_driver").fatal(str(exc))
+        raise SystemExit(1) from None
     finally:
         if node is not None:
             node.destroy_node()

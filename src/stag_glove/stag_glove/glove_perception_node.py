@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import rclpy
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
@@ -62,8 +63,12 @@ def main(args=None) -> None:
     try:
         node = GlovePerceptionNode()
         rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except (BundleError, ParameterError) as exc:
+        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
+        rclpy.logging.get_logger("glove_perception").fatal(str(exc))
+        raise SystemExit(1) from None
     finally:
         if node is not None:
             node.destroy_node()
