@@ -12,6 +12,10 @@ import os
 # against the other jobs: a 64x1024 PCA fit took 1.7 ms on one thread and 310 ms on two.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+# rclpy's generated messages check every field assignment (as Humble always does; Jazzy reads this
+# when a message module is imported), so a converter that fills a field wrongly fails here, not on
+# the robot. Subprocesses (launched nodes) inherit it.
+os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 
 import pytest  # noqa: E402
 from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402

@@ -13,9 +13,10 @@ a topic-table row needs no change here.
 3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
    publishing node, the one in its 'from' column; every action there exactly one action server.
 
-Nodes are found by instantiating the rclpy Node subclass of every console-script module (on the
-stand-in when ROS is absent) with default parameters and reading what they declared, published
-and served. Rows and entries whose node has no console script yet skip, naming the node.
+Nodes are found by instantiating the rclpy Node subclass of every console-script module (real
+rclpy; those checks skip where ROS is absent) with default parameters and reading what they
+declared, published and served (rclpy's own /rosout, /parameter_events and the action servers'
+hidden topics left out). Rows and entries whose node has no console script yet skip, naming the node.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import ast
 import importlib
 import inspect
 import re
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,10 +32,7 @@ from typing import Iterator
 
 import pytest
 import yaml
-
-import rclpy
-from rclpy.node import Node
-from rclpy.parameter import Parameter
+from ros_harness import ROS_AVAILABLE, require_ros
 
 ROOT = Path(__file__).resolve().parents[1]
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -268,6 +267,8 @@ class NodeInfo:
 
 
 def _node_class(module) -> type | None:
+    from rclpy.node import Node
+
     classes = [c for _, c in inspect.getmembers(module, inspect.isclass)
                if issubclass(c, Node) and c is not Node and c.__module__ == module.__name__]
     if len(classes) > 1 and hasattr(module, "main"):
@@ -291,7 +292,14 @@ def _thread_settings_kept() -> Iterator[None]:
             torch.set_num_threads(torch_threads)
 
 
+# every rclpy node publishes these, and an action server its hidden feedback and status topics
+RCLPY_OWN_TOPICS = {"/rosout", "/parameter_events"}
+
+
 def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
+    import rclpy
+    from rclpy.parameter import Parameter
+
     info = NodeInfo(script)
     try:
         module = importlib.import_module(script.module)
@@ -319,8 +327,20 @@ def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
                 info.parameters[name] = node.get_parameter_or(name)
                 info.parameter_types[name] = Parameter.Type(descriptor.type)
             fqn = (node.get_name(), node.get_namespace())
-            info.publishers = dict(node.get_publisher_names_and_types_by_node(*fqn))
-            info.action_servers = dict(get_action_server_names_and_types_by_node(node, *fqn))
+            # the graph learns of the node's own endpoints through discovery, one by one: read until
+            # /rosout is there and nothing changed for 0.2 s
+            seen, stable_since, deadline = None, time.monotonic(), time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                now = (dict(node.get_publisher_names_and_types_by_node(*fqn)),
+                       dict(get_action_server_names_and_types_by_node(node, *fqn)))
+                if now != seen:
+                    seen, stable_since = now, time.monotonic()
+                elif "/rosout" in now[0] and time.monotonic() - stable_since > 0.2:
+                    break
+                time.sleep(0.02)
+            publishers, info.action_servers = seen
+            info.publishers = {name: types for name, types in publishers.items()
+                               if name not in RCLPY_OWN_TOPICS and "/_action/" not in name}
         finally:
             node.destroy_node()
             rclpy.shutdown()
@@ -330,6 +350,10 @@ def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
 @pytest.fixture(scope="module")
 def nodes() -> dict[tuple[str, str], NodeInfo]:
     """(package, executable) -> NodeInfo for every console script that is a node."""
+    if not ROS_AVAILABLE:
+        require_ros()  # skips (or fails under PRISMA_REQUIRE_ROS=1): nodes start only on real rclpy
+    import rclpy
+
     if rclpy.ok():
         rclpy.shutdown()
     found = {}
@@ -404,6 +428,9 @@ def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
 
 @pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters], ids=_launch_id)
 def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
+    import rclpy
+    from rclpy.parameter import Parameter
+
     info = nodes.get((entry.package, entry.executable))
     if info is None:
         pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
@@ -471,6 +498,8 @@ def test_every_node_starts_with_default_parameters(nodes):
 
 
 def config_problems(info: NodeInfo, values: dict) -> list[str]:
+    from rclpy.parameter import Parameter
+
     """What is wrong with giving `values` (from a config file) to the node `info`."""
     problems = []
     for name, value in values.items():
@@ -642,6 +671,10 @@ def test_checks_parse_setup_and_launch_sources(tmp_path):
 
 
 def test_checks_find_what_a_node_declares_publishes_and_serves(tmp_path, monkeypatch):
+    if not ROS_AVAILABLE:
+        require_ros()
+    import rclpy
+
     (tmp_path / "demo_static_pkg").mkdir()
     (tmp_path / "demo_static_pkg" / "__init__.py").write_text("")
     (tmp_path / "demo_static_pkg" / "talker_node.py").write_text(_NODE)

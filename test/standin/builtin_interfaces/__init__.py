@@ -1,1 +1,0 @@
-"""Test stand-in for the builtin_interfaces interface package (generated from the typestore)."""

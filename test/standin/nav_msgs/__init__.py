@@ -1,1 +1,0 @@
-"""Test stand-in for the nav_msgs interface package (generated from the typestore)."""

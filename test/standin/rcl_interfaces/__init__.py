@@ -1,1 +1,0 @@
-"""Test stand-in for the rcl_interfaces interface package (generated from the typestore)."""

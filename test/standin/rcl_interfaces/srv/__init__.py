@@ -1,4 +1,0 @@
-"""rcl_interfaces.srv of the test stand-in: classes built from the rosbags typestore."""
-from ros_standin.messages import export_package as _export
-
-_export(globals(), 'rcl_interfaces', 'srv')

@@ -1,1 +1,0 @@
-"""Test stand-in for rosidl_runtime_py (only `utilities` is provided)."""

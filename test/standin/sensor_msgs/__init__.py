@@ -1,1 +1,0 @@
-"""Test stand-in for the sensor_msgs interface package (generated from the typestore)."""

@@ -1,1 +1,0 @@
-"""Test stand-in for the std_srvs interface package (generated from the typestore)."""

@@ -1,4 +1,0 @@
-"""std_srvs.srv of the test stand-in: classes built from the rosbags typestore."""
-from ros_standin.messages import export_package as _export
-
-_export(globals(), 'std_srvs', 'srv')

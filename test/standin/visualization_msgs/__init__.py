@@ -1,1 +1,0 @@
-"""Test stand-in for the visualization_msgs interface package (generated from the typestore)."""
