@@ -17,6 +17,7 @@ from prisma_bringup.typestore import (
     registered_prisma_types,
     types,
 )
+from prisma_tactile_driver import share_data
 
 NUMPY_DTYPES = {
     "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
@@ -140,7 +141,7 @@ def test_action_without_three_sections_is_rejected(tmp_path: Path):
 def test_interfaces_are_found_in_a_colcon_install_share(tmp_path: Path, monkeypatch):
     share = tmp_path / "install" / "prisma_msgs" / "share" / "prisma_msgs"
     (share / "msg").mkdir(parents=True)
-    monkeypatch.setattr(ts_module, "__file__", str(tmp_path / "elsewhere" / "a" / "b.py"))
+    monkeypatch.setattr(share_data, "SOURCE_ROOT", None)  # as when installed: no source tree
     monkeypatch.delenv("PRISMA_MSGS_DIR", raising=False)
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "install" / "prisma_msgs"))
     assert ts_module.find_interface_dir() == share

@@ -1,11 +1,25 @@
-from glob import glob
 import os
 
 from setuptools import find_packages, setup
 
 package_name = "prisma_bringup"
-# launch/ and config/ live at the workspace root, beside src/.
-ROOT = os.path.join("..", "..")
+# launch/ and config/ live at the repository root, beside src/. colcon runs this file from the
+# package directory and, with --symlink-install, from a symlink to it in build/, so the root is
+# found from this file's real location and named relative to the working directory.
+ROOT = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
+
+
+def share_tree(directory: str) -> list[tuple[str, list[str]]]:
+    """data_files entries installing ROOT/directory, subfolders included, under share/<package>/."""
+    entries = []
+    for folder, subfolders, files in os.walk(os.path.join(ROOT, directory)):
+        subfolders[:] = sorted(d for d in subfolders if not d.startswith((".", "__")))
+        files = sorted(f for f in files if not f.startswith(".") and not f.endswith(".pyc"))
+        if files:
+            destination = os.path.join("share", package_name, os.path.relpath(folder, ROOT))
+            entries.append((destination, [os.path.join(folder, f) for f in files]))
+    return entries
+
 
 setup(
     name=package_name,
@@ -14,12 +28,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/launch", glob(os.path.join(ROOT, "launch", "*.launch.py"))),
-        ("share/" + package_name + "/config", glob(os.path.join(ROOT, "config", "*.yaml"))),
-    ] + [
-        ("share/" + package_name + "/config/models/" + os.path.basename(bundle), glob(os.path.join(bundle, "*")))
-        for bundle in sorted(glob(os.path.join(ROOT, "config", "models", "*")))
-    ],
+    ] + share_tree("launch") + share_tree("config"),
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="PRISMA developers",

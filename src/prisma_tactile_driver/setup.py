@@ -19,6 +19,9 @@ setup(
     entry_points={
         "console_scripts": [
             "tactile_driver = prisma_tactile_driver.tactile_driver_node:main",
+            "prisma-tactile-calset = prisma_tactile_driver.cli:calset_main",
+            "prisma-tactile-pad-plot = prisma_tactile_driver.cli:pad_plot_main",
+            "prisma-tactile-hub-emulator = prisma_tactile_driver.cli:hub_emulator_main",
         ],
     },
 )

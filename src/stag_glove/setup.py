@@ -4,9 +4,11 @@ import os
 from setuptools import find_packages, setup
 
 package_name = "stag_glove"
-# config/ lives at the workspace root, beside src/ (the node YAML and model bundles are installed
-# by prisma_bringup; the glove layout is installed here).
-ROOT = os.path.join("..", "..")
+# config/ lives at the repository root, beside src/ (prisma_bringup installs all of it; the glove
+# layout is installed here too so the glove nodes find it without prisma_bringup). colcon runs this
+# file from the package directory and, with --symlink-install, from a symlink to it in build/, so
+# the root is found from this file's real location and named relative to the working directory.
+ROOT = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
 
 setup(
     name=package_name,

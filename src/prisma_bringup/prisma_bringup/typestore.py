@@ -1,7 +1,7 @@
 """rosbags typestore for ROS 2 Jazzy with every prisma_msgs interface registered.
 
-The .msg/.action files are read from the source tree, or from share/prisma_msgs of a
-colcon install found on AMENT_PREFIX_PATH, or from the directory named by PRISMA_MSGS_DIR.
+The .msg/.action files are read from the directory named by PRISMA_MSGS_DIR, else from the
+source tree, share/prisma_msgs of a colcon install or of the wheel's prefix (share_data).
 `types(name)` is the message-class lookup the converters take (DESIGN.md section 2).
 """
 from __future__ import annotations
@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from prisma_tactile_driver import share_data
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore as _rosbags_typestore
 from rosbags.typesys.store import Typestore
 
@@ -44,10 +45,7 @@ def find_interface_dir() -> Path:
     candidates: list[Path] = []
     if os.environ.get("PRISMA_MSGS_DIR"):
         candidates.append(Path(os.environ["PRISMA_MSGS_DIR"]))
-    candidates.append(Path(__file__).resolve().parents[2] / PACKAGE)
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if prefix:
-            candidates.append(Path(prefix) / "share" / PACKAGE)
+    candidates += share_data.package_directories(PACKAGE)
     for candidate in candidates:
         if (candidate / "msg").is_dir():
             return candidate

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from prisma_tactile_driver import share_data
 
 from .networks import MODEL_SPECS, WRENCH_AXES, taxel_image
 from .normalisation import Normaliser
@@ -162,10 +163,9 @@ def load_bundle(directory: str | Path) -> tuple[torch.jit.ScriptModule, BundleMe
 
 
 DEFAULT_BUNDLE = "config/models/cnn2"
-# Relative bundle paths are looked up in the working directory, the source workspace (this file is
-# src/prisma_force_estimator/prisma_force_estimator/bundle.py) and the installed prisma_bringup
-# share directory, which carries config/models on the robot.
-_WORKSPACE_ROOT = Path(__file__).resolve().parents[3]
+# Bundles ship in prisma_bringup's share directory (config/models/); relative bundle paths are
+# looked up in the working directory, then there (source tree, colcon install or wheel).
+BUNDLE_PACKAGES = ("prisma_bringup",)
 
 
 def resolve_bundle_path(path: str | Path) -> Path:
@@ -173,14 +173,7 @@ def resolve_bundle_path(path: str | Path) -> Path:
     path = Path(path).expanduser()
     if path.is_absolute():
         return path
-    candidates = [Path.cwd() / path, _WORKSPACE_ROOT / path]
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        candidates.append(Path(get_package_share_directory("prisma_bringup")) / path)
-    except Exception:  # not on a ROS install, or prisma_bringup not installed there
-        pass
-    for candidate in candidates:
+    for candidate in [Path.cwd() / path, *share_data.candidates(path, BUNDLE_PACKAGES)]:
         if candidate.is_dir():
             return candidate
     return path

@@ -1,29 +1,24 @@
-"""Find shipped files (layout, model bundles) in the source tree or in a colcon install."""
+"""Find shipped files (layout, model bundles) in the source tree, a colcon install or a wheel."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
-# src/stag_glove/stag_glove/paths.py -> workspace root three levels up from the package dir.
-SOURCE_ROOT = Path(__file__).resolve().parents[3]
+from prisma_tactile_driver import share_data
+
+# The layout ships in both packages' share directories, the glove model bundles in prisma_bringup's.
 SHARE_PACKAGES = ("stag_glove", "prisma_bringup")
 
 
 def candidates(relative: str | Path) -> list[Path]:
-    """Where a workspace-relative path such as 'config/glove/layout.yaml' may live."""
-    relative = Path(relative)
-    found = [SOURCE_ROOT / relative]
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if prefix:
-            found += [Path(prefix) / "share" / package / relative for package in SHARE_PACKAGES]
-    return found
+    """Where a share-relative path such as 'config/glove/layout.yaml' may live."""
+    return share_data.candidates(relative, SHARE_PACKAGES)
 
 
 def resolve(path: str | Path) -> Path:
-    """An absolute or cwd-relative path that exists, else the first workspace/share match.
+    """An absolute or cwd-relative path that exists, else the first source/share match.
 
     Raises FileNotFoundError listing every place looked at, so a missing model or layout file
-    fails at start with the path (DESIGN.md section 8)."""
+    fails at start with the path."""
     path = Path(path).expanduser()
     if path.is_absolute() or path.exists():
         if path.exists():
