@@ -132,3 +132,64 @@ def test_message_without_header_needs_explicit_time(tmp_path):
             bag.write("/s", String(data="x"))
         bag.write("/s", String(data="x"), timestamp_ns=42)
     assert [(m.message.data, m.timestamp_ns) for m in read_bag(tmp_path / "bag")] == [("x", 42)]
+
+
+@pytest.mark.parametrize("stop", [RuntimeError("converter bug"), KeyboardInterrupt()], ids=["error", "ctrl-c"])
+def test_an_interrupted_bag_leaves_nothing_and_the_rerun_works(tmp_path, stop):
+    stream = sample_stream()
+    with pytest.raises(type(stop)):
+        with BagWriter(tmp_path / "bag") as bag:
+            bag.write_all(stream[:10])
+            raise stop
+    assert list(tmp_path.iterdir()) == []  # no bag, no staging directory
+    write(tmp_path / "bag", "mcap")
+    assert len(list(read_bag(tmp_path / "bag"))) == len(stream)
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == ["bag.mcap", "metadata.yaml"]
+
+
+def test_an_open_bag_is_not_at_its_path_until_closed(tmp_path):
+    bag = BagWriter(tmp_path / "bag")
+    bag.write_all(sample_stream()[:3])
+    assert not (tmp_path / "bag").exists()
+    bag.close()
+    assert len(list(read_bag(tmp_path / "bag"))) == 3
+
+
+def test_existing_bag_is_refused_unless_replacing(tmp_path):
+    write(tmp_path / "bag", "mcap")
+    with pytest.raises(FileExistsError, match="already exists"):
+        BagWriter(tmp_path / "bag")
+    with BagWriter(tmp_path / "bag", replace=True) as bag:
+        bag.write("/prisma/thumb/taxels", taxels(5, 7))
+    assert [m.message.counts[0] for m in read_bag(tmp_path / "bag")] == [7]
+
+
+def test_missing_topics_are_named_with_what_the_bag_has(tmp_path):
+    from prisma_bringup.bag import BagError, MissingTopicsError, bag_topics, require_topics
+
+    write(tmp_path / "bag", "mcap")
+    present = {"/prisma/thumb/taxels": "prisma_msgs/msg/TaxelArray",
+               "/prisma/thumb/wrench": "geometry_msgs/msg/WrenchStamped",
+               "/prisma/thumb/contact": "prisma_msgs/msg/ContactState"}
+    assert bag_topics(tmp_path / "bag") == present
+    assert require_topics(tmp_path / "bag", ["/prisma/thumb/taxels"]) == present
+    with pytest.raises(MissingTopicsError) as err:
+        require_topics(tmp_path / "bag", ["/prisma/thumb/taxels", "/prisma/index/taxels", "/ft_sensor/wrench"])
+    assert err.value.missing == ["/prisma/index/taxels", "/ft_sensor/wrench"]
+    assert str(err.value) == (
+        f"bag {tmp_path / 'bag'} has no topics '/prisma/index/taxels', '/ft_sensor/wrench'; it has: "
+        "/prisma/thumb/contact (prisma_msgs/msg/ContactState), /prisma/thumb/taxels (prisma_msgs/msg/TaxelArray), "
+        "/prisma/thumb/wrench (geometry_msgs/msg/WrenchStamped)")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BagError, match="is not a readable ROS 2 bag"):
+        bag_topics(tmp_path / "empty")
+    with pytest.raises(BagError, match="does not exist"):
+        bag_topics(tmp_path / "nowhere")
+
+
+def test_read_bag_with_only_absent_topics_reads_nothing(tmp_path):
+    """rosbags reads an empty connection list as every topic; read_bag must not."""
+    write(tmp_path / "bag", "mcap")
+    assert list(read_bag(tmp_path / "bag", topics=["/prisma/index/taxels"])) == []
+    assert len(list(read_bag(tmp_path / "bag", topics=[]))) == 0
+    assert len(list(read_bag(tmp_path / "bag"))) == 44

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from prisma_bringup.bag import BagWriter
+from prisma_bringup.bag import BagWriter, read_bag
 from prisma_bringup.typestore import get_typestore, types
 from prisma_force_estimator.bundle import load_bundle, save_untrained_bundle
 from prisma_force_estimator.cli import estimate_bag_main, eval_main, train_main
@@ -147,3 +147,77 @@ def test_estimate_bag_refuses_a_bad_bundle_and_existing_output(tmp_path, five_fi
     assert not (tmp_path / "out").exists()
     with pytest.raises(SystemExit):
         estimate_bag_main([str(bag_in), str(bag_in)])
+
+
+def test_estimate_bag_names_the_missing_taxel_topics_and_writes_nothing(tmp_path, capsys):
+    """Like `prisma-estimate-bag prisma_sim_out/bags/glove out`: a bag without fingertip topics."""
+    String = types("std_msgs/msg/String")
+    with BagWriter(tmp_path / "glove") as bag:
+        bag.write("/stag/object", String(data="mug"), timestamp_ns=T0)
+        bag.write("/prisma/thumb/taxels", _taxel("thumb", T0, np.full(9, 1.0)))
+    assert estimate_bag_main([str(tmp_path / "glove"), str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("prisma-estimate-bag: error: bag ") and err.count("\n") == 1
+    assert ("has no topics '/prisma/index/taxels', '/prisma/middle/taxels', '/prisma/ring/taxels', "
+            "'/prisma/little/taxels'; it has: /prisma/thumb/taxels (prisma_msgs/msg/TaxelArray), "
+            "/stag/object (std_msgs/msg/String)") in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["glove"]
+    # the fingers it has are fine
+    bundle = save_untrained_bundle(tmp_path / "b", "ann")
+    assert estimate_bag_main([str(tmp_path / "glove"), str(tmp_path / "out"), "--fingers", "thumb",
+                              "--bundle", str(bundle)]) == 0
+    assert "thumb: 1 taxel messages -> 1 wrenches" in capsys.readouterr().out
+
+
+def test_estimate_bag_interrupted_leaves_no_bag_and_the_rerun_works(tmp_path, five_finger_bag, monkeypatch, capsys):
+    from prisma_force_estimator import estimate_bag as module
+
+    bag_in, _ = five_finger_bag
+    bundle = save_untrained_bundle(tmp_path / "cnn2", "cnn2", seed=9)
+    written = []
+
+    def interrupted(types_, sample):
+        if len(written) == 100:
+            raise KeyboardInterrupt
+        written.append(sample)
+        return wrench_to_msg(types_, sample)
+
+    monkeypatch.setattr(module, "wrench_to_msg", interrupted)
+    assert estimate_bag_main([str(bag_in), str(tmp_path / "out"), "--bundle", str(bundle)]) == 130
+    assert capsys.readouterr().err == "prisma-estimate-bag: interrupted\n"
+    assert len(written) == 100
+    assert not (tmp_path / "out").exists() and not [p for p in tmp_path.iterdir() if ".partial-" in p.name]
+    monkeypatch.undo()
+    assert estimate_bag_main([str(bag_in), str(tmp_path / "out"), "--bundle", str(bundle)]) == 0
+    assert sum(1 for _ in read_bag(tmp_path / "out")) == 59 + 4 * 60 - 9  # thumb NaN sample, ring gaps
+
+
+def test_train_from_a_bag_without_the_reference_topic_names_it_before_training(tmp_path, capsys):
+    with BagWriter(tmp_path / "cal") as bag:
+        for k in range(20):
+            bag.write("/prisma/index/taxels", _taxel("index", T0 + k * 10_000_000, np.full(9, 1.2)))
+    assert train_main(["--model", "cnn", "--data", str(tmp_path / "cal"), "--finger", "index",
+                       "--out", str(tmp_path / "b")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # no data generated, nothing trained
+    assert (f"prisma-train-force: error: --data bag {tmp_path / 'cal'} has no topic '/ft_sensor/wrench'; "
+            "it has: /prisma/index/taxels (prisma_msgs/msg/TaxelArray); choose the topics") in captured.err
+    assert not (tmp_path / "b").exists()
+
+
+def test_train_checks_out_before_training_and_replaces_only_a_bundle(tmp_path, capsys):
+    mine = tmp_path / "thesis"
+    mine.mkdir()
+    (mine / "chapter1.tex").write_text("mine")
+    assert train_main(["--model", "cnn2", "--samples", "6000", "--epochs", "1", "--out", str(mine)]) == 2
+    captured = capsys.readouterr()
+    assert "epoch" not in captured.out and "training" not in captured.out
+    assert f"--out {mine} holds files that are not a model bundle (chapter1.tex)" in captured.err
+    assert [p.name for p in mine.iterdir()] == ["chapter1.tex"]
+    # an earlier bundle at --out is replaced by the new one
+    old = save_untrained_bundle(tmp_path / "cnn2", "ann")
+    assert train_main(["--model", "cnn2", "--samples", "6000", "--epochs", "1", "--max-steps-per-epoch", "2",
+                       "--out", str(old)]) == 0
+    _, meta = load_bundle(old)
+    assert meta.model_kind == "cnn2" and meta.training["epochs_run"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cnn2", "thesis"]

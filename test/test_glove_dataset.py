@@ -82,3 +82,84 @@ def test_missing_fields_and_files_are_named(tmp_path):
         load_dataset(tmp_path / "bad.mat")
     with pytest.raises(FileNotFoundError, match="nope.mat"):
         load_dataset(tmp_path / "nope.mat")
+
+
+# ---------------------------------------------------------------------------------- edge cases
+def test_single_frame_v5_file_keeps_its_frame_axis(tmp_path, small):
+    """scipy's squeeze_me would turn the 1x32x32 pressure into 32x32 and the vectors into scalars."""
+    one = small.subset(np.array([7]))
+    save_mat(one, tmp_path / "one.mat")
+    assert scipy.io.loadmat(tmp_path / "one.mat")["pressure"].shape == (1, 32, 32)
+    back = load_dataset(tmp_path / "one.mat")
+    same(one, back)
+    assert back.pressure.shape == (1, 32, 32) and back.object_id.tolist() == [small.object_id[7]]
+
+
+def _char_matrix(names: list[str]) -> np.ndarray:
+    """MATLAB char(names): one row per name, padded with blanks to the longest."""
+    width = max(map(len, names))
+    return np.array([[ord(c) for c in name.ljust(width)] for name in names], dtype=np.uint16)
+
+
+def test_object_names_as_a_char_matrix_in_v73(tmp_path, small):
+    path = tmp_path / "metadata.mat"
+    save_mat73(small, path)
+    names = small.objects
+    assert len(set(map(len, names))) > 1  # the rows are padded
+    with h5py.File(path, "r+") as h5:  # as MATLAB stores char(objects): [cols, rows] uint16
+        del h5["objects"]
+        h5.create_dataset("objects", data=_char_matrix(names).T).attrs["MATLAB_class"] = np.bytes_("char")
+    assert load_dataset(path).objects == names
+
+
+def test_object_names_as_a_char_matrix_in_v5(tmp_path, small):
+    path = tmp_path / "metadata.mat"
+    save_mat(small, path)
+    fields = scipy.io.loadmat(path)
+    fields = {k: v for k, v in fields.items() if not k.startswith("__")}
+    fields["objects"] = np.array(small.objects)  # a char matrix, not a cell array
+    scipy.io.savemat(path, fields)
+    assert scipy.io.loadmat(path)["objects"].dtype.kind == "U"
+    assert load_dataset(path).objects == small.objects
+
+
+def _row_major_v73(ds: GloveDataset, path):
+    """A v7.3 file (MATLAB header, MATLAB class attributes) whose pressure a non-MATLAB writer stored
+    row-major, [N, 32, 32], where MATLAB stores [32, 32, N]."""
+    save_mat73(ds, path)
+    with h5py.File(path, "r+") as h5:
+        del h5["pressure"]
+        h5.create_dataset("pressure", data=ds.pressure).attrs["MATLAB_class"] = np.bytes_("uint16")
+
+
+@pytest.mark.parametrize("frames", [32, 20])
+def test_row_major_v73_is_detected(tmp_path, small, frames):
+    """N = 32 frames make [N, 32, 32] and [32, 32, N] indistinguishable by shape; the unconnected
+    cells, constant in every frame, tell which axis holds the frames."""
+    part = small.subset(np.arange(frames))
+    _row_major_v73(part, tmp_path / "row_major.mat")
+    with h5py.File(tmp_path / "row_major.mat", "r") as h5:
+        assert h5["pressure"].shape == (frames, 32, 32)
+    same(part, load_dataset(tmp_path / "row_major.mat"))
+    # MATLAB's own layout with the same frames still reads as before
+    save_mat73(part, tmp_path / "matlab.mat")
+    same(part, load_dataset(tmp_path / "matlab.mat"))
+
+
+def test_unreadable_files_are_named(tmp_path, small):
+    (tmp_path / "garbage.mat").write_bytes(b"MATLAB? no" * 20)
+    with pytest.raises(ValueError, match="garbage.mat: cannot be read as a MATLAB v5 file"):
+        load_dataset(tmp_path / "garbage.mat")
+    save_mat(small, tmp_path / "whole.mat")
+    data = (tmp_path / "whole.mat").read_bytes()
+    for size in (10, 300, len(data) // 2):  # truncated copies: scipy raises MatReadError or OSError
+        (tmp_path / "cut.mat").write_bytes(data[:size])
+        with pytest.raises(ValueError, match="cut.mat: cannot be read as a MATLAB v5 file"):
+            load_dataset(tmp_path / "cut.mat")
+    save_hdf5(small, tmp_path / "whole.h5")
+    (tmp_path / "cut.h5").write_bytes((tmp_path / "whole.h5").read_bytes()[:2000])
+    with pytest.raises(ValueError, match="cut.h5: cannot be read as an HDF5 file"):
+        load_dataset(tmp_path / "cut.h5")
+    (tmp_path / "notes.txt").write_text("hello")
+    with pytest.raises(ValueError, match="notes.txt: neither a .mat file nor HDF5"):
+        load_dataset(tmp_path / "notes.txt")

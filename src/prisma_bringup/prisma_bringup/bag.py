@@ -1,16 +1,35 @@
-"""Record and read ROS 2 bags (MCAP by default, sqlite3 on request) with prisma_msgs types."""
+"""Record and read ROS 2 bags (MCAP by default, sqlite3 on request) with prisma_msgs types.
+
+A bag is written whole or not at all: BagWriter records into `<bag>.partial-<pid>/<bag>/` and
+renames it to `<bag>` on close, and an exception (or ctrl-C) inside its `with` block deletes it,
+so nothing at `<bag>` ever looks complete while it is not.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
-from rosbags.highlevel import AnyReader
+from prisma_tactile_driver.atomic import atomic_output
+from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from .typestore import get_typestore, message_definition
 
 STORAGE = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+
+
+class BagError(ValueError):
+    """A bag that cannot be read, or lacks topics a tool needs; the message names the bag, the
+    missing topics and the topics it has."""
+
+
+class MissingTopicsError(BagError):
+    def __init__(self, path: str | Path, missing: list[str], present: dict[str, str]) -> None:
+        self.path, self.missing, self.present = str(path), list(missing), dict(present)
+        has = ", ".join(f"{t} ({m})" for t, m in sorted(present.items())) or "no topics at all"
+        topics = "topic" if len(missing) == 1 else "topics"
+        super().__init__(f"bag {path} has no {topics} {', '.join(map(repr, missing))}; it has: {has}")
 
 
 @dataclass
@@ -36,15 +55,24 @@ class BagWriter:
     sensor's time line (logic uses header stamps, DESIGN.md section 4).
     """
 
-    def __init__(self, path: str | Path, storage: str = "mcap") -> None:
+    def __init__(self, path: str | Path, storage: str = "mcap", replace: bool = False) -> None:
+        """`replace`: an existing bag at `path` is replaced when this one is complete (the caller
+        has checked that it is a bag); otherwise an existing `path` raises FileExistsError."""
         if storage not in STORAGE:
             raise ValueError(f"storage must be one of {sorted(STORAGE)}, got {storage!r}")
         self.path = Path(path)
         self._typestore = get_typestore()
-        self._writer = Writer(self.path, version=9, storage_plugin=STORAGE[storage])
+        self._output = atomic_output(self.path, replace=replace)
+        staged = self._output.open()
+        try:
+            self._writer = Writer(staged, version=9, storage_plugin=STORAGE[storage])
+            self._writer.open()
+        except BaseException:
+            self._output.abort()
+            raise
         self._connections: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
-        self._writer.open()
+        self._closed = False
 
     def write(self, topic: str, message: Any, timestamp_ns: int | None = None) -> None:
         msgtype = message.__msgtype__
@@ -68,20 +96,71 @@ class BagWriter:
             self.write(topic, message)
 
     def close(self) -> None:
-        self._writer.close()
+        """Finish the bag and move it into place at `path`."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.close()
+        except BaseException:
+            self._output.abort()
+            raise
+        self._output.commit()
+
+    def abort(self) -> None:
+        """Drop the bag: nothing appears at `path` (an earlier bag there stays)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.close()
+        finally:
+            self._output.abort()
 
     def __enter__(self) -> "BagWriter":
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+def _reader(path: str | Path) -> AnyReader:
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"bag {path} does not exist")
+    return AnyReader([path], default_typestore=get_typestore())
+
+
+def bag_topics(path: str | Path) -> dict[str, str]:
+    """topic -> message type of every connection in the bag; BagError if it is not a readable bag."""
+    try:
+        with _reader(path) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except (AnyReaderError, OSError) as exc:  # no metadata.yaml, an unknown file type, a damaged file
+        raise BagError(f"{path} is not a readable ROS 2 bag (a directory with metadata.yaml, or an "
+                       f".mcap/.db3 file): {exc}") from None
+
+
+def require_topics(path: str | Path, topics: Iterable[str]) -> dict[str, str]:
+    """The bag's topics; MissingTopicsError naming every absent one of `topics` and what the bag has."""
+    present = bag_topics(path)
+    missing = [t for t in dict.fromkeys(topics) if t not in present]
+    if missing:
+        raise MissingTopicsError(path, missing, present)
+    return present
 
 
 def read_bag(path: str | Path, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
-    """Messages of a bag in log-time order, deserialised with the prisma typestore."""
+    """Messages of a bag in log-time order, deserialised with the prisma typestore; with `topics`,
+    only those (none at all if the bag has none of them)."""
     wanted = set(topics) if topics is not None else None
-    with AnyReader([Path(path)], default_typestore=get_typestore()) as reader:
+    with _reader(path) as reader:
         connections = [c for c in reader.connections if wanted is None or c.topic in wanted]
+        if wanted is not None and not connections:
+            return  # rosbags reads an empty connection list as "every topic"
         for connection, timestamp, raw in reader.messages(connections=connections):
             message = reader.deserialize(raw, connection.msgtype)
             yield BagMessage(connection.topic, connection.msgtype, timestamp, message)

@@ -6,8 +6,12 @@
     prisma-sim --list
 
 Each scenario writes <out>/bags/<scenario>/ (MCAP; `ros2 bag play` it, or open it with rosbags or
-mcap_ros2), <out>/<scenario>.png, and a line in <out>/summary.md and summary.json. Exit status 1
-when a scenario ends for another reason than the paper's.
+mcap_ros2), <out>/<scenario>.png, and a line in <out>/summary.md and summary.json, which also name
+the force estimator bundle used. <out> is written whole when the run ends and replaces an earlier
+run's output; a directory holding anything else is refused. Exit status 1 when a scenario ends for
+another reason than the paper's, or misses one of its force set points (a grasp's finger or thumb
+force, the combined hold's thumb force) by more than the force tolerance, 0.15 N by default, in
+the estimated or the true force.
 """
 from __future__ import annotations
 
@@ -16,21 +20,51 @@ import sys
 import time
 from pathlib import Path
 
-from .sim_runner import EXPECTED_REASONS, SimOptions, markdown, run, scenario_names
+from prisma_tactile_driver.cli_args import (
+    ArgumentParser,
+    UserError,
+    check_bundle_dir,
+    command,
+    output_dir,
+    positive_float,
+    positive_int,
+)
+
+from .sim_runner import (
+    EXPECTED_REASONS,
+    FORCE_TOLERANCE_N,
+    GLOVE,
+    SimOptions,
+    check_out,
+    failures,
+    markdown,
+    run,
+    scenario_names,
+)
+
+DEFAULT_BUNDLE = "config/models/cnn2"
 
 
+@command("prisma-sim", "prisma_force_estimator.bundle:BundleError")
 def main(argv: list[str] | None = None) -> int:
     names = scenario_names()
-    parser = argparse.ArgumentParser(prog="prisma-sim", description=__doc__.splitlines()[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog="scenarios: " + ", ".join(names))
-    parser.add_argument("--out", type=Path, default=Path("prisma_sim_out"), help="output directory")
+    parser = ArgumentParser(prog="prisma-sim", description=__doc__.splitlines()[0],
+                            formatter_class=argparse.RawDescriptionHelpFormatter,
+                            epilog="scenarios: " + ", ".join(names))
+    parser.add_argument("--out", type=output_dir, default=Path("prisma_sim_out"),
+                        help="output directory, replaced as a whole by the run (default prisma_sim_out)")
     parser.add_argument("--scenarios", nargs="+", choices=names, metavar="NAME", default=list(names),
                         help="scenarios to run (default: all)")
     parser.add_argument("--short", action="store_true",
                         help="quick configuration (the tests): glove session with 2 objects")
-    parser.add_argument("--glove-objects", type=int, default=None, help="objects grasped in the glove session (4)")
-    parser.add_argument("--bundle", default="config/models/cnn2", help="force-estimator bundle directory")
+    parser.add_argument("--glove-objects", type=positive_int, default=None,
+                        help="objects grasped in the glove session (4)")
+    parser.add_argument("--bundle", type=Path, default=Path(DEFAULT_BUNDLE),
+                        help=f"force-estimator bundle directory (default {DEFAULT_BUNDLE})")
+    parser.add_argument("--force-tolerance", type=positive_float, default=FORCE_TOLERANCE_N, metavar="N",
+                        help="largest allowed miss of a force set point in newtons, estimated or true "
+                             f"(default {FORCE_TOLERANCE_N:g}: about twice the grasp's measured overshoot); "
+                             "a larger miss makes the run exit 1")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
     args = parser.parse_args(argv)
@@ -44,23 +78,31 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name:<14} expects {EXPECTED_REASONS[name]:<16} {text}")
         return 0
     glove_objects = args.glove_objects if args.glove_objects is not None else (2 if args.short else 4)
-    if glove_objects < 1:
-        parser.error(f"--glove-objects must be >= 1, got {glove_objects}")
-    options = SimOptions(out=args.out, scenarios=list(dict.fromkeys(args.scenarios)), bundle=args.bundle,
-                         glove_objects=glove_objects, plots=not args.no_plots)
-    started = time.perf_counter()
+    scenarios = list(dict.fromkeys(args.scenarios))
+    # everything that can be wrong with the command line is found before the first scenario runs
     try:
-        summaries = run(options, progress=lambda line: print(line, flush=True))
-    except (OSError, ValueError) as exc:  # an output path in the way, a missing or mismatched bundle
-        print(f"prisma-sim: error: {exc}", file=sys.stderr)
-        return 2
+        check_out(args.out)
+    except FileExistsError as exc:
+        raise UserError(f"--out {exc}") from None
+    estimator = None
+    if any(name != GLOVE for name in scenarios):
+        from .sim_runner import load_estimator
+
+        check_bundle_dir(args.bundle)
+        estimator = load_estimator(args.bundle)  # BundleError names the path and the problem
+    options = SimOptions(out=args.out, scenarios=scenarios, bundle=str(args.bundle),
+                         glove_objects=glove_objects, plots=not args.no_plots,
+                         force_tolerance_n=args.force_tolerance)
+    started = time.perf_counter()
+    summaries = run(options, progress=lambda line: print(line, flush=True), estimator=estimator)
     print()
     print(markdown(summaries))
     print(f"{len(summaries)} scenario(s) in {time.perf_counter() - started:.1f} s; "
           f"bags, plots and summary.md/json in {options.out}")
-    failed = [s["scenario"] for s in summaries if not s["as_expected"]]
+    failed = failures(summaries)
     if failed:
-        print(f"not as expected: {', '.join(failed)}", file=sys.stderr)
+        for line in failed:
+            print(f"prisma-sim: not as expected: {line}", file=sys.stderr)
         return 1
     return 0
 

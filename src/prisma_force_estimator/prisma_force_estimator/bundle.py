@@ -73,14 +73,29 @@ def quiet_jit():
 
 
 def save_bundle(directory: str | Path, model: torch.nn.Module, metadata: BundleMetadata) -> Path:
-    """Script `model` and write model.pt + metadata.json into `directory` (created if needed)."""
+    """Script `model` and write model.pt + metadata.json as the directory `directory`.
+
+    Written whole or not at all: staged beside `directory` and renamed into place when both files
+    are complete, replacing an earlier bundle there. A directory holding anything else is refused
+    (BundleError) and left alone."""
+    from prisma_tactile_driver.atomic import atomic_output
+
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    if directory.is_symlink() or (directory.exists() and not directory.is_dir()):
+        raise BundleError(directory, "is a file, not a bundle directory; not replacing it")
+    if directory.is_dir():
+        foreign = sorted(p.name for p in directory.iterdir() if p.name not in (MODEL_FILE, METADATA_FILE))
+        if foreign:
+            raise BundleError(directory, f"holds {', '.join(foreign[:3])}, which is no part of a bundle; "
+                                         f"not replacing it: save to a new or empty directory")
     model = model.eval()
     with quiet_jit():
         scripted = torch.jit.script(model)
-        torch.jit.save(scripted, str(directory / MODEL_FILE))
-    (directory / METADATA_FILE).write_text(json.dumps(metadata.to_dict(), indent=2) + "\n")
+    with atomic_output(directory) as staged:
+        staged.mkdir()
+        with quiet_jit():
+            torch.jit.save(scripted, str(staged / MODEL_FILE))
+        (staged / METADATA_FILE).write_text(json.dumps(metadata.to_dict(), indent=2) + "\n")
     return directory
 
 

@@ -60,14 +60,18 @@ def pair_by_stamp(taxel_ns: np.ndarray, wrench_ns: np.ndarray, tolerance_ns: int
 def load_calibration_bag(path: str | Path, taxel_topic: str = "/prisma/thumb/taxels",
                          wrench_topic: str = "/ft_sensor/wrench",
                          tolerance_ns: int = 5_000_000) -> tuple[ForceDataset, PairingReport]:
-    """Pair one finger's taxel samples with the reference wrench by header stamp."""
+    """Pair one finger's taxel samples with the reference wrench by header stamp.
+
+    A bag lacking either topic raises MissingTopicsError (a ValueError) naming it and the topics
+    the bag has; a topic without messages raises ValueError naming it."""
     if tolerance_ns < 0:
         raise ValueError(f"tolerance_ns must be >= 0, got {tolerance_ns}")
     taxel_stamps, voltages, wrench_stamps, wrenches = [], [], [], []
     # prisma_bringup depends on this package; importing its bag layer here, not at module level,
     # keeps the ROS package graph acyclic (colcon refuses cycles).
-    from prisma_bringup.bag import read_bag
+    from prisma_bringup.bag import read_bag, require_topics
 
+    require_topics(path, [taxel_topic, wrench_topic])
     for record in read_bag(path, topics=[taxel_topic, wrench_topic]):
         if record.topic == taxel_topic:
             frame = taxel_frame_from_msg(record.message)

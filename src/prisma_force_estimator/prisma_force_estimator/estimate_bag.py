@@ -33,12 +33,16 @@ class EstimateBagReport:
 def estimate_bag(in_path: str | Path, out_path: str | Path, pipeline: WrenchPipeline, types: MessageLookup,
                  taxel_topic: str = TAXEL_TOPIC, wrench_topic: str = WRENCH_TOPIC,
                  storage: str = "mcap") -> EstimateBagReport:
-    """Estimate a wrench for every taxel message of the pipeline's fingers in `in_path`."""
+    """Estimate a wrench for every taxel message of the pipeline's fingers in `in_path`.
+
+    The output bag is written whole or not at all; an input bag without the taxel topic of one of
+    the fingers raises MissingTopicsError (a ValueError) naming them, before anything is written."""
     # prisma_bringup depends on this package; importing its bag layer here, not at module level,
     # keeps the ROS package graph acyclic (colcon refuses cycles).
-    from prisma_bringup.bag import BagWriter, read_bag
+    from prisma_bringup.bag import BagWriter, read_bag, require_topics
 
     topics = {taxel_topic.format(finger=f): f for f in pipeline.fingers}
+    require_topics(in_path, topics)
     report = EstimateBagReport({f: 0 for f in pipeline.fingers}, {f: 0 for f in pipeline.fingers},
                                {f: 0 for f in pipeline.fingers})
 

@@ -141,6 +141,14 @@ def results_table(results: Sequence[EvalResult]) -> str:
     return "\n".join(lines)
 
 
+def _save(fig, path: Path) -> None:
+    """savefig whole or not at all (staged, renamed when complete)."""
+    from prisma_tactile_driver.atomic import atomic_output
+
+    with atomic_output(path) as staged:
+        fig.savefig(staged, dpi=90)
+
+
 def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str | Path,
                prefix: str = "force_", seconds: float = 30.0) -> list[Path]:
     """Prediction vs reference over time, one column per model (cf. the paper's Figs. 7, 8, 13, 14).
@@ -175,7 +183,7 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
     axs[0][0].legend(fontsize=8)
     fig.tight_layout()
     paths.append(out_dir / f"{prefix}push_fz.png")
-    fig.savefig(paths[-1], dpi=90)
+    _save(fig, paths[-1])
     plt.close(fig)
 
     fig, axs = plt.subplots(2, n, figsize=(3.6 * n, 5.0), sharex=True, squeeze=False)
@@ -192,7 +200,7 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
     axs[0][0].legend(fontsize=8)
     fig.tight_layout()
     paths.append(out_dir / f"{prefix}slide_fxfy.png")
-    fig.savefig(paths[-1], dpi=90)
+    _save(fig, paths[-1])
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(5.5, 3.5))
@@ -214,6 +222,6 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
     ax.legend(fontsize=8)
     fig.tight_layout()
     paths.append(out_dir / f"{prefix}error_vs_force.png")
-    fig.savefig(paths[-1], dpi=90)
+    _save(fig, paths[-1])
     plt.close(fig)
     return paths

@@ -4,16 +4,19 @@ write one PNG per scenario plus summary.json (stop reasons, stop times, forces).
     prisma-manip-scenarios --out docs/img [--only horizontal] [--bundle config/models/cnn2]
 
 With --bundle the controllers see the force estimator's Fz instead of the world's ground truth.
+Arguments and the bundle are checked before any scenario runs; each plot and summary.json is
+written under a temporary name and renamed when complete (existing ones are replaced).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from prisma_tactile_driver.atomic import atomic_output
+from prisma_tactile_driver.cli_args import ArgumentParser, check_bundle_dir, command, output_dir
 from prisma_tactile_driver.taxels import EDGES
 
 from .closed_loop import Trace, estimator_force_fn
@@ -104,22 +107,26 @@ def plot(sc: Scenario, trace: Trace, path: Path) -> None:
                              va="top", ha="right")
     fig.suptitle(f"{sc.name}: {sc.controller.reason}")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_output(path) as staged:  # whole or not at all
+        fig.savefig(staged, dpi=110)
     plt.close(fig)
 
 
+@command("prisma-manip-scenarios", "prisma_force_estimator.bundle:BundleError")
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("manipulation_scenarios"))
+    parser = ArgumentParser(prog="prisma-manip-scenarios", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=output_dir, default=Path("manipulation_scenarios"),
+                        help="directory for <scenario>.png and summary.json")
     parser.add_argument("--only", action="append", choices=SCENARIO_NAMES)
     parser.add_argument("--bundle", type=Path, help="force-estimator bundle: controllers use its Fz")
     args = parser.parse_args(argv)
     force_fn = None
     if args.bundle:
+        check_bundle_dir(args.bundle)
+        from prisma_force_estimator.bundle import resolve_bundle_path
         from prisma_force_estimator.inference import ForceEstimator
 
-        force_fn = estimator_force_fn(ForceEstimator.from_bundle(args.bundle))
-    args.out.mkdir(parents=True, exist_ok=True)
+        force_fn = estimator_force_fn(ForceEstimator.from_bundle(resolve_bundle_path(args.bundle)))
     summaries = []
     for name in args.only or SCENARIO_NAMES:
         print(f"[{name}] running")
@@ -129,7 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         summaries.append(summary)
         plot(sc, trace, args.out / f"{name}.png")
         print(f"[{name}] {summary['reason']} stop at {summary['stop_time_s']} s -> {args.out / (name + '.png')}")
-    (args.out / "summary.json").write_text(json.dumps(summaries, indent=2))
+    with atomic_output(args.out / "summary.json") as staged:
+        staged.write_text(json.dumps(summaries, indent=2))
     return 0
 
 

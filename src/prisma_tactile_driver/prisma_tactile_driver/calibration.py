@@ -14,12 +14,14 @@ Deterministic: a seed fixes the trajectories and the sensor noise.
 """
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
+from .atomic import atomic_output
 from .pad_model import PadModel, PadParams
 from .taxels import counts_to_voltages
 
@@ -68,17 +70,39 @@ class CalibrationSet:
                       trajectory=self.trajectory, kind=self.kind)
         if self.contact_mm is not None:
             arrays["contact_mm"] = self.contact_mm
-        with open(path, "wb") as f:  # a file object keeps numpy from appending .npz to the name
-            np.savez_compressed(f, **arrays)
+        # written whole or not at all: staged under a temporary name, renamed when complete
+        with atomic_output(path) as staged, open(staged, "wb") as f:
+            np.savez_compressed(f, **arrays)  # a file object keeps numpy from appending .npz to the name
 
     @classmethod
     def load(cls, path: str | Path) -> "CalibrationSet":
-        with np.load(path, allow_pickle=False) as data:
+        """A set written by save(); ValueError naming the file if it is anything else."""
+        not_a_set = f"{path} is not a calibration set (an .npz written by prisma-tactile-calset)"
+        try:
+            data = np.load(path, allow_pickle=False)
+        except ValueError:
+            # numpy tries any file that is neither .npy nor .npz as a pickle, and says so; a
+            # pickle is never a calibration set
+            raise ValueError(f"{not_a_set}: not a NumPy archive") from None
+        except (OSError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{not_a_set}: {exc}") from None
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError(f"{not_a_set}: a single .npy array, not an .npz archive")
+        with data:
             missing = {"voltages", "wrench", "stamp_ns", "trajectory", "kind"} - set(data.files)
             if missing:
-                raise ValueError(f"{path}: not a calibration set, missing arrays {sorted(missing)}")
-            return cls(data["voltages"], data["wrench"], data["stamp_ns"], data["trajectory"],
-                       data["kind"], data["contact_mm"] if "contact_mm" in data.files else None)
+                raise ValueError(f"{not_a_set}: missing arrays {sorted(missing)}")
+            try:
+                arrays = {name: data[name] for name in data.files}
+            except ValueError:  # object arrays: numpy would need pickle to read them
+                raise ValueError(f"{not_a_set}: it holds Python objects, not plain arrays") from None
+            except (zipfile.BadZipFile, EOFError, OSError) as exc:  # a truncated or damaged archive
+                raise ValueError(f"{not_a_set}: {exc}") from None
+        try:
+            return cls(arrays["voltages"], arrays["wrench"], arrays["stamp_ns"], arrays["trajectory"],
+                       arrays["kind"], arrays.get("contact_mm"))
+        except ValueError as exc:
+            raise ValueError(f"{not_a_set}: {exc}") from None
 
 
 @dataclass

@@ -8,19 +8,31 @@
         plays the Arduino hub on a pseudo-terminal (scripted contacts through the pad model), so
         `tactile_driver` with backend:=serial port:=/tmp/ttyPRISMA runs without hardware
 (also: python -m prisma_tactile_driver.cli calset|pad-plot|hub-emulator ...)
+
+Arguments are checked before any work (exit 2 with a one-line message); every file is written
+under a temporary name and renamed when complete (an existing one is replaced).
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .calibration import KINDS, CalibrationSet, generate_calibration_set
-from .pad_model import PadContact, PadModel
-from .taxels import FINGERS
+from .atomic import atomic_output
+from .calibration import KINDS, CalibrationSet
+from .cli_args import (
+    ArgumentParser,
+    UserError,
+    command,
+    image_file,
+    non_negative_float,
+    non_negative_int,
+    output_file,
+    positive_float,
+    positive_int,
+)
 
 
 def plot_calibration(cal: CalibrationSet, path: Path, seconds: float = 30.0) -> None:
@@ -46,7 +58,8 @@ def plot_calibration(cal: CalibrationSet, path: Path, seconds: float = 30.0) -> 
     axes[0, 0].set_title(f"9 taxel voltages (first {seconds:g} s of each kind)")
     axes[0, 1].set_title("ground-truth force")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    with atomic_output(path) as staged:
+        fig.savefig(staged, dpi=90)
     plt.close(fig)
 
 
@@ -54,6 +67,8 @@ def plot_pad_response(path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from .pad_model import PadContact, PadModel
 
     model = PadModel(seed=0)
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
@@ -85,18 +100,24 @@ def plot_pad_response(path: Path) -> None:
     axes[2].set_title("shear skew")
     axes[2].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    with atomic_output(path) as staged:
+        fig.savefig(staged, dpi=90)
     plt.close(fig)
 
 
+@command("prisma-tactile-calset")
 def calset_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Generate a synthetic fingertip calibration set (.npz)")
-    parser.add_argument("--samples", type=int, default=140_000)
-    parser.add_argument("--seed", type=int, default=0)
+    from .calibration import generate_calibration_set
+
+    parser = ArgumentParser(prog="prisma-tactile-calset",
+                            description="Generate a synthetic fingertip calibration set (.npz)")
+    parser.add_argument("--samples", type=positive_int, default=140_000)
+    parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
-    parser.add_argument("--rate", type=float, default=100.0, help="sample rate [Hz]")
-    parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--plot", type=Path, help="also write a PNG of the first seconds of each kind")
+    parser.add_argument("--rate", type=positive_float, default=100.0, help="sample rate [Hz]")
+    parser.add_argument("--out", type=output_file(".npz"), required=True, help="calibration set (.npz)")
+    parser.add_argument("--plot", type=image_file, help="also write a plot (.png, .pdf, .svg ...) of the first "
+                                                        "seconds of each kind")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     cal = generate_calibration_set(args.samples, args.seed, args.kinds, args.rate)
@@ -112,30 +133,46 @@ def calset_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+@command("prisma-tactile-pad-plot")
 def pad_plot_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Plot the optical pad model's response")
-    parser.add_argument("--out", type=Path, required=True)
+    parser = ArgumentParser(prog="prisma-tactile-pad-plot", description="Plot the optical pad model's response")
+    parser.add_argument("--out", type=image_file, required=True, help="image file (.png, .pdf, .svg ...)")
     args = parser.parse_args(argv)
     plot_pad_response(args.out)
     print(f"plot -> {args.out}")
     return 0
 
 
+@command("prisma-tactile-hub-emulator")
 def hub_emulator_main(argv: list[str] | None = None) -> int:
+    parser = ArgumentParser(prog="prisma-tactile-hub-emulator",
+                            description="Emulate the Arduino fingertip hub on a pseudo-terminal")
+    parser.add_argument("--link", type=Path, required=True,
+                        help="symlink path to create, e.g. /tmp/ttyPRISMA; only an earlier emulator's link "
+                             "(a symlink to a /dev/pts/* pseudo-terminal) is replaced there, and on exit the "
+                             "link is removed if it is still this run's")
+    parser.add_argument("--rate", type=positive_float, default=100.0, help="frames per second")
+    parser.add_argument("--seconds", type=non_negative_float, default=0.0,
+                        help="stop after this long (0 = run until Ctrl-C)")
+    args = parser.parse_args(argv)
+
     from .contact_source import ScriptedContactSource
     from .protocol import encode_frame
     from .pty_hub import PtyHubPort
     from .sim_backend import SimHubBackend
+    from .taxels import FINGERS
 
-    parser = argparse.ArgumentParser(description="Emulate the Arduino fingertip hub on a pseudo-terminal")
-    parser.add_argument("--link", type=Path, required=True, help="symlink path to create, e.g. /tmp/ttyPRISMA")
-    parser.add_argument("--rate", type=float, default=100.0, help="frames per second")
-    parser.add_argument("--seconds", type=float, default=0.0, help="stop after this long (0 = run until Ctrl-C)")
-    args = parser.parse_args(argv)
-    if args.rate <= 0:
-        parser.error(f"--rate must be > 0, got {args.rate}")
+    if not args.link.parent.is_dir():
+        raise UserError(f"--link {args.link}: the directory {args.link.parent} does not exist; "
+                        f"create it or choose another path")
     port = PtyHubPort(args.link)
-    print(f"hub on {port.open()} at {args.rate:g} Hz; Ctrl-C to stop", flush=True)
+    try:
+        where = port.open()
+    except FileExistsError as exc:  # a file, directory, device or foreign symlink at the link path
+        raise UserError(f"--link {exc}") from None
+    except OSError as exc:  # no permission to create the link there
+        raise UserError(f"--link {args.link}: {exc.strerror or exc}; choose another path") from None
+    print(f"hub on {where} at {args.rate:g} Hz; Ctrl-C to stop", flush=True)
     sim = SimHubBackend(ScriptedContactSource(), FINGERS)
     period = 1.0 / args.rate
     start = time.monotonic()

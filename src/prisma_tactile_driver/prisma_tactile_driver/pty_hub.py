@@ -3,11 +3,17 @@
 The pty is reached through a stable symlink (like /dev/serial/by-id/... on the robot), so a
 hang-up followed by a new pty looks to the driver exactly like a hub that was unplugged and
 plugged back in: the same path disappears and comes back.
+
+The link path is the user's to name, so nothing but an emulator's own link is ever replaced or
+removed there: `open()` replaces only a symlink to a /dev/pts/* pseudo-terminal (an earlier run's
+link, live or left dangling by a killed emulator) and refuses anything else with FileExistsError;
+`hang_up()` removes the link only while it still points at the pty this port opened.
 """
 from __future__ import annotations
 
 import fcntl
 import os
+import stat
 import struct
 import termios
 import time
@@ -15,11 +21,46 @@ import tty
 from pathlib import Path
 
 
+PTS_DIR = "/dev/pts/"
+
+
+def is_pty_link(path: str | Path) -> bool:
+    """A symlink to a /dev/pts/* pseudo-terminal, live or dangling: what this emulator creates."""
+    path = Path(path)
+    if not path.is_symlink():
+        return False
+    target = os.readlink(path)
+    if not target.startswith(PTS_DIR):
+        return False
+    try:
+        return stat.S_ISCHR(os.stat(target).st_mode)
+    except FileNotFoundError:
+        return True  # the pty of a run that ended or was killed
+
+
+def check_link_path(path: str | Path) -> None:
+    """FileExistsError unless `path` is free or an emulator link that `open()` may replace."""
+    path = Path(path)
+    if path.is_symlink():
+        if is_pty_link(path):
+            return
+        what = f"a symlink to {os.readlink(path)}"
+    elif path.exists():
+        mode = path.stat().st_mode
+        what = ("a directory" if stat.S_ISDIR(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                else "an existing file")
+    else:
+        return
+    raise FileExistsError(f"{path} is {what}; only an emulator's own link (a symlink to a {PTS_DIR}* "
+                          f"pseudo-terminal) is replaced there: choose another link path")
+
+
 class PtyHubPort:
     def __init__(self, link_path: str | Path) -> None:
         self.link_path = Path(link_path)
         self._master: int | None = None
         self._slave: int | None = None
+        self._target: str | None = None  # the pty the link points at while this port owns it
 
     @property
     def is_open(self) -> bool:
@@ -29,13 +70,26 @@ class PtyHubPort:
         """Create a fresh pty (raw mode, so no byte is translated) and point the link at it."""
         if self.is_open:
             raise RuntimeError("pty already open")
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)  # the driver reopens with pyserial, which also sets raw mode
-        tmp = self.link_path.with_name(self.link_path.name + ".new")
-        if tmp.is_symlink():
-            tmp.unlink()
-        os.symlink(os.ttyname(self._slave), tmp)
-        os.replace(tmp, self.link_path)
+        check_link_path(self.link_path)
+        master, slave = os.openpty()
+        tmp = self.link_path.with_name(f"{self.link_path.name}.new-{os.getpid()}")
+        try:
+            tty.setraw(slave)  # the driver reopens with pyserial, which also sets raw mode
+            target = os.ttyname(slave)
+            if is_pty_link(tmp):
+                tmp.unlink()  # this pid's own leftover
+            os.symlink(target, tmp)  # FileExistsError if anything else is there
+            try:
+                check_link_path(self.link_path)  # again, just before the rename
+                os.replace(tmp, self.link_path)
+            except BaseException:
+                tmp.unlink()
+                raise
+        except BaseException:
+            os.close(master)
+            os.close(slave)
+            raise
+        self._master, self._slave, self._target = master, slave, target
         return str(self.link_path)
 
     def write(self, data: bytes) -> None:
@@ -58,9 +112,13 @@ class PtyHubPort:
         return True
 
     def hang_up(self) -> None:
-        """Close both ends and remove the link: readers get EIO, reopening fails until open()."""
-        if self.link_path.is_symlink():
+        """Close both ends and remove the link: readers get EIO, reopening fails until open().
+
+        The link is removed only while it still points at this port's pty (someone may have
+        replaced it meanwhile)."""
+        if self._target is not None and self.link_path.is_symlink() and os.readlink(self.link_path) == self._target:
             self.link_path.unlink()
+        self._target = None
         for fd in (self._master, self._slave):
             if fd is not None:
                 os.close(fd)

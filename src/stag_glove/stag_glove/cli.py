@@ -1,6 +1,11 @@
 """Command lines (ROS-free): stag-make-dataset, stag-train-classifier, stag-train-weight,
 stag-train-pose, stag-glove-correlation. Each prints progress per epoch and writes its numbers as
-JSON, its figures as PNG, and (optionally) a model bundle for the glove_perception node."""
+JSON, its figures as PNG, and (optionally) a model bundle for the glove_perception node.
+
+Arguments, the dataset file and the output paths are checked before any training (exit 2 with a
+one-line message); JSON, figures, datasets and bundles are written under a temporary name and
+renamed when complete (an earlier bundle at --bundle-out is replaced, any other directory refused).
+"""
 from __future__ import annotations
 
 import argparse
@@ -9,11 +14,27 @@ import shlex
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
+from prisma_tactile_driver.atomic import atomic_output
+from prisma_tactile_driver.cli_args import (
+    ArgumentParser,
+    UserError,
+    check_bundle_out,
+    command,
+    existing_file,
+    image_file,
+    non_negative_float,
+    non_negative_int,
+    output_file,
+    positive_int,
+)
 
-from .dataset import GloveDataset, load_dataset, save_dataset
+if TYPE_CHECKING:
+    from .dataset import GloveDataset
 
+DATASET_SUFFIXES = (".mat", ".h5", ".hdf5")
 
 
 def limit_threads(threads: int) -> None:
@@ -32,18 +53,39 @@ def _command(argv: list[str] | None, prog: str) -> str:
 
 
 def _add_data_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--dataset", type=Path, help="metadata.mat (MATLAB v5/v7.3) or .h5; default: synthetic")
-    parser.add_argument("--synthetic-seed", type=int, default=0, help="seed of the synthetic glove (no --dataset)")
-    parser.add_argument("--threads", type=int, default=1, help="torch/BLAS threads (default 1)")
-    parser.add_argument("--out-json", type=Path, help="write the numbers here")
+    parser.add_argument("--dataset", type=existing_file,
+                        help="metadata.mat (MATLAB v5/v7.3) or .h5; default: synthetic")
+    parser.add_argument("--synthetic-seed", type=non_negative_int, default=0,
+                        help="seed of the synthetic glove (no --dataset)")
+    parser.add_argument("--threads", type=positive_int, default=1, help="torch/BLAS threads (default 1)")
+    parser.add_argument("--out-json", type=output_file(), help="write the numbers here")
 
 
 def _add_train_args(parser: argparse.ArgumentParser, epochs: int, lr_step: int) -> None:
-    parser.add_argument("--width", type=int, default=16, help="trunk width (paper: 64)")
-    parser.add_argument("--epochs", type=int, default=epochs)
-    parser.add_argument("--lr-step", type=int, default=lr_step, help="x0.1 learning rate every this many epochs (paper: 100)")
-    parser.add_argument("--batch-size", type=int, default=32)
-    parser.add_argument("--noise", type=float, default=0.015, help="Gaussian noise on training inputs")
+    parser.add_argument("--width", type=positive_int, default=16, help="trunk width (paper: 64)")
+    parser.add_argument("--epochs", type=positive_int, default=epochs)
+    parser.add_argument("--lr-step", type=positive_int, default=lr_step,
+                        help="x0.1 learning rate every this many epochs (paper: 100)")
+    parser.add_argument("--batch-size", type=positive_int, default=32)
+    parser.add_argument("--noise", type=non_negative_float, default=0.015, help="Gaussian noise on training inputs")
+
+
+def _add_bundle_out(parser: argparse.ArgumentParser, help: str) -> None:
+    parser.add_argument("--bundle-out", type=Path,
+                        help=help + " (an earlier bundle there is replaced, any other existing path refused)")
+
+
+def _check_outputs(args) -> None:
+    """Before the (long) training: --bundle-out must be new, empty or an earlier bundle."""
+    if getattr(args, "bundle_out", None) is not None:
+        check_bundle_out(args.bundle_out, "--bundle-out")
+
+
+def _save_bundle(path: Path, kind: str, model, metadata: dict) -> None:
+    from .bundle import save_bundle
+
+    with atomic_output(path) as staged:  # whole or not at all
+        save_bundle(staged, kind, model, metadata)
 
 
 def _train_config(args, seed: int = 0):
@@ -61,40 +103,102 @@ def _synthetic(kind: str, seed: int) -> tuple[GloveDataset, str]:
     return ds, f"synthetic glove, seed {seed}, {kind} set ({len(ds)} frames)"
 
 
-def _data(args, kind: str) -> tuple[GloveDataset, str]:
+def _data(args, kind: str,
+          check: Callable[["GloveDataset", str], None] | None = None) -> tuple["GloveDataset", str]:
+    """The dataset, with the thread limit applied before any heavy work (the synthetic glove's
+    generation included). A file is read, and `check` finds it fit for the command (UserError
+    otherwise), before torch is imported."""
     if args.dataset is not None:
-        return load_dataset(args.dataset), str(args.dataset)
+        from .dataset import load_dataset
+
+        try:
+            ds = load_dataset(args.dataset)
+        except (ValueError, OSError) as exc:  # not a STAG dataset file: the message says why
+            raise UserError(f"--dataset {args.dataset}: {exc}; give a metadata.mat (MATLAB v5 or v7.3) "
+                            f"or an .h5 written by stag-make-dataset") from None
+        if check is not None:
+            check(ds, str(args.dataset))
+        limit_threads(args.threads)
+        return ds, str(args.dataset)
+    limit_threads(args.threads)
     return _synthetic(kind, args.synthetic_seed)
+
+
+def _splits_check(balanced: bool) -> Callable[["GloveDataset", str], None]:
+    """The held-out-session experiments need valid (and, for anchors, balanced) frames in both splits."""
+
+    def check(ds: "GloveDataset", source: str) -> None:
+        from .dataset import SPLIT_TEST, SPLIT_TRAIN
+
+        anchor = ds.is_balanced if balanced else np.ones(len(ds), bool)
+        counts = [int(np.sum(ds.has_valid_label & anchor & (ds.split_id == split))) for split in (SPLIT_TRAIN,
+                                                                                                   SPLIT_TEST)]
+        if not all(counts):
+            raise UserError(f"--dataset {source}: needs valid{' balanced' if balanced else ''} frames in both "
+                            f"splits (splitId 0 = train, 1 = test), has {counts[0]} and {counts[1]}")
+    return check
+
+
+def _weights_check(ds: "GloveDataset", source: str) -> None:
+    if ds.weights_g is None:
+        raise UserError(f"--dataset {source}: no per-object weights ('weights' field); give the STAG weights set")
+    if len(np.unique(ds.object_id)) < 2:
+        raise UserError(f"--dataset {source}: frames of {len(np.unique(ds.object_id))} object(s); "
+                        f"leave-one-object-out needs at least 2")
+
+
+def _recording_check(ds: "GloveDataset", source: str) -> None:
+    if len(ds) < 2:
+        raise UserError(f"--dataset {source}: {len(ds)} frame(s); the correlation needs a recording")
 
 
 def _write_json(path: Path | None, data: dict) -> None:
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(data, indent=2) + "\n")
+        with atomic_output(path) as staged:
+            staged.write_text(json.dumps(data, indent=2) + "\n")
         print(f"wrote {path}")
 
 
 def _frames_arg(text: str) -> list[int]:
+    """'1-8' or '1,2,4' (or a mix): the frame counts N."""
     out: list[int] = []
-    for part in text.split(","):
-        if "-" in part:
-            lo, hi = part.split("-")
-            out += list(range(int(lo), int(hi) + 1))
-        else:
-            out.append(int(part))
+    try:
+        for part in text.split(","):
+            if "-" in part:
+                lo, hi = part.split("-")
+                out += list(range(int(lo), int(hi) + 1))
+            else:
+                out.append(int(part))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of frame counts; give e.g. 1-8 or 1,2,4") \
+            from None
     if not out or min(out) < 1:
         raise argparse.ArgumentTypeError(f"frame counts must be >= 1, got {text!r}")
     return out
 
 
+def _folds_arg(text: str) -> int | None:
+    """'all' -> None, or a positive count."""
+    if text == "all":
+        return None
+    try:
+        return positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither 'all' nor a whole number >= 1 of objects to "
+                                         f"hold out") from None
+
+
 # -------------------------------------------------------------------------------- make dataset
+@command("stag-make-dataset")
 def make_dataset_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stag-make-dataset", description="Write a synthetic glove dataset "
-                                     "(metadata.mat fields) as .mat (MATLAB v5) or .h5.")
-    parser.add_argument("out", type=Path)
+    parser = ArgumentParser(prog="stag-make-dataset", description="Write a synthetic glove dataset "
+                            "(metadata.mat fields) as .mat (MATLAB v5) or .h5.")
+    parser.add_argument("out", type=output_file(*DATASET_SUFFIXES), help="a .mat, .h5 or .hdf5 file (replaced)")
     parser.add_argument("--kind", choices=("object", "pose", "weight"), default="object")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=non_negative_int, default=0)
     args = parser.parse_args(argv)
+    from .dataset import save_dataset
+
     ds, text = _synthetic(args.kind, args.seed)
     save_dataset(ds, args.out)
     print(f"wrote {args.out}: {text}, {len(ds.objects)} classes, {ds.has_valid_label.sum()} valid frames")
@@ -102,31 +206,37 @@ def make_dataset_main(argv: list[str] | None = None) -> int:
 
 
 # -------------------------------------------------------------------------------- classifier
+@command("stag-train-classifier")
 def train_classifier_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stag-train-classifier", description="Object classifier: accuracy vs "
-                                     "number of input frames N (random vs cluster selection) on held-out sessions.")
+    parser = ArgumentParser(prog="stag-train-classifier", description="Object classifier: accuracy vs "
+                            "number of input frames N (random vs cluster selection) on held-out sessions.")
     _add_data_args(parser)
     _add_train_args(parser, epochs=12, lr_step=8)
     parser.add_argument("--frames", type=_frames_arg, default=list(range(1, 9)), help="N values, e.g. 1-8 or 1,2,4")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--seeds", type=non_negative_int, nargs="+", default=[0, 1])
     parser.add_argument("--selection", nargs="+", default=["random", "cluster"], choices=("random", "cluster"))
     parser.add_argument("--mode", default="head", choices=("head", "finetune", "scratch"),
                         help="head: N=1 trained end to end, N>1 warm-started from it with fusion+classifier "
                              "trained on the frozen trunk (CPU); scratch: every N end to end (the paper)")
-    parser.add_argument("--head-epochs", type=int, default=10)
-    parser.add_argument("--finetune-epochs", type=int, default=2)
-    parser.add_argument("--confusion-png", type=Path)
-    parser.add_argument("--curve-png", type=Path)
-    parser.add_argument("--bundle-out", type=Path, help="save the model of the first seed here")
-    parser.add_argument("--bundle-frames", type=int, default=8)
+    parser.add_argument("--head-epochs", type=non_negative_int, default=10)
+    parser.add_argument("--finetune-epochs", type=non_negative_int, default=2)
+    parser.add_argument("--confusion-png", type=image_file)
+    parser.add_argument("--curve-png", type=image_file)
+    _add_bundle_out(parser, "save the model of the first seed here")
+    parser.add_argument("--bundle-frames", type=positive_int, default=8)
     parser.add_argument("--bundle-selection", default="cluster", choices=("random", "cluster"))
     args = parser.parse_args(argv)
-    limit_threads(args.threads)
+    if args.bundle_out and (args.bundle_frames not in args.frames
+                            or (args.bundle_frames > 1 and args.bundle_selection not in args.selection)):
+        parser.error(f"--bundle-frames {args.bundle_frames} with --bundle-selection {args.bundle_selection} "
+                     f"is not trained (--frames {args.frames}, --selection {args.selection}); pick a trained "
+                     f"pair")
+    _check_outputs(args)
+    started = time.perf_counter()
+    ds, source = _data(args, "object", _splits_check(balanced=True))
     from .experiments import object_experiment, summarise_curve
     from .plots import accuracy_curve_png, confusion_png
 
-    started = time.perf_counter()
-    ds, source = _data(args, "object")
     print(f"dataset: {source}; {len(ds.objects)} classes")
     keep = {(args.seeds[0], args.bundle_selection if args.bundle_frames > 1 else "any", args.bundle_frames)}
     results = object_experiment(ds, args.frames, args.seeds, args.selection, _train_config(args, args.seeds[0]),
@@ -156,13 +266,8 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
                                 "rows": results.rows})
     if args.bundle_out:
         key = next(iter(keep))
-        if key not in results.models:
-            parser.error(f"--bundle-frames {args.bundle_frames} with --bundle-selection {args.bundle_selection} "
-                         f"was not trained (frames {args.frames}, selection {args.selection})")
-        from .bundle import save_bundle
-
         ev = results.confusions[key]
-        save_bundle(args.bundle_out, "object", results.models[key], {
+        _save_bundle(args.bundle_out, "object", results.models[key], {
             "width": args.width, "n_frames": args.bundle_frames, "labels": ds.objects,
             "selection": args.bundle_selection, "normalisation": {"low": 500, "high": 650},
             "trained_on": source, "command": command, "held_out_top1": ev.top1, "held_out_top3": ev.top3})
@@ -172,23 +277,25 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
 
 
 # -------------------------------------------------------------------------------- weight
+@command("stag-train-weight")
 def train_weight_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stag-train-weight", description="Weight regression in log space, "
-                                     "leave-one-object-out, against the linear baseline a*sum(frame)+b.")
+    parser = ArgumentParser(prog="stag-train-weight", description="Weight regression in log space, "
+                            "leave-one-object-out, against the linear baseline a*sum(frame)+b.")
     _add_data_args(parser)
     _add_train_args(parser, epochs=15, lr_step=10)
-    parser.add_argument("--folds", default="all", help="'all' objects, or a count spread over the weight range")
-    parser.add_argument("--png", type=Path)
-    parser.add_argument("--bundle-out", type=Path, help="train on every object and save the model here")
+    parser.add_argument("--folds", type=_folds_arg, default=None,
+                        help="'all' objects (the default), or a count spread over the weight range")
+    parser.add_argument("--png", type=image_file)
+    _add_bundle_out(parser, "train on every object and save the model here")
     args = parser.parse_args(argv)
-    limit_threads(args.threads)
+    _check_outputs(args)
+    started = time.perf_counter()
+    ds, source = _data(args, "weight", _weights_check)
     from .experiments import default_folds, frames_tensor, weight_experiment
     from .plots import weight_png
     from .training import LinearBaseline, train_weight
 
-    started = time.perf_counter()
-    ds, source = _data(args, "weight")
-    folds = default_folds(ds, None if args.folds == "all" else int(args.folds))
+    folds = default_folds(ds, args.folds)
     print(f"dataset: {source}; leave-one-object-out over {len(folds)} of {len(ds.objects)} objects")
     cfg = _train_config(args)
     rows = weight_experiment(ds, folds, cfg)
@@ -207,7 +314,6 @@ def train_weight_main(argv: list[str] | None = None) -> int:
     if args.bundle_out:
         import torch
 
-        from .bundle import save_bundle
         from .models import WeightNet
 
         frames = frames_tensor(ds)
@@ -217,7 +323,7 @@ def train_weight_main(argv: list[str] | None = None) -> int:
         print("final model on every object:")
         train_weight(net, frames, grams, cfg, print, "[all objects] ")
         base = LinearBaseline.fit(frames.reshape(len(frames), -1).sum(1).numpy(), grams)
-        save_bundle(args.bundle_out, "weight", net, {
+        _save_bundle(args.bundle_out, "weight", net, {
             "width": cfg.width, "normalisation": {"low": 500, "high": 650}, "target": "log(grams)",
             "linear_baseline": {"a": base.a, "b": base.b}, "trained_on": source, "command": command,
             "loo_cnn_mean_error_g": cnn, "loo_linear_mean_error_g": linear, "loo_folds": len(folds)})
@@ -227,20 +333,21 @@ def train_weight_main(argv: list[str] | None = None) -> int:
 
 
 # -------------------------------------------------------------------------------- pose
+@command("stag-train-pose")
 def train_pose_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stag-train-pose", description="Hand-pose classifier (7 grasps + empty "
-                                     "hand), single frame, held-out session.")
+    parser = ArgumentParser(prog="stag-train-pose", description="Hand-pose classifier (7 grasps + empty "
+                            "hand), single frame, held-out session.")
     _add_data_args(parser)
     _add_train_args(parser, epochs=15, lr_step=10)
-    parser.add_argument("--confusion-png", type=Path)
-    parser.add_argument("--bundle-out", type=Path)
+    parser.add_argument("--confusion-png", type=image_file)
+    _add_bundle_out(parser, "save the model here")
     args = parser.parse_args(argv)
-    limit_threads(args.threads)
+    _check_outputs(args)
+    started = time.perf_counter()
+    ds, source = _data(args, "pose", _splits_check(balanced=False))
     from .experiments import pose_experiment
     from .plots import confusion_png
 
-    started = time.perf_counter()
-    ds, source = _data(args, "pose")
     print(f"dataset: {source}; poses {ds.objects}")
     net, ev, _ = pose_experiment(ds, _train_config(args))
     print(f"held-out session: top-1 {100 * ev.top1:.1f}%, top-3 {100 * ev.top3:.1f}%")
@@ -251,9 +358,7 @@ def train_pose_main(argv: list[str] | None = None) -> int:
                                 "labels": ds.objects, "confusion": ev.confusion.tolist(),
                                 "seconds": time.perf_counter() - started})
     if args.bundle_out:
-        from .bundle import save_bundle
-
-        save_bundle(args.bundle_out, "pose", net, {"width": args.width, "n_frames": 1, "labels": ds.objects,
+        _save_bundle(args.bundle_out, "pose", net, {"width": args.width, "n_frames": 1, "labels": ds.objects,
                                                    "normalisation": {"low": 500, "high": 650}, "trained_on": source,
                                                    "command": command, "held_out_top1": ev.top1})
         print(f"wrote bundle {args.bundle_out}")
@@ -262,19 +367,19 @@ def train_pose_main(argv: list[str] | None = None) -> int:
 
 
 # -------------------------------------------------------------------------------- correlation
+@command("stag-glove-correlation")
 def correlation_main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stag-glove-correlation", description="Decompose grasps into hand-pose and "
-                                     "object signal; Pearson maps and region CCA of the object signal.")
+    parser = ArgumentParser(prog="stag-glove-correlation", description="Decompose grasps into hand-pose and "
+                            "object signal; Pearson maps and region CCA of the object signal.")
     _add_data_args(parser)
-    parser.add_argument("--png", type=Path)
+    parser.add_argument("--png", type=image_file)
     args = parser.parse_args(argv)
-    limit_threads(args.threads)
+    ds, source = _data(args, "object", _recording_check)
     from .decomposition import grasp_segments, object_signal, pearson_map, region_cca
     from .layout import load_layout, mask_from_pressure
     from .plots import correlation_png
     from .processing import normalise
 
-    ds, source = _data(args, "object")
     layout = load_layout()
     mask = mask_from_pressure(ds.pressure)
     if mask.shape != layout.mask.shape or not np.array_equal(mask, layout.mask):
@@ -288,6 +393,9 @@ def correlation_main(argv: list[str] | None = None) -> int:
         signals.append(sig[inside])
         segments_total += len(segs)
     signal = np.concatenate(signals)
+    if len(signal) < 2:
+        raise UserError(f"--dataset {source}: {segments_total} grasp(s), {len(signal)} frame(s) of object "
+                        f"signal; the correlation needs recordings with grasps")
     print(f"dataset: {source}; {segments_total} grasps found, {len(signal)} frames of object signal")
     refs = [(name, tuple(int(round(v)) for v in layout.centroid(name)))
             for name in ("thumb_distal", "index_distal", "middle_proximal", "palm")]

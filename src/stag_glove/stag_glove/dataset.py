@@ -6,15 +6,29 @@ The public files are MATLAB v5 (scipy.io.loadmat); MATLAB v7.3 files are HDF5 un
 major, so every array comes back with its axes reversed, and strings are cell arrays of object
 references to uint16 character arrays), read with h5py. Our own HDF5 files keep the same field names,
 row-major, with plain string arrays.
+
+Edge cases the loader handles (test/test_glove_dataset.py):
+- a v5 file with a single frame: MATLAB keeps the leading 1 of a 1x32x32 array, so the file is read
+  without squeezing singleton axes (scipy's squeeze_me would drop the frame axis);
+- names stored as a char matrix (MATLAB `char({'cup', 'pen'})`, rows padded with blanks) instead
+  of a cell array, in v5 and in v7.3 (HDF5 uint16 array, column-major);
+- a v7.3 file written row-major by a tool other than MATLAB (pressure stored [N, 32, 32] instead of
+  MATLAB's reversed [32, 32, N]): detected from the per-frame fields' length N. With N = 32 the
+  shapes cannot tell, so the orientation is taken from the data: a recording's unconnected cells
+  (no sensor) never change, so the reading in which more cells stay constant over the frames is
+  the one whose frames are the glove's. A file in which no cell stays constant in either reading
+  is read as MATLAB's layout.
+h5py and scipy are imported when a file is read or written, not with this module.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
-import h5py
 import numpy as np
-import scipy.io
+
+from prisma_tactile_driver.atomic import atomic_output
 
 MAT73_SIGNATURE = b"MATLAB 7.3 MAT-file"
 SPLIT_TRAIN, SPLIT_TEST = 0, 1
@@ -71,20 +85,30 @@ class GloveDataset:
 
 # ---------------------------------------------------------------------------------------- reading
 def load_dataset(path: str | Path) -> GloveDataset:
-    """Read metadata.mat (MATLAB v5 or v7.3) or our HDF5 (.h5/.hdf5)."""
+    """Read metadata.mat (MATLAB v5 or v7.3) or our HDF5 (.h5/.hdf5).
+
+    FileNotFoundError for a missing file; ValueError naming the file for one that is not a
+    readable dataset (damaged, truncated, another format, fields missing)."""
+    import h5py
+    from scipy.io.matlab import MatReadError
+
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"dataset {path} does not exist")
     with open(path, "rb") as stream:
         head = stream.read(128)
     if head.startswith(MAT73_SIGNATURE):
-        fields = _read_mat73(path)
+        reader, kind = _read_mat73, "a MATLAB v7.3 file"
     elif path.suffix == ".mat":
-        fields = _read_mat5(path)
+        reader, kind = _read_mat5, "a MATLAB v5 file"
     elif h5py.is_hdf5(path):
-        fields = _read_hdf5(path)
+        reader, kind = _read_hdf5, "an HDF5 file"
     else:
         raise ValueError(f"{path}: neither a .mat file nor HDF5")
+    try:
+        fields = reader(path)
+    except (OSError, ValueError, MatReadError) as exc:  # what scipy and h5py raise for a damaged file
+        raise ValueError(f"{path}: cannot be read as {kind} ({exc})") from None
     return _from_fields(fields, str(path))
 
 
@@ -125,14 +149,20 @@ def _from_fields(f: dict, source: str) -> GloveDataset:
 
 
 def _strings(value) -> list[str]:
+    """Names from a cell array (nested object arrays from scipy, lists from v7.3), a char matrix
+    (a string per row) or a single string."""
     if isinstance(value, str):
         return [value]
-    out = []
+    out: list[str] = []
     for item in np.asarray(value, dtype=object).reshape(-1):
         while isinstance(item, np.ndarray) and item.dtype == object and item.size == 1:
             item = item.reshape(-1)[0]
+        if isinstance(item, np.ndarray) and item.dtype.kind == "U":
+            # a cell's 1xL char array reads as one string; a char matrix inside a cell as its rows
+            out += [str(s).strip() for s in item.reshape(-1)] if item.size > 1 else [str(item.reshape(-1)[0]).strip()]
+            continue
         if isinstance(item, np.ndarray):
-            item = "".join(item.reshape(-1).tolist()) if item.dtype.kind == "U" else str(item.squeeze())
+            item = str(item.squeeze())
         if isinstance(item, bytes):
             item = item.decode()
         out.append(str(item).strip())
@@ -140,28 +170,76 @@ def _strings(value) -> list[str]:
 
 
 def _read_mat5(path: Path) -> dict:
-    raw = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+    import scipy.io
+
+    # No squeeze_me: it would turn a single frame's 1x32x32 pressure into 32x32 (and the per-frame
+    # vectors into scalars); _from_fields flattens the vectors and _strings unwraps the cells.
+    raw = scipy.io.loadmat(path, struct_as_record=False)
     return {k: v for k, v in raw.items() if not k.startswith("__")}
 
 
 def _read_mat73(path: Path) -> dict:
+    import h5py
+
     out: dict = {}
+    raw_pressure = None
     with h5py.File(path, "r") as h5:
         for key, node in h5.items():
             if key.startswith("#") or not isinstance(node, h5py.Dataset):
                 continue
             out[key] = _mat73_value(h5, node)
+            if key == "pressure":
+                raw_pressure = np.asarray(node[()])
+    if raw_pressure is not None and raw_pressure.ndim == 3:
+        out["pressure"] = _orient_pressure(raw_pressure, _frame_count(out))
     return out
 
 
-def _mat73_value(h5: h5py.File, node: h5py.Dataset):
+def _frame_count(fields: dict) -> int | None:
+    """N from the per-frame fields (a vector's length does not depend on its storage order)."""
+    for key in ("objectId", "recordingId", "splitId"):
+        if key in fields:
+            return int(np.asarray(fields[key]).size)
+    return None
+
+
+def _constant_cells(frames: np.ndarray) -> int:
+    """Cells whose value never changes over the frames [N, rows, cols]."""
+    return int(np.sum(frames.max(axis=0) == frames.min(axis=0)))
+
+
+def _orient_pressure(stored: np.ndarray, n_frames: int | None) -> np.ndarray:
+    """[N, rows, cols] from a v7.3 pressure dataset as stored: MATLAB's column-major [cols, rows, N],
+    or row-major [N, rows, cols] from a writer other than MATLAB (see the module docstring)."""
+    matlab, row_major = np.transpose(stored), stored
+    if n_frames is None:
+        return matlab
+    fits = [a for a in (matlab, row_major) if a.shape[0] == n_frames]
+    if len(fits) == 1:
+        return fits[0]
+    if len(fits) == 2 and _constant_cells(row_major) > _constant_cells(matlab):
+        return row_major  # N == rows == cols (32): decided by the unconnected cells
+    return matlab
+
+
+def _chars(data: np.ndarray) -> str | list[str]:
+    """A MATLAB char array as stored in v7.3 (uint16 codes, column-major): one string for a row of
+    characters, one per row for a char matrix (MATLAB pads its rows with blanks)."""
+    codes = np.transpose(np.atleast_2d(np.asarray(data)))  # back to MATLAB's [rows, cols]
+    rows = ["".join(map(chr, row)).rstrip("\x00") for row in codes.reshape(codes.shape[0], -1)]
+    return rows[0] if len(rows) == 1 else [row.rstrip(" ") for row in rows]
+
+
+def _mat73_value(h5, node):
     cls = node.attrs.get("MATLAB_class", b"")
     cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+    if node.attrs.get("MATLAB_empty", 0):  # an empty MATLAB value stores its dimensions as data
+        return "" if cls == "char" else [] if cls == "cell" else np.zeros(0)
     data = node[()]
     if cls == "cell":
         return [_mat73_value(h5, h5[ref]) for ref in np.asarray(data).T.reshape(-1)]
     if cls == "char":
-        return "".join(map(chr, np.asarray(data).T.reshape(-1))).rstrip("\x00")
+        return _chars(data)
     array = np.asarray(data)
     # MATLAB is column-major: reverse the axes to get the MATLAB [N, rows, cols] order back
     array = np.transpose(array) if array.ndim > 1 else array
@@ -171,6 +249,8 @@ def _mat73_value(h5: h5py.File, node: h5py.Dataset):
 
 
 def _read_hdf5(path: Path) -> dict:
+    import h5py
+
     out: dict = {}
     with h5py.File(path, "r") as h5:
         for key, node in h5.items():
@@ -199,19 +279,33 @@ def _fields(ds: GloveDataset) -> dict:
     return out
 
 
+def _write(path: str | Path, writer: Callable[[Path], None]) -> None:
+    """Whole or not at all: `writer` writes a staged file, renamed onto `path` when complete."""
+    with atomic_output(path) as staged:
+        writer(staged)
+
+
 def save_mat(ds: GloveDataset, path: str | Path) -> None:
     """MATLAB v5 metadata.mat, as the public STAG files are."""
+    import scipy.io
+
     fields = _fields(ds)
     for key in ("objects", "splits"):
         fields[key] = np.array(fields[key], dtype=object)
     for key in ("objectId", "recordingId", "splitId", "hasValidLabel", "isBalanced", "frame"):
         fields[key] = fields[key].reshape(1, -1)  # MATLAB row vectors, as in the public files
-    scipy.io.savemat(path, fields, do_compression=True)
+    _write(path, lambda staged: scipy.io.savemat(staged, fields, do_compression=True))
 
 
 def save_mat73(ds: GloveDataset, path: str | Path) -> None:
     """MATLAB v7.3 layout (HDF5 with a 512-byte MATLAB header, column-major arrays, cell arrays of
     uint16 char arrays under #refs#), so the v7.3 reader is tested against the real structure."""
+    _write(path, lambda staged: _save_mat73(ds, staged))
+
+
+def _save_mat73(ds: GloveDataset, path: Path) -> None:
+    import h5py
+
     fields = _fields(ds)
     with h5py.File(path, "w", userblock_size=512) as h5:
         refs = h5.create_group("#refs#")
@@ -246,6 +340,12 @@ def save_mat73(ds: GloveDataset, path: str | Path) -> None:
 
 def save_hdf5(ds: GloveDataset, path: str | Path) -> None:
     """Row-major HDF5 with the metadata.mat field names (compressed pressure)."""
+    _write(path, lambda staged: _save_hdf5(ds, staged))
+
+
+def _save_hdf5(ds: GloveDataset, path: Path) -> None:
+    import h5py
+
     with h5py.File(path, "w") as h5:
         for key, value in _fields(ds).items():
             if isinstance(value, list):

@@ -8,15 +8,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from prisma_tactile_driver.atomic import atomic_output  # noqa: E402
 
 PAPER_CURVE = {1: 38.0, 7: 75.0}  # STAG paper, Fig. 2b anchors (top-1 %, their 26 objects + empty)
 
 
 def _save(fig, path: str | Path) -> Path:
+    """savefig whole or not at all (staged under a temporary name, renamed when complete)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    try:
+        with atomic_output(path) as staged:
+            fig.savefig(staged, dpi=90)
+    finally:
+        plt.close(fig)
     return path
 
 
