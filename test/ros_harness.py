@@ -13,8 +13,12 @@ everything else runs on wall time and is awaited with `spin_until`.
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +65,12 @@ def process_domain_id() -> int:
 
 
 
+def _never() -> bool:
+    """The executor's wait condition for `RosHarness.settle` (one object: the same arguments keep
+    rclpy's list of ready callbacks)."""
+    return False
+
+
 def stamp_ns(msg: Any) -> int:
     """Nanoseconds of a message's header stamp."""
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -70,6 +80,11 @@ class RosHarness:
     """One test's ROS world: context, executor, probe node, sim clock, /rosout log capture."""
 
     START_NS = 1_700_000_000 * 10**9  # where sim time starts: far from 0 like a real clock
+    # One timeout for every spin_once: rclpy's executor drops its list of ready callbacks whenever
+    # spin_once's arguments change, and the next list starts again at the first node's first
+    # subscription. Alternating timeouts would serve that one again and again (starving the others
+    # until their queues overflow) and take messages of one scan out of order across topics.
+    SPIN_SEC = 0.005
 
     def __init__(self) -> None:
         import rclpy
@@ -115,6 +130,15 @@ class RosHarness:
                 self._wait_for_clock(node, self._sim_now)
         return node
 
+    def destroy_node(self, node) -> None:
+        """Stop spinning `node` and destroy it, as if its process had died (its publishers,
+        subscriptions and action clients go with it)."""
+        self.executor.remove_node(node)
+        for nodes in (self.nodes, self.sim_nodes):
+            if node in nodes:
+                nodes.remove(node)
+        node.destroy_node()
+
     @property
     def probe(self):
         """The test's own node (wall time): its publishers, subscriptions and clients."""
@@ -124,21 +148,21 @@ class RosHarness:
         return self._probe
 
     # ---- spinning --------------------------------------------------------------------------
-    def spin_once(self, timeout_sec: float = 0.01) -> None:
+    def spin_once(self, timeout_sec: float = SPIN_SEC) -> None:
         self.executor.spin_once(timeout_sec=timeout_sec)
 
     def spin_for(self, seconds: float) -> None:
         """Process callbacks for `seconds` of wall time."""
         end = time.monotonic() + seconds
-        while (left := end - time.monotonic()) > 0:
-            self.executor.spin_once(timeout_sec=min(0.01, left))
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
 
     def spin_until(self, condition: Any, timeout_sec: float = 10.0) -> bool:
         """Process callbacks until `condition()` (or a Future) is true; False after the timeout."""
         done = condition.done if hasattr(condition, "done") else condition
         end = time.monotonic() + timeout_sec
         while not done() and time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=0.01)
+            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
         return bool(done())
 
     # ---- sim time --------------------------------------------------------------------------
@@ -146,8 +170,28 @@ class RosHarness:
         """Sim time once a sim-time node exists, else wall time."""
         return self._sim_now if self._sim_now is not None else time.time_ns()
 
-    def set_time(self, stamp_ns: int) -> None:
-        """Publish /clock = stamp_ns and wait until every sim-time node's clock reads it."""
+    def settle(self, quiet_sec: float = SPIN_SEC, timeout_sec: float = 10.0) -> None:
+        """Run callbacks until none has become ready for `quiet_sec`: what the test's nodes sent one
+        another (messages, goals, results, and what those set off) has arrived and been handled.
+        `advance(..., settle=True)` does this at every sim instant, so each instant is complete
+        before the clock moves on, as on a robot whose nodes keep up with their inputs."""
+        from rclpy.executors import TimeoutException
+
+        end = time.monotonic() + timeout_sec
+        while time.monotonic() < end:
+            try:
+                # what rclpy's spin_once does, telling whether anything was ready
+                handler, _, _ = self.executor.wait_for_ready_callbacks(quiet_sec, None, _never)
+            except TimeoutException:
+                return
+            handler()
+            if handler.exception() is not None:
+                raise handler.exception()
+        raise TimeoutError(f"callbacks still ready after {timeout_sec} s of settling")
+
+    def set_time(self, stamp_ns: int, settle: bool = False) -> None:
+        """Publish /clock = stamp_ns and wait until every sim-time node's clock reads it (then,
+        with `settle`, until the callbacks of that instant are all done)."""
         from rosgraph_msgs.msg import Clock
 
         from builtin_interfaces.msg import Time
@@ -164,21 +208,25 @@ class RosHarness:
                 if time.monotonic() > deadline:
                     raise TimeoutError(f"{node.get_name()} never saw /clock = {stamp_ns}")
                 self._clock_pub.publish(msg)  # again: the first may precede discovery
-                self.executor.spin_once(timeout_sec=0.005)
+                self.executor.spin_once(timeout_sec=self.SPIN_SEC)
         # let the timers that became due at this instant run before time moves on
+        if settle:
+            self.settle()
+            return
         for _ in range(3):
-            self.executor.spin_once(timeout_sec=0.0)
+            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
 
     def _wait_for_clock(self, node, stamp_ns: int) -> None:
         self.set_time(stamp_ns)
 
     def advance(self, seconds: float, step: float = 0.001,
-                until: Callable[[], bool] | None = None) -> None:
-        """Move sim time forward by `seconds` in `step`s, letting due timers run at each step."""
+                until: Callable[[], bool] | None = None, settle: bool = False) -> None:
+        """Move sim time forward by `seconds` in `step`s, letting due timers run at each step (with
+        `settle`, everything each step set off; see `settle`)."""
         target = self.now_ns() + round(seconds * 1e9)
         step_ns = round(step * 1e9)
         while self._sim_now < target:
-            self.set_time(min(self._sim_now + step_ns, target))
+            self.set_time(min(self._sim_now + step_ns, target), settle=settle)
             if until is not None and until():
                 return
 
@@ -241,13 +289,14 @@ class RosHarness:
             raise TimeoutError("no answer to the goal request")
         return future.result()
 
-    def result(self, handle: Any, timeout_sec: float = 30.0, sim_step: float | None = None):
-        """Wait for an accepted goal's result (advancing sim time by `sim_step` if given)."""
+    def result(self, handle: Any, timeout_sec: float = 30.0, sim_step: float | None = None, settle: bool = False):
+        """Wait for an accepted goal's result (advancing sim time by `sim_step` if given, settling
+        each step with `settle`)."""
         future = handle.get_result_async()
         if sim_step is not None:
             deadline = time.monotonic() + timeout_sec
             while not future.done() and time.monotonic() < deadline:
-                self.advance(sim_step)
+                self.advance(sim_step, settle=settle)
         elif not self.spin_until(future, timeout_sec):
             pass
         if not future.done():
@@ -295,3 +344,128 @@ class RosHarness:
             node.destroy_node()
         self.executor.shutdown()
         self.rclpy.try_shutdown()
+
+
+# ---- nodes in their own process, as `ros2 run` starts them -----------------------------------------
+@dataclass
+class ProcessResult:
+    returncode: int
+    output: str  # stdout and stderr together, in order
+
+
+class NodeProcess:
+    """A command (`ros2 run pkg exe ...`, `python3 -m module`) in its own session, its stdout and
+    stderr collected: `wait_for_output` a line it prints, `interrupt` it as Ctrl-C in its terminal
+    does (SIGINT to the whole process group: `ros2 run` and the node under it), `wait` for its exit.
+    As a context manager it kills whatever still runs at the end. The environment is inherited
+    (the test process's ROS_DOMAIN_ID included), with unbuffered Python and uncoloured ROS logs."""
+
+    def __init__(self, args: Sequence[str], env: dict[str, str] | None = None, cwd: str | Path | None = None) -> None:
+        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "RCUTILS_COLORIZED_OUTPUT": "0", **(env or {})}
+        self.args = list(args)
+        self.proc = subprocess.Popen(self.args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=full_env, cwd=cwd, start_new_session=True)
+        self._lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            self._lines.append(line)
+
+    @property
+    def output(self) -> str:
+        return "".join(self._lines)
+
+    def wait_for_output(self, text: str, timeout_sec: float = 60.0) -> bool:
+        """True once `text` appears in the output; False at the timeout or when the process exits first."""
+        deadline = time.monotonic() + timeout_sec
+        while time.monotonic() < deadline:
+            if text in self.output:
+                return True
+            if self.proc.poll() is not None:
+                self._reader.join(timeout=5.0)
+                return text in self.output
+            time.sleep(0.05)
+        return False
+
+    def wait_until_spinning(self, ros: RosHarness, node_name: str, timeout_sec: float = 60.0) -> None:
+        """Return once `node_name` answers its ~/list_parameters service, i.e. its executor spins.
+        (A SIGINT before that lands in rclpy's executor set-up inside rclpy.spin, not in the node.)"""
+        from rcl_interfaces.srv import ListParameters
+
+        ros.call(ListParameters, f"{node_name}/list_parameters", ListParameters.Request(), timeout_sec)
+
+    def wait(self, timeout_sec: float = 60.0) -> ProcessResult:
+        """Wait for the process to exit by itself; TimeoutError (with its output) if it does not."""
+        try:
+            self.proc.wait(timeout=timeout_sec)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise TimeoutError(f"{' '.join(self.args)} still ran after {timeout_sec} s; output:\n{self.output}") from None
+        self._reader.join(timeout=5.0)
+        return ProcessResult(self.proc.returncode, self.output)
+
+    def interrupt(self, timeout_sec: float = 30.0, sig: int = signal.SIGINT) -> ProcessResult:
+        """Ctrl-C (SIGINT, or `sig`: SIGTERM as `ros2 launch` escalates) to the process group, then
+        wait for the exit."""
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, sig)
+        return self.wait(timeout_sec)
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+        self._reader.join(timeout=5.0)
+
+    def __enter__(self) -> "NodeProcess":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.kill()
+
+
+def run_process(args: Sequence[str], timeout_sec: float = 60.0, env: dict[str, str] | None = None) -> ProcessResult:
+    """Run a command that should exit by itself (a node refusing its parameters) and collect its output."""
+    with NodeProcess(args, env=env) as proc:
+        return proc.wait(timeout_sec)
+
+
+def start_and_interrupt(args: Sequence[str], ready: str, ros: RosHarness | None = None, node_name: str | None = None,
+                        sig: int = signal.SIGINT, timeout_sec: float = 60.0) -> ProcessResult:
+    """Start a node process, wait until it printed `ready` (and, given `ros` and `node_name`, until
+    it spins), send it `sig` as Ctrl-C would, and return its exit status and output."""
+    with NodeProcess(args) as proc:
+        if not proc.wait_for_output(ready, timeout_sec):
+            raise AssertionError(f"{' '.join(args)} never printed {ready!r}; output:\n{proc.output}")
+        if ros is not None and node_name is not None:
+            proc.wait_until_spinning(ros, node_name, timeout_sec)
+        return proc.interrupt(timeout_sec, sig)
+
+
+_EXTERNAL_SHUTDOWN = """
+import importlib, sys, threading, time
+import rclpy
+main = importlib.import_module(sys.argv[1]).main
+def shut_down_when_spinning():
+    while not rclpy.ok():
+        time.sleep(0.05)
+    executor = rclpy.get_global_executor()  # the one rclpy.spin(node) uses
+    while not executor.get_nodes():
+        time.sleep(0.05)
+    time.sleep(0.5)
+    rclpy.get_default_context().handle.shutdown()  # rcl only, as rclpy's signal handler does
+    executor.wake()
+threading.Thread(target=shut_down_when_spinning, daemon=True).start()
+main([sys.argv[0], *sys.argv[2:]])
+"""
+
+
+def external_shutdown_command(module: str, *args: str) -> list[str]:
+    """A command running `module`'s main(args) whose rclpy context is shut down from outside its
+    executor once the node spins (as rclpy's SIGINT/SIGTERM handler and `ros2 launch` do): rclpy.spin
+    then raises ExternalShutdownException, which main() must take as a normal stop (exit 0)."""
+    import sys
+
+    return [sys.executable, "-c", _EXTERNAL_SHUTDOWN, module, *args]

@@ -13,6 +13,7 @@ import rclpy.logging
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import TaxelArray
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
@@ -70,8 +71,8 @@ def main(args=None) -> None:
     try:
         node = ForceEstimatorNode()
         rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # ctrl-C, SIGTERM or `ros2 launch` shutting down: a normal stop
     except (BundleError, ParameterError) as exc:
         # the operator's fix is in the message (path + mismatch, or parameter + value)
         rclpy.logging.get_logger("force_estimator").fatal(str(exc))
