@@ -133,3 +133,33 @@ def test_bad_configuration_is_rejected_with_the_value():
         SerialGloveBackend("")
     with pytest.raises(ValueError, match="-5"):
         SerialGloveBackend("/dev/null", baudrate=-5)
+
+
+def test_open_and_read_failures_are_said_once_with_the_port_and_os_reason(tmp_path):
+    link = tmp_path / "ttyGLOVE"
+    backend = SerialGloveBackend(str(link), backoff_initial_s=0.1, backoff_max_s=0.1)
+    missing = f"cannot open {link}: [Errno 2] No such file or directory"
+    for step in range(10):
+        backend.poll(step * NS // 10)
+    assert backend.stats.open_failures == 10  # retried every 0.1 s...
+    assert backend.take_errors() == [missing]  # ...said once
+    status = backend.status()
+    assert not status.connected and status.message == f"disconnected: {missing}"
+    assert status.values["port"] == str(link) and status.values["last_error"] == missing
+    board = BoardEmulator()
+    try:
+        link.symlink_to(board.port)
+        backend.poll(NS)
+        assert backend.connected and backend.take_errors() == []
+        board.unplug()
+        link.unlink()
+        deadline = time.monotonic() + 5
+        while backend.connected and time.monotonic() < deadline:
+            backend.poll(NS)
+            time.sleep(0.002)
+        [lost] = backend.take_errors()
+        assert lost.startswith(f"read failed on {link}: ")
+        backend.poll(2 * NS)
+        assert backend.take_errors() == [missing]  # the same reason again: the port worked since
+    finally:
+        backend.close()

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from prisma_tactile_driver.backend import HubReading
 from prisma_tactile_driver.contact_source import ScriptedContactSource
 from prisma_tactile_driver.hub import ERROR, OK, STALE, WARN, TactileHub
 from prisma_tactile_driver.pad_model import PadContact, PadParams
@@ -86,3 +87,28 @@ def test_staleness_levels():
         hub.poll(step * 10 * MS)
     assert hub.stale_fingers(790 * MS) == list(FINGERS)
     assert hub.diagnostics(790 * MS)[0].level == ERROR
+
+
+def test_a_reading_with_its_own_stamp_is_published_with_it():
+    class HubClocked:
+        """Two frames drained in one read, stamped by the hub's clock."""
+
+        def read(self, stamp_ns):
+            counts = np.full(9, 2048, dtype=np.uint16)
+            return [HubReading(41, {"thumb": counts}, stamp_ns - 25 * MS),
+                    HubReading(42, {"thumb": counts}, stamp_ns - 15 * MS)]
+
+        def counters(self):
+            return {"missed_frames": 3}
+
+        def close(self):
+            pass
+
+    hub = TactileHub(HubClocked(), ["thumb"])
+    frames = hub.poll(1000 * MS)
+    assert [f.stamp_ns for f in frames] == [975 * MS, 985 * MS]
+    assert hub.last_stamp_ns["thumb"] == 985 * MS
+    assert hub.diagnostics(1000 * MS)[1].values["age_ms"] == "15.0"
+    status = hub.diagnostics(1000 * MS)[0]
+    assert status.message == "all fingers streaming (3 dropped frames so far)"
+    assert hub.take_errors() == [] and hub.link_status().error == ""  # no link_status(): nothing to fail

@@ -154,3 +154,58 @@ def test_absent_port_backs_off_exponentially(tmp_path):
     assert "missing" in backend.last_error
     with pytest.raises(ValueError, match="baud"):
         SerialHubBackend("x", 0)
+
+
+def test_open_failure_says_why_once_per_change(tmp_path):
+    """The port and the OS reason reach /diagnostics (message and values) and, once per change,
+    take_errors() (what the node logs)."""
+    from prisma_tactile_driver.hub import ERROR, OK, TactileHub
+    from prisma_tactile_driver.taxels import FINGERS
+
+    link = tmp_path / "ttyHUB"
+    now = [0.0]
+    backend = SerialHubBackend(str(link), 1_000_000, backoff_initial_s=0.01, backoff_max_s=0.01,
+                               monotonic=lambda: now[0])
+    hub = TactileHub(backend, FINGERS)
+
+    def poll_for(seconds, start):
+        for step in range(int(seconds / 0.002)):
+            now[0] = start + step * 0.002
+            hub.poll(int(now[0] * 1e9))
+
+    missing = f"cannot open serial port {link}: [Errno 2] No such file or directory"
+    poll_for(0.1, 0.0)
+    assert backend.link.open_failures == 10  # retried every 10 ms...
+    assert hub.take_errors() == [missing]  # ...said once
+    status = hub.diagnostics(int(0.1e9))[0]
+    assert status.level == ERROR
+    assert status.message == f"stale: {', '.join(FINGERS)}; {missing}"
+    assert status.values["port"] == str(link) and status.values["last_error"] == missing
+    link.mkdir()  # a different reason is said again
+    poll_for(0.05, 0.1)
+    assert hub.take_errors() == [f"cannot open serial port {link}: [Errno 21] Is a directory"]
+    link.rmdir()
+    port = PtyHubPort(link)
+    port.open()
+    try:
+        poll_for(0.02, 0.2)
+        assert backend.connected and hub.take_errors() == []
+        port.write(encode_frame(0, np.zeros((5, 9), dtype=int)))
+        deadline = time.monotonic() + 5
+        while backend.parser.stats.frames == 0:
+            assert time.monotonic() < deadline
+            poll_for(0.002, 0.3)
+        status = hub.diagnostics(int(now[0] * 1e9))[0]
+        assert status.level == OK and status.values["last_error"].endswith("Is a directory")
+        port.hang_up()
+        deadline = time.monotonic() + 5
+        while backend.connected:
+            assert time.monotonic() < deadline
+            poll_for(0.002, 0.4)
+        lost = hub.take_errors()
+        assert len(lost) == 1 and lost[0].startswith(f"serial port {link} lost: ")
+        poll_for(0.1, 0.5)
+        assert hub.take_errors() == [missing]  # the same reason as before, but the link worked since
+    finally:
+        port.close()
+        hub.close()

@@ -40,6 +40,7 @@ class Max11617:
     config: int | None = None
     failing: bool = False  # a broken sensor/cable: never acknowledges
     nack_next: int = 0  # transient trouble: NACK this many addressings, then recover
+    glitch_next: int = 0  # a glitched bus (SDA held low): this many reads return all-zero bytes
 
     def write(self, data: bytes) -> None:
         for byte in data:
@@ -51,6 +52,9 @@ class Max11617:
     def read(self, length: int) -> bytes:
         if self.config is None:
             raise _nack(ADC_ADDRESS)  # unconfigured: the model refuses rather than guess
+        if self.glitch_next > 0:
+            self.glitch_next -= 1
+            return bytes(length)
         scan, cs = (self.config >> 5) & 0x3, (self.config >> 1) & 0xF
         channels = list(range(cs + 1)) if scan == 0 else [cs]
         out = bytearray()

@@ -67,6 +67,8 @@ class TactileDriverNode(Node):
         for frame in self.hub.poll(self._now_ns()):
             self._taxel_pubs[frame.finger].publish(
                 taxel_frame_to_msg(frame, get_message, self.config.frame_id(frame.finger)))
+        for error in self.hub.take_errors():  # each new link error once, with the port and OS reason
+            self.get_logger().error(error)
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()

@@ -10,6 +10,7 @@ from typing import Callable, Iterator, Protocol
 
 import numpy as np
 import serial
+from prisma_tactile_driver.backend import describe_os_error
 
 from .dataset import load_dataset
 from .protocol import GloveStreamParser, ParserStats
@@ -37,6 +38,10 @@ class GloveBackend(Protocol):
 
     def status(self) -> BackendStatus: ...
 
+    def take_errors(self) -> list[str]:
+        """Errors (with the port and the OS reason) that appeared since the last call, each once."""
+        ...
+
     def close(self) -> None: ...
 
 
@@ -54,7 +59,8 @@ class SerialGloveBackend:
 
     A port that is missing or drops out is retried with exponential backoff (backoff_initial_s
     doubling up to backoff_max_s); corrupt bytes resynchronise in the parser and are counted. Frames
-    are stamped with the poll time (the board has no clock)."""
+    are stamped with the poll time (the board has no clock). Why the port is down (the port and
+    the OS reason) is in `last_error`, `status()` and, once per change, `take_errors()`."""
 
     def __init__(self, port: str, baudrate: int = 250_000, rows: int = 32, cols: int = 32,
                  backoff_initial_s: float = 0.5, backoff_max_s: float = 8.0, max_read: int = 1 << 16,
@@ -75,22 +81,37 @@ class SerialGloveBackend:
         self._backoff_ns = self._backoff_initial_ns
         self._next_attempt_ns: int | None = None
         self._max_read = max_read
-        self.last_error = ""
+        self.last_error = ""  # the latest failure, kept after the port recovers
+        self._reported_error = ""  # the error last handed out by take_errors()
+        self._new_errors: list[str] = []
 
     @property
     def connected(self) -> bool:
         return self._serial is not None
 
     def poll(self, now_ns: int) -> list[BackendFrame]:
+        frames = self._poll(now_ns)
+        error = "" if self.connected else self.last_error
+        if error != self._reported_error:
+            if error:  # a new reason; the same one again only after the port worked in between
+                self._new_errors.append(error)
+            self._reported_error = error
+        return frames
+
+    def _poll(self, now_ns: int) -> list[BackendFrame]:
         if self._serial is None and not self._try_open(now_ns):
             return []
         try:
             data = self._serial.read(self._max_read)
         except (serial.SerialException, OSError) as exc:
-            self._lost(now_ns, f"read failed: {exc}")
+            self._lost(now_ns, f"read failed on {self.port}: {describe_os_error(exc)}")
             return []
         self.stats.bytes_read += len(data)
         return [BackendFrame(now_ns, f.sequence, f.raw) for f in self.parser.feed(data)]
+
+    def take_errors(self) -> list[str]:
+        errors, self._new_errors = self._new_errors, []
+        return errors
 
     def _try_open(self, now_ns: int) -> bool:
         if self._next_attempt_ns is not None and now_ns < self._next_attempt_ns:
@@ -100,7 +121,7 @@ class SerialGloveBackend:
             self._serial = self._opener(self.port, baudrate=self.baudrate, timeout=0)
         except (serial.SerialException, OSError, ValueError) as exc:
             self.stats.open_failures += 1
-            self.last_error = f"cannot open {self.port}: {exc}"
+            self.last_error = f"cannot open {self.port}: {describe_os_error(exc)}"
             self._schedule_retry(now_ns)
             return False
         self.stats.opens += 1
@@ -176,6 +197,9 @@ class _PacedBackend:
         if self._next_ns <= now_ns and len(out) == self._max_burst:
             self._next_ns = now_ns + self._period_ns  # skip what we could not send in time
         return out
+
+    def take_errors(self) -> list[str]:
+        return []  # no link to fail
 
     def close(self) -> None:
         pass

@@ -44,10 +44,13 @@ class GloveDriverNode(Node):
                                                        cfg.short_threshold, cfg.contact_margin), mask=mask)
         hardware_id = {"serial": f"{cfg.port}@{cfg.baudrate}", "sim": f"sim/seed{cfg.sim_seed}",
                        "replay": f"replay/{cfg.replay_file}"}[cfg.backend]
+        # outside the try below: its ParameterError names the backend's own parameter (replay_file)
+        backend = cfg.make_backend()
         try:
-            self.driver = GloveDriver(cfg.make_backend(), processor, cfg.empty_hand_frames, cfg.stale_timeout,
+            self.driver = GloveDriver(backend, processor, cfg.empty_hand_frames, cfg.stale_timeout,
                                       cfg.calibration_file or None, self.get_name(), hardware_id)
         except ValueError as exc:
+            backend.close()
             raise ParameterError("calibration_file", cfg.calibration_file, str(exc)) from None
 
         self._frame_pub = self.create_publisher(GloveFrame, "stag/frame", 10)
@@ -65,6 +68,8 @@ class GloveDriverNode(Node):
         for frame in self.driver.poll(self._now_ns()):
             self._frame_pub.publish(glove_frame_to_msg(frame, get_message, self.config.frame_id))
             self._image_pub.publish(pressure_image_msg(frame, get_message, self.config.frame_id))
+        for error in self.driver.backend.take_errors():  # each new one once, with port and OS reason
+            self.get_logger().error(error)
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()
