@@ -289,6 +289,32 @@ class RosHarness:
             raise TimeoutError("no answer to the goal request")
         return future.result()
 
+    def send_until_accepted(self, client: Any, goal: Any, timeout_sec: float = 30.0, retry_sec: float = 0.2):
+        """Send `goal` again every `retry_sec` while the server rejects it (a server that refuses
+        goals until its inputs flow); the accepted ClientGoalHandle, AssertionError at the timeout."""
+        deadline = time.monotonic() + timeout_sec
+        while True:
+            handle = self.send_goal(client, goal)
+            if handle.accepted:
+                return handle
+            if time.monotonic() > deadline:
+                raise AssertionError(f"{type(goal).__name__} still rejected after {timeout_sec} s")
+            self.spin_for(retry_sec)
+
+    def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
+                              timeout_sec: float = 60.0, period_sec: float = 0.1) -> None:
+        """Wait until the latest header stamp in `follower` (a `collect` list) is within `lag_sec` of
+        the latest in `leader` at `checks` checks in a row, `period_sec` apart: a downstream node
+        has warmed up and keeps pace (AssertionError with the last lag at the timeout)."""
+        deadline = time.monotonic() + timeout_sec
+        good, lag = 0, None
+        while good < checks:
+            if time.monotonic() > deadline:
+                raise AssertionError(f"still {lag} s behind after {timeout_sec} s")
+            self.spin_for(period_sec)
+            lag = (stamp_ns(leader[-1]) - stamp_ns(follower[-1])) * 1e-9 if leader and follower else None
+            good = good + 1 if lag is not None and lag < lag_sec else 0
+
     def result(self, handle: Any, timeout_sec: float = 30.0, sim_step: float | None = None, settle: bool = False):
         """Wait for an accepted goal's result (advancing sim time by `sim_step` if given, settling
         each step with `settle`)."""

@@ -154,6 +154,29 @@ def test_velocity_goal_timeout_cancel_and_preempt_stop_or_hand_over():
     assert result.success and result.reason == "reached"
 
 
+def test_a_resent_velocity_goal_continues_seamlessly_and_spares_a_motor_at_its_stop():
+    """The manipulation node keeps a command alive by re-sending it (with a short timeout each
+    time): the moving motor does not dip, a motor already stopped at its stop position is not driven
+    again, and the last goal times out its timeout after it started, stopping the motors."""
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    goal = MoveGoal(["fingers", "thumb_rotation"], "velocity", [30.0, 30.0], position_limits=[9.0, 0.5],
+                    timeout_s=0.4)
+    runner.start(goal, 0)
+    t, _, result = _run(runner, bus, 300 * MS)
+    assert result is None and t == 300 * MS  # fingers still moving
+    before = bus.read_state(t)["thumb_rotation"]
+    assert 0.5 <= before.position_rad < 0.54 and before.velocity_rpm < 1e-3  # stopped at 0.5 rad
+    assert runner.start(goal, t).reason == "preempted"  # the refresh
+    after = bus.read_state(t + 10 * MS)
+    assert after["fingers"].velocity_rpm == pytest.approx(30.0, abs=1e-6)  # no dip
+    assert after["thumb_rotation"].position_rad == pytest.approx(before.position_rad, abs=1e-7)
+    assert after["thumb_rotation"].velocity_rpm < 1e-3
+    end, _, result = _run(runner, bus, t + 1000 * MS, start_ns=t + 10 * MS)
+    assert result.reason == "timeout" and end == t + 400 * MS
+    assert bus.read_state(end + 100 * MS)["fingers"].velocity_rpm == pytest.approx(0.0, abs=0.01)
+
+
 def test_sim_hardware_error_aborts_naming_motor_and_bit():
     bus = SimMotorBus(default_motors())
     runner = MoveGoalRunner(bus)

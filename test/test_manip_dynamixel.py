@@ -27,7 +27,9 @@ from prisma_manipulation.dynamixel_packets import (
     unstuff,
 )
 from prisma_manipulation.motor_bus import BusError, MotorMap
+from prisma_manipulation.motor_driver_core import MotorDriverCore
 from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
+from prisma_manipulation.node_config import MotorDriverConfig
 
 IDS = {"fingers": 1, "thumb_flexion": 2, "thumb_rotation": 3}
 
@@ -223,8 +225,9 @@ def test_close_turns_torque_off_everywhere():
 
 
 def test_bad_port_and_unsupported_baud_fail_with_the_value():
-    with pytest.raises(BusError, match="/dev/does-not-exist"):
+    with pytest.raises(BusError) as info:
         DynamixelBus("/dev/does-not-exist", 1_000_000, motor_map()).open()
+    assert str(info.value) == "cannot open Dynamixel port /dev/does-not-exist: [Errno 2] No such file or directory"
     with DynamixelEmulator([1, 2, 3], clock=ManualClock()) as emu:
         with pytest.raises(BusError, match="baud rate 12345"):
             DynamixelBus(emu.port_name, 12345, motor_map()).open()
@@ -235,3 +238,29 @@ def test_missing_motor_fails_open_naming_it():
         bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=0)
         with pytest.raises(BusError, match=r"ping thumb_rotation \(id 3\)"):
             bus.open()
+
+
+def test_driver_core_says_why_once_per_change_with_the_port(tmp_path):
+    """An open failure's port and OS reason reach /diagnostics (message and values) and, once per
+    change, take_errors() (what the node logs); so does a bus that is lost."""
+    link = tmp_path / "ttyDXL"
+    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", port=str(link), retries=0))
+    missing = f"cannot open Dynamixel port {link}: [Errno 2] No such file or directory"
+    ms = 1_000_000
+    for t_ms in range(0, 3000, 10):
+        assert core.tick(t_ms * ms).states is None
+    assert core.take_errors() == [missing]  # tried at 0, 0.5 and 1.5 s, said once
+    bus = core.diagnostics()[0]
+    assert bus.message == f"disconnected: {missing}"
+    assert bus.values["port"] == str(link) and bus.values["last_error"] == missing
+    with DynamixelEmulator([1, 2, 3], clock=ManualClock()) as emu:
+        link.symlink_to(emu.port_name)
+        assert core.tick(3500 * ms).states is not None  # the next attempt, 2 s after the last
+        assert core.take_errors() == []
+    link.unlink()
+    assert core.tick(3510 * ms).states is None  # the servos are gone
+    [lost] = core.take_errors()
+    assert lost.startswith("sync read present state: ") and core.diagnostics()[0].values["last_error"] == lost
+    for t_ms in range(3520, 10_000, 10):
+        core.tick(t_ms * ms)
+    assert core.take_errors() == [missing]  # the same reason again: the bus worked in between

@@ -13,7 +13,11 @@ see into the messages the nodes would publish, with the nodes' own cores and con
 - /joint_states from the motor states -> `joint_state_to_msg`;
 - Grasp / Manipulate feedback after every controller step (`<action>/_action/feedback`), MoveMotors
   feedback on every sample while a velocity goal runs, and every goal's status changes
-  (`<action>/_action/status`), as an action server publishes them;
+  (`<action>/_action/status`), as an action server publishes them. The MoveMotors goals are the
+  manipulation node's own decisions (`manipulation_core.MoveLease`): one per new velocity command,
+  re-sent every 0.1 s while the command holds (each preempting the last), a cancel for a stop;
+- the goal starts only where the manipulation node would accept it: every stream it needs fresh
+  (`SensorWatchdog.fresh`, as `ManipulationCore.readiness` asks), else the recording fails;
 - /diagnostics once per second from each driver's core (tactile hub, estimator pipeline, motor
   driver).
 Stamps are the loop's sample stamps (sim time from 0), so every topic is ordered in time.
@@ -34,11 +38,12 @@ from prisma_force_estimator.ros_conversions import wrench_to_msg
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.controllers import ControlInput, ControlOutput, JointSample
 from prisma_manipulation.grasp_controller import GraspController
-from prisma_manipulation.manipulation_core import Feedback
+from prisma_manipulation.manipulation_core import Feedback, MoveLease, SendMove
 from prisma_manipulation.motor_bus import MOTOR_NAMES, MotorState
 from prisma_manipulation.motor_driver_core import MotorDriverCore
 from prisma_manipulation.motor_goals import MoveFeedback
 from prisma_manipulation.node_config import ManipulationConfig, MotorDriverConfig
+from prisma_manipulation.watchdog import SensorWatchdog
 from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     grasp_feedback_to_msg,
@@ -246,6 +251,8 @@ class HandRecorder:
         self._moves = 0
         self._goal_record: GoalRecord | None = None
         self._move_record: GoalRecord | None = None
+        self.lease = MoveLease()  # the manipulation node's MoveMotors decisions
+        self.watchdog = SensorWatchdog(int(round(self.manipulation_config.stale_timeout * NS)))
 
         self._sample = loop.sample
         loop.sample = self._on_sample
@@ -273,6 +280,14 @@ class HandRecorder:
         return joints, volts, evaluations, truth, used
 
     def _on_start(self, joints: JointSample) -> ControlOutput:
+        c = self.scenario.controller
+        force_fingers = c.fingers if isinstance(c, GraspController) else \
+            ("thumb",) if getattr(c, "force_keeper", None) is not None else ()
+        streams = [f"taxels/{f}" for f in c.fingers] + [f"wrench/{f}" for f in force_fingers]
+        not_ready = self.watchdog.fresh(streams, joints.stamp_ns)
+        if not_ready is not None:
+            raise RuntimeError(f"the manipulation node would reject the {self.action} goal at "
+                               f"{joints.stamp_ns * 1e-9:.2f} s: {not_ready}")
         out = self._start(joints)
         self._goal = _Goal(self.action, _goal_uuid(self.scenario.name, self.action), joints.stamp_ns)
         self._goal_record = GoalRecord(self.action, joints.stamp_ns)
@@ -300,14 +315,17 @@ class HandRecorder:
         states = {m: MotorState(m, joints.positions[m], joints.velocities.get(m, 0.0), joints.currents.get(m, 0.0))
                   for m in MOTOR_NAMES}
         self._write(JOINT_STATES, joint_state_to_msg(types, t, states))
+        self.watchdog.reference(t, t)
         frames = {frame.finger: frame for frame in self.hub.poll(t)}
         for finger, frame in frames.items():
             self._write(TAXELS.format(finger=finger),
                         taxel_frame_to_msg(frame, types, self.tactile_config.frame_id(finger)))
+            self.watchdog.sample(f"taxels/{finger}", frame.stamp_ns, t)
         for finger in FINGERS:
             sample = self._wrenches.get(finger)
             if sample is not None:
                 self._write(WRENCH.format(finger=finger), wrench_to_msg(types, sample))
+                self.watchdog.sample(f"wrench/{finger}", sample.stamp_ns, t)
         # the manipulation node evaluates Algorithm 1 on every taxel message, also when idle
         for finger, frame in frames.items():
             evaluation = self.monitor.evaluate(finger, frame.stamp_ns, frame.voltages)
@@ -319,6 +337,11 @@ class HandRecorder:
                                     [states[m].current_ma for m in MOTOR_NAMES])
             self._write_feedback(self._move, move_feedback_to_msg(types, feedback), t)
             self._move_record.feedback += 1
+        # the node re-sends the running command on the /joint_states of this sample when it is due
+        # (before the controller steps on the sample's taxels); the new goal preempts the last
+        refresh = self.lease.refresh(t)
+        if refresh is not None:
+            self._send_move(t)
         if self._next_diagnostics_ns is None or t >= self._next_diagnostics_ns:
             self._next_diagnostics_ns = t + DIAGNOSTICS_PERIOD_NS
             self._write_diagnostics(t)
@@ -335,15 +358,10 @@ class HandRecorder:
         commands (a stop cancels the running one), feedback, and the end of the goal."""
         t = out.stamp_ns
         if out.command is not None:
-            if self._move is not None:
-                status = STATUS_CANCELED if out.command.is_stop else STATUS_ABORTED  # canceled / preempted
-                self._end_move(status, t)
-            if not out.command.is_stop:
-                self._moves += 1
-                self._move = _Goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
-                self._move_record = GoalRecord("move", t)
-                self.recording.goals.append(self._move_record)
-                self._write_status(self._move, STATUS_EXECUTING, t)
+            if isinstance(self.lease.command(out.command.velocities_rpm, t), SendMove):
+                self._send_move(t)
+            elif self._move is not None:
+                self._end_move(STATUS_CANCELED, t)  # a stop cancels the running goal
         if self._goal is None:
             return
         c = self.scenario.controller
@@ -357,10 +375,21 @@ class HandRecorder:
         self._write_feedback(self._goal, convert(self.types, feedback), t)
         self._goal_record.feedback += 1
         if out.done:
+            self.lease.release()
             status = STATUS_SUCCEEDED if out.success else STATUS_CANCELED if out.reason == "canceled" else STATUS_ABORTED
             self._write_status(self._goal, status, t)
             self._goal_record.ended_ns, self._goal_record.status = t, status
             self._goal = None
+
+    def _send_move(self, t: int) -> None:
+        """A MoveMotors goal (a new command or its refresh): it preempts the running one."""
+        if self._move is not None:
+            self._end_move(STATUS_ABORTED, t)  # preempted
+        self._moves += 1
+        self._move = _Goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
+        self._move_record = GoalRecord("move", t)
+        self.recording.goals.append(self._move_record)
+        self._write_status(self._move, STATUS_EXECUTING, t)
 
     def _end_move(self, status: int, t: int) -> None:
         self._write_status(self._move, status, t)

@@ -3,14 +3,19 @@
 One GroupSyncRead of Present Current/Velocity/Position (126..135) and one of Hardware Error Status
 (70) per cycle; goals go out with GroupSyncWrite. Mode changes follow the firmware rule: torque off,
 write Operating Mode (EEPROM), torque on. Communication errors (no status packet, corrupt status)
-are retried a bounded number of times and counted; exhausting the retries raises BusError.
+are retried a bounded number of times and counted; exhausting the retries raises BusError. A
+port that fails underneath (the adapter unplugged: EIO from the read, the write or the SDK's
+input flush) raises BusError at once, naming the port and the OS reason.
 """
 from __future__ import annotations
 
+import termios
 from typing import Callable, Mapping
 
 import dynamixel_sdk as sdk
 import serial
+
+from prisma_tactile_driver.backend import describe_os_error
 
 from . import control_table as ct
 from .motor_bus import BusError, BusStats, MotorConfig, MotorState, check_velocity
@@ -51,8 +56,8 @@ class DynamixelBus:
         """Open the port, ping every motor, put them in velocity mode with torque on (stopped)."""
         try:
             opened = self._port.openPort()
-        except serial.SerialException as exc:
-            raise BusError(f"cannot open Dynamixel port {self.port_name}: {exc}") from exc
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise BusError(f"cannot open Dynamixel port {self.port_name}: {describe_os_error(exc)}") from exc
         if not opened:
             raise BusError(f"cannot open Dynamixel port {self.port_name}")
         if not self._port.setBaudRate(self.baudrate):
@@ -79,7 +84,10 @@ class DynamixelBus:
                 self.torque_off(name)
             except BusError as exc:
                 errors.append(str(exc))
-        self._port.closePort()
+        try:
+            self._port.closePort()
+        except (serial.SerialException, OSError, termios.error):
+            pass  # the adapter is gone; its handle cannot be closed any better
         self._open = False
         if errors:
             raise BusError("; ".join(errors))
@@ -200,7 +208,11 @@ class DynamixelBus:
         A status packet that reports an instruction error (range, access...) is not retried."""
         attempts = self.retries + 1
         for attempt in range(attempts):
-            value = call()
+            try:
+                value = call()
+            except (serial.SerialException, OSError, termios.error) as exc:
+                self.stats.comm_failures += 1  # the port itself failed: no retry can help
+                raise BusError(f"{what}: Dynamixel port {self.port_name} failed: {describe_os_error(exc)}") from exc
             result = value if result_index is None else value[result_index]
             if result == sdk.COMM_SUCCESS:
                 if error_index is not None:

@@ -5,21 +5,37 @@ The node feeds it messages (taxels, wrenches, joint states, MoveMotors results, 
 watchdog ticks) as plain data and carries out the returned actions:
 - SendMove: send a MoveMotors velocity goal (it preempts the previous one on the motor driver);
 - StopMotors: cancel the running MoveMotors goal (cancel = stop);
-- Feedback / Finished: the Grasp or Manipulate goal's feedback and end.
+- Feedback / Finished: the Grasp or Manipulate goal's feedback and end;
+- Ignored: an input set aside (a /joint_states message without the hand's joints), for the log.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
+
+Goals are admitted in two steps. `accept_grasp` / `accept_manipulate` (the action server's goal
+callback) answer a rejection reason or None: the request within the limits, no other goal running
+or just accepted (so a Grasp and a Manipulate sent together have one outcome: the first is accepted,
+the second rejected), and every stream the goal needs flowing (its fingers' taxels and, where it
+steers by force, wrenches, /joint_states, and the MoveMotors action server). An accepted goal holds
+the core until `start_grasp` / `start_manipulate` runs it.
+
+Motors stop when this node is lost: every MoveMotors goal carries a short timeout (`MOVE_LEASE_S`)
+and, while the controller keeps the same velocity command, the goal is re-sent every
+`MOVE_REFRESH_S` (`MoveLease`). A node that dies or hangs stops refreshing, the motor driver's goal
+times out and the driver stops the motors.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
 from .contact_monitor import ContactEvaluation, ContactMonitor, check_k
 from .controllers import (
     CANCELED,
+    JOINT_LIMIT,
     MOTOR_FAULT,
     SENSOR_STALE,
+    TIMEOUT,
     ControlInput,
     ControlLimits,
     ControlOutput,
@@ -35,6 +51,12 @@ from .watchdog import SensorWatchdog
 GRASP = "grasp"
 MANIPULATE = "manipulate"
 MOTIONS = ("horizontal", "vertical", "hold")
+
+# MoveMotors goals last this long on the motor driver unless re-sent: the motors stop within it (+ one
+# driver tick) when this node dies. Re-sent every MOVE_REFRESH_S, so two refreshes may be late (a busy
+# executor) before the motors stop under a live controller.
+MOVE_LEASE_S = 0.3
+MOVE_REFRESH_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -67,6 +89,14 @@ class StopMotors:
 
 
 @dataclass(frozen=True)
+class Ignored:
+    """An input set aside without changing any decision (the node logs the reason)."""
+
+    topic: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class Feedback:
     kind: str
     phase: str
@@ -91,6 +121,46 @@ def _finite(x: float) -> bool:
     return isinstance(x, (int, float)) and math.isfinite(x)
 
 
+class MoveLease:
+    """The MoveMotors goals that carry one velocity command: sent with a `lease_s` timeout, re-sent
+    every `refresh_s` while the command holds, so the motor driver stops the motors on its own when
+    the sender is gone. The off-robot recorder (prisma_bringup.hand_session) runs the same decisions."""
+
+    def __init__(self, lease_s: float = MOVE_LEASE_S, refresh_s: float = MOVE_REFRESH_S) -> None:
+        if not 0 < refresh_s < lease_s:
+            raise ValueError(f"refresh {refresh_s} s must be > 0 and below the lease {lease_s} s")
+        self.lease_s = lease_s
+        self.refresh_ns = int(round(refresh_s * 1e9))
+        self.velocities: dict[str, float] | None = None  # the command being kept alive, None = none
+        self.sent_ns = 0
+
+    def command(self, velocities_rpm: Mapping[str, float], now_ns: int) -> "SendMove | StopMotors":
+        """A new command from the controller: a goal for motion, a cancel for a stop."""
+        if all(v == 0.0 for v in velocities_rpm.values()):
+            self.velocities = None
+            return StopMotors()
+        self.velocities = dict(velocities_rpm)
+        return self._send(now_ns)
+
+    def refresh(self, now_ns: int) -> "SendMove | None":
+        """The same command again when the last goal is `refresh_s` old."""
+        if self.velocities is None or now_ns - self.sent_ns < self.refresh_ns:
+            return None
+        return self._send(now_ns)
+
+    def renew(self, now_ns: int) -> "SendMove | None":
+        """The driver ended the goal by its timeout before the refresh came: send it again now."""
+        return None if self.velocities is None else self._send(now_ns)
+
+    def release(self) -> None:
+        """Nothing to keep alive (goal over, or the driver stopped the motors at a limit)."""
+        self.velocities = None
+
+    def _send(self, now_ns: int) -> "SendMove":
+        self.sent_ns = now_ns
+        return SendMove(dict(self.velocities), self.lease_s)
+
+
 class ManipulationCore:
     def __init__(self, config: ManipulationConfig) -> None:
         self.config = config
@@ -99,13 +169,16 @@ class ManipulationCore:
         self.limits = ControlLimits(config.limits_motors(), config.limit_margin)
         self.watchdog = SensorWatchdog(int(round(config.stale_timeout * 1e9)))
         self.aligner = SampleAligner()
+        self.lease = MoveLease()
         self.controller: Controller | None = None
         self.kind: str | None = None
         self.joints: JointSample | None = None
         self.forces: dict[str, float] = {}
         self._force_fingers: tuple[str, ...] = ()
         self._required: frozenset = frozenset()
+        self._accepted: str | None = None  # kind of a goal accepted and not started yet
         self.stale_reason = ""
+        self.ignored_joint_states = 0
 
     # ---- parameters ------------------------------------------------------------------------
     def set_k(self, k: float) -> None:
@@ -118,14 +191,8 @@ class ManipulationCore:
         return self.controller is not None
 
     # ---- goal validation -------------------------------------------------------------------
-    def _common_checks(self) -> str | None:
-        if self.busy:
-            return f"a {self.kind} goal is running"
-        if self.joints is None:
-            return "no /joint_states received yet"
-        return None
-
     def resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, str | None]:
+        """The request with defaults filled in, or the reason it is beyond the limits."""
         c = self.config
         if req.grasp not in GRASP_PRESETS:
             return None, f"grasp {req.grasp!r} is not one of {sorted(GRASP_PRESETS)}"
@@ -140,9 +207,10 @@ class ManipulationCore:
                 return None, f"{name} {value} above the configured limit {limit}"
         if not _finite(r.timeout_s) or r.timeout_s < 0:
             return None, f"timeout {r.timeout_s} must be >= 0"
-        return r, self._common_checks()
+        return r, self._fingers_configured(f"grasp {r.grasp}", self.grasp_streams(r)[0])
 
     def resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, str | None]:
+        """The request with defaults filled in, or the reason it is beyond the limits."""
         c = self.config
         if req.motion not in MOTIONS:
             return None, f"motion {req.motion!r} is not one of {list(MOTIONS)}"
@@ -162,22 +230,78 @@ class ManipulationCore:
             return None, f"k {r.k} too low for hold: needs k > {c.hold_min_k}"
         if not _finite(r.timeout_s) or r.timeout_s < 0:
             return None, f"timeout {r.timeout_s} must be >= 0"
-        return r, self._common_checks()
+        return r, self._fingers_configured(f"motion {r.motion}", self.manipulate_streams(r)[0])
+
+    def grasp_streams(self, r: GraspRequest) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(fingers whose taxels, fingers whose wrenches) a grasp steps on: the thumb and the preset's pads."""
+        fingers = ("thumb",) + GRASP_PRESETS[r.grasp].force_fingers
+        return fingers, fingers
+
+    def manipulate_streams(self, r: ManipulateRequest) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(taxel fingers, wrench fingers) of a manipulation: the monitored pad (+ thumb), the
+        thumb's force with use_force."""
+        finger = self.config.monitored_finger
+        taxels = (finger,) if finger == "thumb" else (finger, "thumb")
+        return taxels, ("thumb",) if r.use_force else ()
+
+    def _fingers_configured(self, what: str, fingers: tuple[str, ...]) -> str | None:
+        missing = [f for f in fingers if f not in self.config.fingers]
+        if missing:
+            return f"{what} needs the {', '.join(missing)} pad(s), not in parameter fingers {self.config.fingers}"
+        return None
+
+    def _busy_reason(self) -> str | None:
+        if self.controller is not None:
+            return f"a {self.kind} goal is running"
+        if self._accepted is not None:
+            return f"a {self._accepted} goal was accepted and is starting"
+        return None
+
+    def readiness(self, taxel_fingers: tuple[str, ...], wrench_fingers: tuple[str, ...],
+                  move_server_ready: bool, now_ns: int) -> str | None:
+        """None when a goal needing these streams can run now, else what is missing."""
+        if not move_server_ready:
+            return f"MoveMotors action server {self.config.move_action} not available (motor_driver not running?)"
+        streams = [f"taxels/{f}" for f in taxel_fingers] + [f"wrench/{f}" for f in wrench_fingers]
+        return self.watchdog.fresh(streams, now_ns)
+
+    def accept_grasp(self, req: GraspRequest, move_server_ready: bool, now_ns: int) -> str | None:
+        """The goal callback's decision: None = accepted (the core is held for it), else the reason."""
+        r, reason = self.resolve_grasp(req)
+        return reason or self._admit(GRASP, self.grasp_streams(r), move_server_ready, now_ns)
+
+    def accept_manipulate(self, req: ManipulateRequest, move_server_ready: bool, now_ns: int) -> str | None:
+        r, reason = self.resolve_manipulate(req)
+        return reason or self._admit(MANIPULATE, self.manipulate_streams(r), move_server_ready, now_ns)
+
+    def _admit(self, kind: str, streams: tuple[tuple[str, ...], tuple[str, ...]], move_server_ready: bool,
+               now_ns: int) -> str | None:
+        reason = self._busy_reason() or self.readiness(*streams, move_server_ready, now_ns)
+        if reason is None:
+            self._accepted = kind
+        return reason
 
     # ---- goal start / end ------------------------------------------------------------------
-    def start_grasp(self, req: GraspRequest, now_ns: int) -> list:
-        r, reason = self.resolve_grasp(req)
+    def _startable(self, kind: str, reason: str | None) -> None:
+        if self._accepted == kind:
+            self._accepted = None  # the accepted goal starts now (or fails to)
+        reason = reason or self._busy_reason()
+        if reason is None and self.joints is None:
+            reason = "no /joint_states received yet"
         if reason:
             raise ValueError(reason)
+
+    def start_grasp(self, req: GraspRequest, now_ns: int) -> list:
+        r, reason = self.resolve_grasp(req)
+        self._startable(GRASP, reason)
         c = self.config
         controller = GraspController(self.limits, r.grasp, r.finger_force, r.thumb_force, r.speed_rpm,
                                      r.timeout_s, c.contact_force_n, c.lateral_closure)
-        return self._start(GRASP, controller, ("thumb",) + controller.preset.force_fingers, now_ns)
+        return self._start(GRASP, controller, self.grasp_streams(r)[1], now_ns)
 
     def start_manipulate(self, req: ManipulateRequest, now_ns: int) -> list:
         r, reason = self.resolve_manipulate(req)
-        if reason:
-            raise ValueError(reason)
+        self._startable(MANIPULATE, reason)
         c = self.config
         keeper = ForceKeeper(c.force_target_n, c.force_band_n, c.force_speed_rpm) if r.use_force else None
         finger = c.monitored_finger
@@ -189,7 +313,7 @@ class ManipulationCore:
         else:
             controller = HoldController(self.limits, r.speed_rpm, finger, r.timeout_s, force_keeper=keeper)
         self.monitor.set_k(r.k)
-        return self._start(MANIPULATE, controller, ("thumb",) if r.use_force else (), now_ns)
+        return self._start(MANIPULATE, controller, self.manipulate_streams(r)[1], now_ns)
 
     def _start(self, kind: str, controller: Controller, force_fingers: tuple[str, ...], now_ns: int) -> list:
         self.controller, self.kind, self._force_fingers = controller, kind, force_fingers
@@ -197,11 +321,12 @@ class ManipulationCore:
                                    {("wrench", f) for f in force_fingers})
         self.aligner.reset()
         self.watchdog.arm(now_ns)
-        return self._actions(controller.start(self.joints))
+        return self._actions(controller.start(self.joints), now_ns)
 
     def _end(self) -> None:
         self.controller, self.kind = None, None
         self.watchdog.disarm()
+        self.lease.release()
         self.monitor.set_k(self.k_parameter)
 
     # ---- inputs ----------------------------------------------------------------------------
@@ -211,7 +336,7 @@ class ManipulationCore:
         if self.controller is None:
             return evaluation, []
         self.aligner.add(("taxels", finger), stamp_ns, evaluation)
-        return evaluation, self._try_step()
+        return evaluation, self._try_step(receipt_ns)
 
     def on_wrench(self, finger: str, stamp_ns: int, normal_force_n: float, receipt_ns: int) -> list:
         self.forces[finger] = normal_force_n
@@ -219,23 +344,35 @@ class ManipulationCore:
         if self.controller is None:
             return []
         self.aligner.add(("wrench", finger), stamp_ns, normal_force_n)
-        return self._try_step()
+        return self._try_step(receipt_ns)
 
     def on_joints(self, sample: JointSample, receipt_ns: int) -> list:
-        self.joints = sample
+        """A /joint_states message. One without a position for every hand motor (another driver's
+        joints, empty arrays) is ignored: it moves no time base and changes no decision."""
+        motors = self.config.motor_names
+        missing = [m for m in motors if m not in sample.positions]
+        if missing:
+            self.ignored_joint_states += 1
+            return [Ignored("/joint_states", f"no position for {', '.join(missing)} "
+                                             f"(joints {sorted(sample.positions)}); not the hand's motor driver")]
+        self.joints = JointSample(sample.stamp_ns, {m: sample.positions[m] for m in motors},
+                                  {m: sample.velocities[m] for m in motors if m in sample.velocities},
+                                  {m: sample.currents[m] for m in motors if m in sample.currents})
         self.watchdog.reference(sample.stamp_ns, receipt_ns)
         return self.check(receipt_ns)
 
     def check(self, now_ns: int) -> list:
-        """Watchdog tick: stale data aborts the goal with sensor_stale and stops the motors."""
+        """Watchdog tick: stale data aborts the goal with sensor_stale and stops the motors; a
+        running motor command is re-sent when due (MoveLease)."""
         if self.controller is None:
             return []
         streams = [f"taxels/{f}" for f in self.controller.fingers] + [f"wrench/{f}" for f in self._force_fingers]
         stale = self.watchdog.check(streams, now_ns)
-        if stale is None:
-            return []
-        self.stale_reason = stale
-        return self._abort(now_ns, SENSOR_STALE, stale)
+        if stale is not None:
+            self.stale_reason = stale
+            return self._abort(now_ns, SENSOR_STALE, stale)
+        refresh = self.lease.refresh(now_ns)
+        return [refresh] if refresh is not None else []
 
     def cancel(self, now_ns: int) -> list:
         if self.controller is None:
@@ -243,16 +380,25 @@ class ManipulationCore:
         return self._abort(now_ns, CANCELED)
 
     def on_move_result(self, reason: str, now_ns: int) -> list:
-        """Result of our current MoveMotors goal: a motor fault ends the goal."""
-        if self.controller is not None and reason.startswith(MOTOR_FAULT):
+        """Result of our current MoveMotors goal: a motor fault ends the goal; a timeout (the refresh
+        came too late) sends the command again; at a joint limit the driver stopped the motors, so
+        the command is no longer refreshed (the controller ends on the position it sees)."""
+        if self.controller is None:
+            return []
+        if reason.startswith(MOTOR_FAULT):
             return self._abort(now_ns, MOTOR_FAULT, reason)
+        if reason == TIMEOUT:
+            renewed = self.lease.renew(now_ns)
+            return [renewed] if renewed is not None else []
+        if reason == JOINT_LIMIT:
+            self.lease.release()
         return []
 
     # ---- internals -------------------------------------------------------------------------
-    def _abort(self, stamp_ns: int, reason: str, detail: str = "") -> list:
-        return self._actions(self.controller.abort(stamp_ns, reason), detail)
+    def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:
+        return self._actions(self.controller.abort(now_ns, reason), now_ns, detail)
 
-    def _try_step(self) -> list:
+    def _try_step(self, now_ns: int) -> list:
         ready = self.aligner.ready(self._required)
         if ready is None or self.joints is None:
             return []
@@ -260,7 +406,7 @@ class ManipulationCore:
         contacts = {f: entries[("taxels", f)] for f in self.controller.fingers}
         forces = dict(self.forces)
         forces.update({f: entries[("wrench", f)] for f in self._force_fingers})
-        return self._actions(self.controller.step(ControlInput(stamp, contacts, forces, self.joints)))
+        return self._actions(self.controller.step(ControlInput(stamp, contacts, forces, self.joints)), now_ns)
 
     def _forces(self) -> tuple[float, float]:
         c = self.controller
@@ -268,17 +414,11 @@ class ManipulationCore:
             return c.finger_force, c.thumb_force
         return self.forces.get("index", 0.0), self.forces.get("thumb", 0.0)
 
-    def _actions(self, out: ControlOutput, detail: str = "") -> list:
+    def _actions(self, out: ControlOutput, now_ns: int, detail: str = "") -> list:
         c = self.controller
         actions: list = []
         if out.command is not None:
-            if out.command.is_stop:
-                actions.append(StopMotors())
-            else:
-                elapsed = (out.stamp_ns - c.start_ns) * 1e-9 if c.start_ns is not None else 0.0
-                # the motor driver stops on its own if we vanish: a little after our own timeout
-                timeout = max(0.0, c.timeout_ns * 1e-9 - elapsed) + 1.0 if c.timeout_ns else 0.0
-                actions.append(SendMove(dict(out.command.velocities_rpm), timeout))
+            actions.append(self.lease.command(out.command.velocities_rpm, now_ns))
         finger_force, thumb_force = self._forces()
         feasible = getattr(c, "feasible", False)
         threshold = getattr(c, "threshold", 0.0)

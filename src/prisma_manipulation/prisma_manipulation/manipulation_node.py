@@ -6,6 +6,9 @@ the Grasp (/prisma/grasp) and Manipulate (/prisma/manipulate) action servers, a 
 
 Subscribes /prisma/<finger>/taxels, /prisma/<finger>/wrench (Fz = normal force) and /joint_states.
 The parameter `k` can be changed at run time (`ros2 param set /manipulation k 0.7`).
+Goals are accepted only when every stream they need flows and the MoveMotors server is up; motion
+goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when this node
+dies (docs/manipulation.md, "Safety").
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import ns_from_stamp
 
 from .contact_monitor import check_k
-from .manipulation_core import GRASP, Feedback, Finished, ManipulationCore, SendMove, StopMotors
+from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
 from .node_config import ManipulationConfig
 from .ros_conversions import (
     contact_state_to_msg,
@@ -127,11 +130,13 @@ class ManipulationNode(Node):
         return GoalResponse.REJECT
 
     def _on_grasp_goal(self, request) -> GoalResponse:
-        _, reason = self.core.resolve_grasp(grasp_request_from_msg(request))
+        reason = self.core.accept_grasp(grasp_request_from_msg(request), self._move_client.server_is_ready(),
+                                        self._now_ns())
         return self._reject("Grasp", reason) if reason else GoalResponse.ACCEPT
 
     def _on_manipulate_goal(self, request) -> GoalResponse:
-        _, reason = self.core.resolve_manipulate(manipulate_request_from_msg(request))
+        reason = self.core.accept_manipulate(manipulate_request_from_msg(request),
+                                             self._move_client.server_is_ready(), self._now_ns())
         return self._reject("Manipulate", reason) if reason else GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle) -> CancelResponse:
@@ -147,6 +152,7 @@ class ManipulationNode(Node):
             else:
                 actions = self.core.start_manipulate(manipulate_request_from_msg(request), now)
         except ValueError as exc:  # became invalid between acceptance and start
+            self.get_logger().warning(f"{'Grasp' if is_grasp else 'Manipulate'} goal aborted at start: {exc}")
             goal_handle.abort()
             done = Finished(GRASP if is_grasp else "manipulate", False, f"rejected at start: {exc}", 0.0, 0.0, 0.0)
             return (grasp_result_to_msg if is_grasp else manipulate_result_to_msg)(self.types, done)
@@ -167,6 +173,8 @@ class ManipulationNode(Node):
                     self._goal.publish_feedback(convert(self.types, action))
             elif isinstance(action, Finished):
                 self._finish(action)
+            elif isinstance(action, Ignored):
+                self.get_logger().warning(f"ignoring {action.topic}: {action.reason}", throttle_duration_sec=10.0)
 
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
@@ -191,9 +199,11 @@ class ManipulationNode(Node):
 
     def _on_move_result(self, future, seq: int) -> None:
         if seq != self._move_seq:
-            return  # preempted by our own newer goal
+            return  # preempted by our own newer goal (a refresh or a new command)
         self._move_handle = None
         result = move_result_from_msg(future.result().result)
+        if result.reason == "timeout" and self.core.busy:
+            self.get_logger().warning("MoveMotors goal expired before its refresh (the motors stopped): re-sending")
         self._apply(self.core.on_move_result(result.reason, self._now_ns()))
 
     def _stop_motors(self) -> None:
@@ -221,6 +231,14 @@ class ManipulationNode(Node):
             self.get_logger().warning(message)
         convert = grasp_result_to_msg if done.kind == GRASP else manipulate_result_to_msg
         future.set_result(convert(self.types, done))
+
+    def destroy_node(self) -> None:
+        # Node.destroy_node leaves action servers and clients (and so the node) in the graph
+        for name in ("_grasp_server", "_manipulate_server", "_move_client"):
+            action = getattr(self, name, None)  # absent when the parameters were rejected at start
+            if action is not None:
+                action.destroy()
+        super().destroy_node()
 
 
 def main(args=None) -> None:

@@ -8,13 +8,13 @@ from prisma_tactile_driver.hub import DiagnosticStatusData
 
 from .control_table import decode_hardware_error
 from .motor_bus import BusError, MotorBus, MotorState
-from .motor_goals import MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult
+from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult
 from .node_config import MotorDriverConfig
 
 OK, WARN, ERROR = 0, 1, 2
 
 
-def make_bus(config: MotorDriverConfig, start_ns: int = 0) -> MotorBus:
+def make_bus(config: MotorDriverConfig, start_ns: int | None = 0) -> MotorBus:
     motors = config.motors()
     if config.backend == "dynamixel":
         from .dynamixel_bus import DynamixelBus  # dynamixel-sdk only where it is used
@@ -24,6 +24,12 @@ def make_bus(config: MotorDriverConfig, start_ns: int = 0) -> MotorBus:
 
     initial = dict(zip(config.motor_names, (float(p) for p in config.sim_initial_positions)))
     return SimMotorBus(motors, initial_positions=initial, start_ns=start_ns)
+
+
+@dataclass
+class StartOutcome:
+    preempted: MoveResult | None = None  # the goal that was running: it has ended
+    failed: MoveResult | None = None  # set when the bus failed: the new goal ends with this at once
 
 
 @dataclass
@@ -40,6 +46,8 @@ class MotorDriverCore:
         self.runner = MoveGoalRunner(self.bus, config.position_profile_rpm, config.position_tolerance)
         self.connected = False
         self.last_error = ""
+        self._reported_error = ""  # the bus error last handed out by take_errors()
+        self._new_errors: list[str] = []
         self.reconnects = 0
         self._backoff_s = config.reconnect_backoff_initial
         self._next_attempt_ns = start_ns
@@ -53,21 +61,39 @@ class MotorDriverCore:
             self.bus.open()
         except BusError as exc:
             self.last_error = str(exc)
+            self._note_error(self.last_error)
             self._next_attempt_ns = now_ns + int(self._backoff_s * 1e9)
             self._backoff_s = min(self._backoff_s * 2.0, self.config.reconnect_backoff_max)
             return self.last_error
         self.connected = True
+        self._reported_error = ""  # the same error later is news again
         self._backoff_s = self.config.reconnect_backoff_initial
         return None
+
+    def take_errors(self) -> list[str]:
+        """Bus errors (open failures with the port and OS reason, a lost bus) that appeared since
+        the last call, each once: the node logs them."""
+        errors, self._new_errors = self._new_errors, []
+        return errors
+
+    def _note_error(self, error: str) -> None:
+        if error != self._reported_error:
+            self._new_errors.append(error)
+            self._reported_error = error
 
     def validate(self, goal: MoveGoal) -> str | None:
         if not self.connected:
             return f"motor bus not connected: {self.last_error or 'not opened yet'}"
         return self.runner.validate(goal)
 
-    def start(self, goal: MoveGoal, now_ns: int) -> MoveResult | None:
-        """Start a goal (raises ValueError on an invalid one, BusError when the bus fails)."""
-        return self.runner.start(goal, now_ns)
+    def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
+        """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a
+        goal it replaces is over (`preempted`) and a goal the bus failed to start is `failed`."""
+        try:
+            preempted = self.runner.start(goal, now_ns)
+        except GoalStartError as exc:
+            return StartOutcome(exc.preempted, MoveResult(False, [], f"motor_fault: communication: {exc}"))
+        return StartOutcome(preempted)
 
     def cancel(self) -> MoveResult | None:
         return self.runner.cancel()
@@ -86,6 +112,7 @@ class MotorDriverCore:
 
     def _lost(self, exc: BusError, now_ns: int) -> TickResult:
         self.last_error = str(exc)
+        self._note_error(self.last_error)
         result = self.runner.communication_failure(exc)
         self.connected = False
         self.reconnects += 1
@@ -116,7 +143,10 @@ class MotorDriverCore:
                   "retries": stats.retries, "dropped_status": stats.dropped_status,
                   "corrupt_status": stats.corrupt_status, "comm_failures": stats.comm_failures,
                   "hardware_errors": stats.hardware_errors, "mode_changes": stats.mode_changes,
-                  "reconnects": self.reconnects, "goal_active": self.runner.active}
+                  "reconnects": self.reconnects, "goal_active": self.runner.active,
+                  "last_error": self.last_error}
+        if self.config.backend == "dynamixel":
+            values["port"] = self.config.port
         out = [DiagnosticStatusData("motor_driver: bus", level, message, hw, {k: str(v) for k, v in values.items()})]
         for name, c in self.bus.motors.items():
             s = self._last_states.get(name)

@@ -20,7 +20,7 @@ from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 
 from .motor_bus import BusError
-from .motor_driver_core import MotorDriverCore
+from .motor_driver_core import MotorDriverCore, make_bus
 from .motor_goals import MoveResult
 from .node_config import MotorDriverConfig
 from .ros_conversions import (
@@ -41,19 +41,24 @@ class MotorDriverNode(Node):
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = MotorDriverConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
         self.types = robot_types(get_message, get_action)
-        self.core = MotorDriverCore(self.config, start_ns=self._now_ns())
-        error = self.core.connect(self._now_ns())
-        if error:
-            self.get_logger().error(f"motor bus: {error}; retrying with backoff")
+        now = self._now_ns()
+        # under use_sim_time the clock reads 0 until the first /clock: the sim motors then take their
+        # time from the first tick instead of integrating from 0 to the first clock reading
+        self.core = MotorDriverCore(self.config, bus=make_bus(self.config, start_ns=now or None), start_ns=now)
+        self.core.connect(self._now_ns())
+        self._log_bus_errors()
 
         self._goal = None  # ServerGoalHandle of the running goal
         self._goal_done: Future | None = None
         group = ReentrantCallbackGroup()
         self._joint_pub = self.create_publisher(JointState, "joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # a client keeps its motion alive by re-sending the goal every 0.1 s (manipulation_core.
+        # MoveLease): finished goals are dropped after 10 s, not rclpy's 15 min, so the status
+        # topic lists about a hundred goals, not thousands
         self._server = ActionServer(self, MoveMotors, "prisma/motors/move", self._execute,
                                     goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                                    callback_group=group)
+                                    callback_group=group, result_timeout=10)
         self._timer = self.create_timer(1.0 / self.config.rate_hz, self._on_tick, callback_group=group)
         self._diag_timer = self.create_timer(self.config.diagnostics_period, self._on_diagnostics)
         self.get_logger().info(
@@ -77,12 +82,16 @@ class MotorDriverNode(Node):
     async def _execute(self, goal_handle):
         goal = move_goal_from_msg(goal_handle.request)
         try:
-            preempted = self.core.start(goal, self._now_ns())
-        except (ValueError, BusError) as exc:
+            outcome = self.core.start(goal, self._now_ns())
+        except ValueError as exc:  # became invalid since acceptance (a fault): the running goal goes on
             goal_handle.abort()
             return move_result_to_msg(self.types, MoveResult(False, [], f"rejected at start: {exc}"))
-        if preempted is not None and self._goal is not None:
-            self._finish(preempted)
+        if outcome.preempted is not None:
+            self._finish(outcome.preempted)  # the replaced goal's handle ends in every case
+        if outcome.failed is not None:
+            goal_handle.abort()
+            self.get_logger().error(f"MoveMotors goal failed to start: {outcome.failed.reason}")
+            return move_result_to_msg(self.types, outcome.failed)
         self._goal, self._goal_done = goal_handle, Future()
         return await self._goal_done
 
@@ -97,7 +106,11 @@ class MotorDriverNode(Node):
             handle.succeed()
         else:
             handle.abort()
-        if not result.success:
+        # a client refreshes its goal by sending the next one (preempted) and stops the motors by
+        # canceling: both are routine. rclpy fixes a call site's severity: one call site per severity
+        if result.success or result.reason == "canceled":
+            self.get_logger().info(f"MoveMotors goal ended: {result.reason}")
+        elif result.reason != "preempted":
             self.get_logger().warning(f"MoveMotors goal ended: {result.reason}")
         done.set_result(move_result_to_msg(self.types, result))
 
@@ -109,12 +122,17 @@ class MotorDriverNode(Node):
             if result is not None:
                 self._finish(result)
         tick = self.core.tick(now)
+        self._log_bus_errors()
         if tick.states is not None:
             self._joint_pub.publish(joint_state_to_msg(self.types, now, tick.states))
         if tick.feedback is not None and self._goal is not None:
             self._goal.publish_feedback(move_feedback_to_msg(self.types, tick.feedback))
         if tick.result is not None:
             self._finish(tick.result)
+
+    def _log_bus_errors(self) -> None:
+        for error in self.core.take_errors():  # each new bus error once, with the port and OS reason
+            self.get_logger().error(f"motor bus: {error}; retrying with backoff")
 
     def _on_diagnostics(self) -> None:
         self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), self.core.diagnostics()))
@@ -126,6 +144,9 @@ class MotorDriverNode(Node):
                 core.close()  # torque off
             except BusError as exc:
                 self.get_logger().error(f"closing the motor bus: {exc}")
+        server = getattr(self, "_server", None)
+        if server is not None:
+            server.destroy()  # Node.destroy_node leaves action servers (and so the node) alive
         super().destroy_node()
 
 

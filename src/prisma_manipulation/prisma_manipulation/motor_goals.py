@@ -12,6 +12,8 @@ Goal semantics (MoveMotors.action):
   are within `position_tolerance_rad`; `timeout` > 0 ends it unsuccessfully with "timeout".
 - `position_limits`: empty, one stop position per motor (velocity mode: where that motor stops), or
   a [min, max] pair per motor (flattened).
+- a velocity-mode motor already at its stop position in its direction of travel when the goal starts
+  is not driven (a re-sent command does not push a stopped motor into its limit again);
 - cancel stops the motors ("canceled"); a new goal preempts the running one ("preempted"); a hardware
   error on ANY motor turns that motor's torque off and aborts the running goal with a reason naming
   the motor, its ID and the error bit; a bus failure aborts it with "motor_fault: communication ...".
@@ -25,6 +27,15 @@ from .motor_bus import BusError, MotorBus, MotorConfig, MotorState, fault_reason
 
 VELOCITY = "velocity"
 POSITION = "position"
+
+
+class GoalStartError(BusError):
+    """The bus failed while a goal was starting: the new goal never ran (the motors it could reach
+    were told to stop) and `preempted` is the result of the goal it replaced, which is over too."""
+
+    def __init__(self, error: BusError, preempted: "MoveResult | None") -> None:
+        super().__init__(str(error))
+        self.preempted = preempted
 
 
 @dataclass
@@ -121,17 +132,48 @@ class MoveGoalRunner:
         return validate_goal(goal, self.bus.motors, self.faults)
 
     def start(self, goal: MoveGoal, stamp_ns: int) -> MoveResult | None:
-        """Start a validated goal; returns the preempted goal's result, if one was running."""
+        """Start a validated goal; returns the preempted goal's result, if one was running.
+
+        ValueError for an invalid goal (the running one goes on). GoalStartError when the bus fails
+        on the way: the running goal is ended all the same (its result rides on the error) and the
+        new one is not started, so no goal is left half-replaced."""
         reason = self.validate(goal)
         if reason:
             raise ValueError(reason)
-        preempted = self._finish(False, "preempted", stop=False) if self.goal else None
-        self.goal, self.start_ns, self._stopped = goal, stamp_ns, set()
-        if goal.mode == VELOCITY:
-            self.bus.set_velocities(dict(zip(goal.motors, goal.targets)))
-        else:
-            self.bus.set_positions(dict(zip(goal.motors, goal.targets)), self.profile_rpm)
+        previous = self.goal
+        preempted = self._finish(False, "preempted", stop=False) if previous else None
+        stopped: set[str] = set()
+        try:
+            if goal.mode == VELOCITY:
+                velocities = {}
+                for i, name in enumerate(goal.motors):
+                    target = goal.targets[i]
+                    state = self._last_states.get(name)
+                    if target and state is not None and self._at_stop(goal, i, state.position_rad):
+                        target = 0.0
+                        stopped.add(name)
+                    velocities[name] = target
+                self.bus.set_velocities(velocities)
+            else:
+                self.bus.set_positions(dict(zip(goal.motors, goal.targets)), self.profile_rpm)
+        except BusError as exc:
+            self.fault_log.append(f"starting a goal: {exc}")
+            moved = set(goal.motors) | set(previous.motors if previous else [])
+            healthy = [m for m in self.bus.motors if m in moved and m not in self.faults]
+            try:
+                if healthy:
+                    self.bus.stop(healthy)
+            except BusError as stop_exc:
+                self.fault_log.append(f"stop failed: {stop_exc}")
+            raise GoalStartError(exc, preempted) from exc
+        self.goal, self.start_ns, self._stopped = goal, stamp_ns, stopped
         return preempted
+
+    def _at_stop(self, goal: MoveGoal, index: int, position: float) -> bool:
+        """True when a velocity-mode motor has reached its stop in its direction of travel."""
+        lo, hi = stop_window(goal, index, self.bus.motors[goal.motors[index]])
+        target = goal.targets[index]
+        return (target > 0 and position >= hi) or (target < 0 and position <= lo)
 
     def cancel(self) -> MoveResult | None:
         if self.goal is None:
@@ -162,9 +204,7 @@ class MoveGoalRunner:
             for i, name in enumerate(goal.motors):
                 if name in self._stopped or goal.targets[i] == 0:
                     continue
-                lo, hi = stop_window(goal, i, self.bus.motors[name])
-                position = states[name].position_rad
-                if (goal.targets[i] > 0 and position >= hi) or (goal.targets[i] < 0 and position <= lo):
+                if self._at_stop(goal, i, states[name].position_rad):
                     self.bus.stop([name])
                     self._stopped.add(name)
             moving = [m for i, m in enumerate(goal.motors) if goal.targets[i] != 0]

@@ -63,17 +63,21 @@ def joint_state_to_msg(types: Types, stamp_ns: int, states: Mapping[str, MotorSt
 
 
 def joint_sample_from_msg(msg: Any) -> JointSample:
-    names = list(msg.name)
-    positions = [float(p) for p in msg.position]
-    if len(positions) != len(names):
-        raise ValueError(f"JointState with {len(names)} names and {len(positions)} positions")
-    velocity = list(msg.velocity)
-    effort = list(msg.effort)
+    """The joints a JointState message gives values for. Arrays that are empty or do not match
+    `name` in length carry nothing (sensor_msgs/JointState allows empty arrays; another publisher
+    on /joint_states may send anything): such a message yields a sample without positions,
+    velocities or currents, and the manipulation core ignores it."""
+    names = [str(n) for n in msg.name]
+
+    def by_name(values: Any, scale: Callable[[float], float]) -> dict[str, float]:
+        values = list(values)
+        return {n: scale(float(v)) for n, v in zip(names, values)} if len(values) == len(names) else {}
+
     return JointSample(
         ns_from_stamp(msg.header.stamp),
-        dict(zip(names, positions)),
-        {n: rad_s_to_rpm(float(v)) for n, v in zip(names, velocity)} if len(velocity) == len(names) else {},
-        {n: float(e) * 1000.0 for n, e in zip(names, effort)} if len(effort) == len(names) else {},
+        by_name(msg.position, float),
+        by_name(msg.velocity, rad_s_to_rpm),
+        by_name(msg.effort, lambda amps: amps * 1000.0),
     )
 
 
@@ -94,8 +98,10 @@ def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
 
 
 def move_goal_from_msg(msg: Any) -> MoveGoal:
+    # `timeout` is a float32: 0.3 arrives as 0.30000001192..., which would end a 0.3 s goal one
+    # 10 ms tick late; microseconds are far below a tick and far above float32's error
     return MoveGoal(list(msg.motors), str(msg.mode), [float(t) for t in msg.targets],
-                    [float(p) for p in msg.position_limits], float(msg.timeout))
+                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6))
 
 
 def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float) -> MoveGoal:

@@ -46,7 +46,7 @@ class SimMotorBus:
         motors: Mapping[str, MotorConfig],
         params: SimMotorParams | None = None,
         initial_positions: Mapping[str, float] | None = None,
-        start_ns: int = 0,
+        start_ns: int | None = 0,  # None: the first read sets the time (a clock not started yet)
     ) -> None:
         self.motors = dict(motors)
         self.params = params or SimMotorParams()
@@ -83,6 +83,9 @@ class SimMotorBus:
 
     # ---- MotorBus --------------------------------------------------------------------------
     def advance(self, stamp_ns: int) -> None:
+        if self._now_ns is None:
+            self._now_ns = stamp_ns
+            return
         dt_total = (stamp_ns - self._now_ns) * 1e-9
         if dt_total <= 0:
             return

@@ -9,6 +9,9 @@ Two clocks, two questions:
   that has not delivered anything for `stale_ns` is stale even when no reference moves, e.g. when
   the hub is unplugged or the motor driver is gone.
 A goal is granted `stale_ns` from its start before a stream that never arrived counts as silent.
+
+`fresh` asks the same two questions before a goal is accepted, without that grace: a goal is only
+accepted once every stream it needs (and /joint_states) is flowing.
 """
 from __future__ import annotations
 
@@ -51,6 +54,23 @@ class SensorWatchdog:
         if self._reference_ns is None or stamp_ns > self._reference_ns:
             self._reference_ns = stamp_ns
         self._joint_receipt_ns = receipt_ns
+
+    def fresh(self, streams: tuple[str, ...] | list[str], now_ns: int) -> str | None:
+        """None when /joint_states and every named stream delivered within `stale_ns` (by receipt)
+        and no stream is older than `stale_ns` against /joint_states; else why not, naming the stream."""
+        if self._joint_receipt_ns is None:
+            return "no /joint_states received yet"
+        if now_ns - self._joint_receipt_ns > self.stale_ns:
+            return f"/joint_states silent for {(now_ns - self._joint_receipt_ns) / 1e6:.0f} ms"
+        for name in streams:
+            s = self._streams.get(name)
+            if s is None or s.receipt_ns is None:
+                return f"no {name} received yet"
+            if now_ns - s.receipt_ns > self.stale_ns:
+                return f"{name} silent for {(now_ns - s.receipt_ns) / 1e6:.0f} ms"
+            if self._reference_ns is not None and self._reference_ns - s.stamp_ns > self.stale_ns:
+                return f"{name} {(self._reference_ns - s.stamp_ns) / 1e6:.0f} ms older than /joint_states"
+        return None
 
     def check(self, streams: tuple[str, ...] | list[str], now_ns: int) -> str | None:
         """None when every named stream is fresh, else a description of the first stale one."""
