@@ -495,3 +495,28 @@ def external_shutdown_command(module: str, *args: str) -> list[str]:
     import sys
 
     return [sys.executable, "-c", _EXTERNAL_SHUTDOWN, module, *args]
+
+
+# ---- launch files and long-running ros2 verbs in their own process group ----------------------------
+def ros2_launch(package: str, launch_file: str, *arguments: str, env: dict[str, str] | None = None) -> NodeProcess:
+    """`ros2 launch <package> <launch_file> name:=value ...` in its own process group, as an operator
+    starts it in a terminal; stop it with `stop_process` (the environment, ROS_DOMAIN_ID included,
+    is the test process's)."""
+    return NodeProcess(["ros2", "launch", package, launch_file, *arguments], env=env)
+
+
+def stop_process(proc: NodeProcess, timeout_sec: float = 30.0) -> ProcessResult:
+    """Stop a launch or a `ros2 bag record` as Ctrl-C in its terminal does (SIGINT to its process
+    group), then SIGTERM (what `ros2 launch` escalates to) and SIGKILL if it is still running after
+    `timeout_sec` each; returns the exit status and output. A process that already ended is only
+    waited for."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if proc.proc.poll() is not None:
+            break
+        os.killpg(proc.proc.pid, sig)
+        try:
+            proc.proc.wait(timeout=timeout_sec)
+        except subprocess.TimeoutExpired:
+            continue
+    proc.kill()  # SIGKILL only if both signals were ignored; joins the output reader
+    return ProcessResult(proc.proc.returncode, proc.output)

@@ -297,8 +297,13 @@ def test_contact_source_contract_and_time_driven_disturbance():
     source.update_joints(list(pose), list(pose.values()), 10 * MS)
     c = source.contact("thumb", 10 * MS)
     assert c is not None and c.normal_n > 0.3
-    with pytest.raises(ValueError, match="2 joint names but 1 positions"):
-        source.update_joints(["fingers", "thumb_flexion"], [1.0], 20 * MS)
+    # foreign /joint_states samples (names without positions, an arm's joints) change nothing
+    before = dict(source.world.positions)
+    assert source.update_joints(["fingers", "thumb_flexion"], [1.0], 20 * MS) is False
+    assert source.update_joints(["elbow", "wrist"], [], 30 * MS) is False
+    assert source.update_joints(["elbow", "wrist"], [0.5, 0.7], 40 * MS) is False
+    assert source.world.positions == before and source._last_ns == 10 * MS
+    assert source.contact("thumb", 10 * MS) == c
     world = HandWorld(obj=released("pinch_ball"), disturbances=[Disturbance(0.1, 0.1, dx_mm=-9.0)])
     world.set_positions(world.grasp_pose(1.0))
     source = HandWorldContactSource(world)

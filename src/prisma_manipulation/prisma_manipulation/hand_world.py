@@ -319,11 +319,17 @@ class HandWorldContactSource:
         self.world = world or HandWorld()
         self._last_ns: int | None = None
 
-    def update_joints(self, names: list[str], positions: list[float], stamp_ns: int) -> None:
-        if len(names) != len(positions):
-            raise ValueError(f"{len(names)} joint names but {len(positions)} positions")
+    def update_joints(self, names: list[str], positions: list[float], stamp_ns: int) -> bool:
+        """Take a /joint_states sample; False (nothing changes) for one that is not the hand's.
+
+        Other publishers share /joint_states (an arm driver, joint_state_publisher, a message with
+        names but no positions): their samples must neither move the world nor set its time.
+        """
+        if len(names) != len(positions) or not set(names) & set(self.world.positions):
+            return False
         self.world.update_joints(dict(zip(names, positions)), stamp_ns)
         self._last_ns = stamp_ns
+        return True
 
     def contact(self, finger: str, stamp_ns: int) -> PadContact | None:
         if self._last_ns is None or stamp_ns > self._last_ns:
