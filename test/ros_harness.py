@@ -520,3 +520,41 @@ def stop_process(proc: NodeProcess, timeout_sec: float = 30.0) -> ProcessResult:
             continue
     proc.kill()  # SIGKILL only if both signals were ignored; joins the output reader
     return ProcessResult(proc.proc.returncode, proc.output)
+
+
+# ---- launch_testing ----------------------------------------------------------------------------------
+def include_launch(launch_file: str, package: str = "prisma_bringup", **arguments: str):
+    """An installed launch file (`share/<package>/launch/<launch_file>`) with `name:=value` arguments,
+    for a launch test's generate_test_description, as `ros2 launch <package> <launch_file>` starts it."""
+    from launch.actions import IncludeLaunchDescription
+    from launch.launch_description_sources import PythonLaunchDescriptionSource
+    from launch.substitutions import PathJoinSubstitution
+    from launch_ros.substitutions import FindPackageShare
+
+    return IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(PathJoinSubstitution([FindPackageShare(package), "launch", launch_file])),
+        launch_arguments=arguments.items())
+
+
+def process_outputs(proc_output: Any) -> dict[str, str]:
+    """A launch test's captured output, stdout and stderr together, per process name ('motor_driver-2')."""
+    texts: dict[str, list[str]] = {}
+    for event in proc_output:
+        texts.setdefault(event.process_name, []).append(event.text.decode(errors="replace"))
+    return {name: "".join(parts) for name, parts in texts.items()}
+
+
+def assert_clean_shutdown(proc_info: Any, proc_output: Any) -> None:
+    """Post-shutdown check of a launch test (launch stopped every process with SIGINT, as Ctrl-C on
+    `ros2 launch` does): every process exited 0 and none printed a Python traceback."""
+    import launch_testing.asserts
+
+    launch_testing.asserts.assertExitCodes(proc_info)
+    tracebacks = {name: text[text.index("Traceback"):][:2000]
+                  for name, text in process_outputs(proc_output).items() if "Traceback" in text}
+    assert not tracebacks, "tracebacks in the output of " + "; ".join(f"{n}:\n{t}" for n, t in tracebacks.items())
+
+
+def stamp_rate_hz(msgs: Iterable[Any], start_ns: int, end_ns: int) -> float:
+    """Messages per second whose header stamp lies in [start_ns, end_ns)."""
+    return sum(start_ns <= stamp_ns(m) < end_ns for m in msgs) / ((end_ns - start_ns) * 1e-9)

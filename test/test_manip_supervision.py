@@ -430,14 +430,14 @@ def test_driver_diagnostics_per_motor():
     (ManipulationConfig, "config/manipulation.yaml", "manipulation"),
 ])
 def test_yaml_matches_the_declared_defaults(cls, path, node):
-    params = yaml.safe_load((REPO / path).read_text())[node]["ros__parameters"]
+    params = yaml.safe_load((REPO / path).read_text())[f"/**/{node}"]["ros__parameters"]
     assert params == cls().as_parameters()
     cls.from_parameters(params)
 
 
 def test_manipulation_limits_equal_the_motor_driver_limits():
-    driver = yaml.safe_load((REPO / "config/motor_driver.yaml").read_text())["motor_driver"]["ros__parameters"]
-    manip = yaml.safe_load((REPO / "config/manipulation.yaml").read_text())["manipulation"]["ros__parameters"]
+    driver = yaml.safe_load((REPO / "config/motor_driver.yaml").read_text())["/**/motor_driver"]["ros__parameters"]
+    manip = yaml.safe_load((REPO / "config/manipulation.yaml").read_text())["/**/manipulation"]["ros__parameters"]
     for key in ("motor_names", "min_positions", "max_positions"):
         assert manip[key] == driver[key]
 

@@ -8,7 +8,7 @@ a topic-table row needs no change here.
    in the launch file is declared by the node, literal values with the declared type (and the node
    starts with them); every LaunchConfiguration is a declared launch argument; every included
    launch file exists and declares the arguments passed to it;
-2. every parameter in a config file (ros__parameters form, top key = node name) is declared by that
+2. every parameter in a config file (ros__parameters form, top key = node name, `/**/<node>`) is declared by that
    node, with the same type and the same value as its default; every node name there is a node;
 3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
    publishing node, the one in its 'from' column; every action there exactly one action server.
@@ -421,7 +421,7 @@ def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
         matches = [path for path in files if Path(path).name == name]
         if not matches:
             continue  # reported by test_launched_parameter_files_exist
-        keys = {key.strip("/") for path in matches for key in files[path]}
+        keys = {key.strip("/").rsplit("/", 1)[-1] for path in matches for key in files[path]}  # /**/<node> too
         assert entry.name in keys or "**" in keys, (
             f"{entry.launch_file}:{entry.line}: {name} has node key(s) {sorted(keys)}, the node is named '{entry.name}'")
 

@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import TaxelArray
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
@@ -73,6 +74,10 @@ def main(args=None) -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # ctrl-C, SIGTERM or `ros2 launch` shutting down: a normal stop
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
+        # the signal handler shut the context down while a callback was publishing: a normal stop
     except (BundleError, ParameterError) as exc:
         # the operator's fix is in the message (path + mismatch, or parameter + value)
         rclpy.logging.get_logger("force_estimator").fatal(str(exc))

@@ -139,15 +139,23 @@ class MotorDriverNode(Node):
 
     def destroy_node(self) -> None:
         core = getattr(self, "core", None)  # absent when the parameters were rejected at start
+        torque_off = False
         if core is not None:
+            connected = core.connected  # close() turns the torque off only on a connected bus
             try:
                 core.close()  # torque off
+                torque_off = connected
             except BusError as exc:
                 self.get_logger().error(f"closing the motor bus: {exc}")
+        logger = rclpy.logging.get_logger(self.get_logger().name)
         server = getattr(self, "_server", None)
         if server is not None:
             server.destroy()  # Node.destroy_node leaves action servers (and so the node) alive
         super().destroy_node()
+        if torque_off:
+            # logged once the node is gone: after ctrl-C the context is shut down and the node's
+            # /rosout publisher could only fail ("publisher's context is invalid")
+            logger.info(f"torque off: {', '.join(self.config.motor_names)}")
 
 
 def main(args=None) -> None:

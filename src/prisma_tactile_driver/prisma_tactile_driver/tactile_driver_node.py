@@ -9,6 +9,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import TaxelArray
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
@@ -104,6 +105,10 @@ def main(args=None) -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
+        # the signal handler shut the context down while a callback was publishing: a normal stop
     except ParameterError as exc:
         # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
         rclpy.logging.get_logger("tactile_driver").fatal(str(exc))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import rclpy
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
@@ -65,6 +66,10 @@ def main(args=None) -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
+        # the signal handler shut the context down while a callback was publishing: a normal stop
     except (BundleError, ParameterError) as exc:
         # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
         rclpy.logging.get_logger("glove_perception").fatal(str(exc))
