@@ -101,6 +101,7 @@ class RosHarness:
         self._publishers: dict = {}
         self._clients: dict = {}
         self._log: list | None = None
+        self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
 
     # ---- nodes -----------------------------------------------------------------------------
     def node(self, cls: Callable[..., Any], params: dict[str, Any] | None = None,
@@ -278,6 +279,7 @@ class RosHarness:
         from rclpy.action import ActionClient
 
         client = ActionClient(self.probe, action_type, name)
+        self._action_clients.append(client)
         if not self.spin_until(client.server_is_ready, wait_sec):
             raise TimeoutError(f"action server {name} not available")
         return client
@@ -365,6 +367,8 @@ class RosHarness:
 
     # ---- teardown --------------------------------------------------------------------------
     def shutdown(self) -> None:
+        for client in self._action_clients:
+            client.destroy()
         for node in list(self.executor.get_nodes()):
             self.executor.remove_node(node)
             node.destroy_node()
@@ -542,6 +546,12 @@ def process_outputs(proc_output: Any) -> dict[str, str]:
     for event in proc_output:
         texts.setdefault(event.process_name, []).append(event.text.decode(errors="replace"))
     return {name: "".join(parts) for name, parts in texts.items()}
+
+
+def output_of(proc_output: Any, node: str) -> str:
+    """The captured output of the one process launched for `node` (named '<node>-<n>' by launch)."""
+    (text,) = [text for name, text in process_outputs(proc_output).items() if name.rsplit("-", 1)[0] == node]
+    return text
 
 
 def assert_clean_shutdown(proc_info: Any, proc_output: Any) -> None:

@@ -8,17 +8,14 @@ A missing or mismatched model bundle stops the node at start with the path and t
 """
 from __future__ import annotations
 
-import rclpy
-import rclpy.logging
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import TaxelArray
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, taxel_frame_from_msg
+from prisma_tactile_driver.node_process import run_node
 
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
@@ -67,25 +64,7 @@ class ForceEstimatorNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ForceEstimatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C, SIGTERM or `ros2 launch` shutting down: a normal stop
-    except _rclpy.RCLError:
-        if rclpy.ok():
-            raise
-        # the signal handler shut the context down while a callback was publishing: a normal stop
-    except (BundleError, ParameterError) as exc:
-        # the operator's fix is in the message (path + mismatch, or parameter + value)
-        rclpy.logging.get_logger("force_estimator").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(ForceEstimatorNode, "force_estimator", (BundleError, ParameterError), args)
 
 
 if __name__ == "__main__":

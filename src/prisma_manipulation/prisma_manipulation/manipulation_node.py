@@ -13,14 +13,12 @@ dies (docs/manipulation.md, "Safety").
 from __future__ import annotations
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors
 from prisma_msgs.msg import ContactState, TaxelArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
@@ -28,6 +26,7 @@ from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import ns_from_stamp
+from prisma_tactile_driver.node_process import run_node
 
 from .contact_monitor import check_k
 from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
@@ -242,21 +241,7 @@ class ManipulationNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ManipulationNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
-    except ParameterError as exc:
-        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
-        rclpy.logging.get_logger("manipulation").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(ManipulationNode, "manipulation", (ParameterError,), args)
 
 
 if __name__ == "__main__":

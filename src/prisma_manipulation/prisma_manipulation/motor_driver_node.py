@@ -10,7 +10,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.action import MoveMotors
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
@@ -18,6 +17,7 @@ from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
+from prisma_tactile_driver.node_process import run_node
 
 from .motor_bus import BusError
 from .motor_driver_core import MotorDriverCore, make_bus
@@ -159,21 +159,7 @@ class MotorDriverNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = MotorDriverNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
-    except ParameterError as exc:
-        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
-        rclpy.logging.get_logger("motor_driver").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(MotorDriverNode, "motor_driver", (ParameterError,), args)
 
 
 if __name__ == "__main__":

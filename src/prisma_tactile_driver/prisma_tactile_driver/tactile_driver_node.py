@@ -5,15 +5,13 @@
 """
 from __future__ import annotations
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import TaxelArray
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from .node_process import run_node
 
 from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
@@ -98,25 +96,7 @@ class TactileDriverNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = TactileDriverNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
-    except _rclpy.RCLError:
-        if rclpy.ok():
-            raise
-        # the signal handler shut the context down while a callback was publishing: a normal stop
-    except ParameterError as exc:
-        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
-        rclpy.logging.get_logger("tactile_driver").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(TactileDriverNode, "tactile_driver", (ParameterError,), args)
 
 
 if __name__ == "__main__":

@@ -6,15 +6,14 @@ rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
 """
 from __future__ import annotations
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import GloveFrame
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
+
+from prisma_tactile_driver.node_process import run_node
 
 from .driver import GloveDriver
 from .layout import load_layout
@@ -95,25 +94,7 @@ class GloveDriverNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GloveDriverNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
-    except _rclpy.RCLError:
-        if rclpy.ok():
-            raise
-        # the signal handler shut the context down while a callback was publishing: a normal stop
-    except ParameterError as exc:
-        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
-        rclpy.logging.get_logger("glove_driver").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(GloveDriverNode, "glove_driver", (ParameterError,), args)
 
 
 if __name__ == "__main__":

@@ -6,12 +6,11 @@ Shorted frames are ignored.
 """
 from __future__ import annotations
 
-import rclpy
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  # RCLError
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
+
+from prisma_tactile_driver.node_process import run_node
 
 from .bundle import BundleError, load_bundle
 from .node_config import GlovePerceptionConfig, ParameterError
@@ -59,25 +58,7 @@ class GlovePerceptionNode(Node):
 
 
 def main(args=None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GlovePerceptionNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # ctrl-C or `ros2 launch` shutting down: a normal stop
-    except _rclpy.RCLError:
-        if rclpy.ok():
-            raise
-        # the signal handler shut the context down while a callback was publishing: a normal stop
-    except (BundleError, ParameterError) as exc:
-        # the operator's fix is in the message (parameter and value, or bundle path and mismatch)
-        rclpy.logging.get_logger("glove_perception").fatal(str(exc))
-        raise SystemExit(1) from None
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(GlovePerceptionNode, "glove_perception", (BundleError, ParameterError), args)
 
 
 if __name__ == "__main__":

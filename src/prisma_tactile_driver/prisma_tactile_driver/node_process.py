@@ -1,0 +1,50 @@
+"""The process around a node: every node's `main()` runs it through `run_node`.
+
+A node process ends one of three ways, and the exit status says which:
+- ctrl-C, SIGTERM or `ros2 launch` shutting down: exit 0, no traceback, whatever the node was doing
+  at that instant (rclpy's signal handler shuts the context down under a running callback, so a
+  publish raises RCLError and a constructor still starting up raises other errors);
+- a configuration error the operator fixes (a parameter value, a model bundle): logged as fatal with
+  the message that names the value, exit 1;
+- anything else while the context is still up: a bug, re-raised with its traceback.
+"""
+from __future__ import annotations
+
+import signal
+from typing import Callable
+
+import rclpy
+import rclpy.logging
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+
+def run_node(make_node: Callable[[], Node], logger_name: str,
+             config_errors: tuple[type[Exception], ...], args: list[str] | None = None) -> None:
+    """Start the node `make_node()` builds and spin it until the process is told to stop."""
+    # ctrl-C is rclpy's: its handler shuts the context down and spin() ends with
+    # ExternalShutdownException. Python's KeyboardInterrupt on top would land wherever the main thread
+    # is, inside rclpy's message conversion too, where it turns into a RuntimeError.
+    signal.signal(signal.SIGINT, lambda signum, frame: None)
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except config_errors as exc:
+        rclpy.logging.get_logger(logger_name).fatal(str(exc))
+        raise SystemExit(1) from None
+    except Exception:
+        if rclpy.ok():
+            raise
+        # the context was shut down under the node by a stop request: a normal stop
+    finally:
+        if node is not None:
+            try:
+                node.destroy_node()
+            except Exception:
+                if rclpy.ok():
+                    raise
+        rclpy.try_shutdown()
