@@ -160,3 +160,22 @@ def test_scripted_source_cycles_press_slide_roll_release():
     assert at(1.5, "index") != press  # fingers are phase shifted
     with pytest.raises(ValueError, match="pinky"):
         source.contact("pinky", 0)
+
+
+def test_single_sample_path_equals_the_sequence_path_bit_for_bit():
+    # sample() has its own one-row arithmetic (the sim driver's hot path): same counts, same noise stream
+    rng = np.random.default_rng(3)
+    contacts = [None if rng.random() < 0.3 else
+                PadContact(*rng.normal(0, 3, 2), rng.uniform(-0.5, 4.0), *rng.normal(0, 0.5, 2))
+                for _ in range(2000)]
+    contacts += [PadContact(float("nan"), 1.0, 1.0), PadContact(0.0, 0.0, float("nan")),
+                 PadContact(1.0, 1.0, 2.0, float("nan"), 0.1), PadContact(0.0, 0.0, 0.0, float("inf"), 1.0)]
+
+    def column(name: str) -> list[float]:
+        return [0.0 if c is None else getattr(c, name) for c in contacts]
+
+    model = PadModel(seed=5)
+    single = np.array([model.sample(c) for c in contacts])
+    batch = PadModel(seed=5).sample_sequence(column("x_mm"), column("y_mm"), column("normal_n"),
+                                             column("shear_x_n"), column("shear_y_n"))
+    np.testing.assert_array_equal(single, batch)

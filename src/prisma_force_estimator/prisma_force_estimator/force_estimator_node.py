@@ -8,6 +8,7 @@ A missing or mismatched model bundle stops the node at start with the path and t
 """
 from __future__ import annotations
 
+import functools
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import TaxelArray
@@ -16,6 +17,7 @@ from rosidl_runtime_py.utilities import get_message
 
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, taxel_frame_from_msg
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.sample_streams import stream_publisher, stream_subscription
 
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
@@ -27,6 +29,7 @@ from .ros_conversions import wrench_to_msg
 class ForceEstimatorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("force_estimator", **kwargs)
+        self.types = functools.cache(get_message)  # rosidl imports the class on every call
         defaults = EstimatorConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, naming the parameter and value when one is invalid
@@ -38,10 +41,10 @@ class ForceEstimatorNode(Node):
         estimators = build_estimators(self.bundle_paths, threads=cfg.torch_threads)
         self.pipeline = WrenchPipeline(estimators, cfg.frame_id_format, int(round(cfg.batch_window * 1e9)))
 
-        self._wrench_pubs = {f: self.create_publisher(WrenchStamped, f"prisma/{f}/wrench", 10) for f in cfg.fingers}
+        self._wrench_pubs = {f: stream_publisher(self, WrenchStamped, f"prisma/{f}/wrench") for f in cfg.fingers}
         self._taxel_subs = [
-            self.create_subscription(TaxelArray, f"prisma/{f}/taxels",
-                                     lambda msg, finger=f: self._on_taxels(finger, msg), 10)
+            stream_subscription(self, TaxelArray, f"prisma/{f}/taxels",
+                                lambda msg, finger=f: self._on_taxels(finger, msg))
             for f in cfg.fingers
         ]
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -55,12 +58,12 @@ class ForceEstimatorNode(Node):
 
     def _publish(self, results) -> None:
         for finger, sample in results:
-            self._wrench_pubs[finger].publish(wrench_to_msg(get_message, sample))
+            self._wrench_pubs[finger].publish(wrench_to_msg(self.types, sample))
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self.get_clock().now().nanoseconds
         statuses = pipeline_diagnostics(self.pipeline, self.get_name(), self.bundle_paths)
-        self._diag_pub.publish(diagnostics_to_msg(get_message, stamp_ns, statuses))
+        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, statuses))
 
 
 def main(args=None) -> None:

@@ -27,6 +27,7 @@ from sensor_msgs.msg import JointState
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import ns_from_stamp
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.sample_streams import stream_publisher, stream_subscription
 
 from .contact_monitor import check_k
 from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
@@ -67,12 +68,12 @@ class ManipulationNode(Node):
 
         self._contact_pubs = {}
         for finger in self.config.fingers:
-            self._contact_pubs[finger] = self.create_publisher(ContactState, f"prisma/{finger}/contact", 10)
-            self.create_subscription(TaxelArray, f"prisma/{finger}/taxels",
-                                     lambda msg, f=finger: self._on_taxels(f, msg), 10, callback_group=group)
-            self.create_subscription(WrenchStamped, f"prisma/{finger}/wrench",
-                                     lambda msg, f=finger: self._on_wrench(f, msg), 10, callback_group=group)
-        self.create_subscription(JointState, "joint_states", self._on_joints, 10, callback_group=group)
+            self._contact_pubs[finger] = stream_publisher(self, ContactState, f"prisma/{finger}/contact")
+            stream_subscription(self, TaxelArray, f"prisma/{finger}/taxels",
+                                lambda msg, f=finger: self._on_taxels(f, msg), callback_group=group)
+            stream_subscription(self, WrenchStamped, f"prisma/{finger}/wrench",
+                                lambda msg, f=finger: self._on_wrench(f, msg), callback_group=group)
+        stream_subscription(self, JointState, "joint_states", self._on_joints, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
         self._grasp_server = ActionServer(self, Grasp, "prisma/grasp", self._execute,
                                           goal_callback=self._on_grasp_goal, cancel_callback=self._on_cancel,

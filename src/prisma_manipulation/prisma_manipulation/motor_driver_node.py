@@ -18,6 +18,7 @@ from sensor_msgs.msg import JointState
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.sample_streams import stream_publisher
 
 from .motor_bus import BusError
 from .motor_driver_core import MotorDriverCore, make_bus
@@ -51,7 +52,7 @@ class MotorDriverNode(Node):
         self._goal = None  # ServerGoalHandle of the running goal
         self._goal_done: Future | None = None
         group = ReentrantCallbackGroup()
-        self._joint_pub = self.create_publisher(JointState, "joint_states", 10)
+        self._joint_pub = stream_publisher(self, JointState, "joint_states")
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # a client keeps its motion alive by re-sending the goal every 0.1 s (manipulation_core.
         # MoveLease): finished goals are dropped after 10 s, not rclpy's 15 min, so the status

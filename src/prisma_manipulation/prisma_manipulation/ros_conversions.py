@@ -11,6 +11,7 @@ measure current, not torque).
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Callable, Mapping
 
@@ -167,8 +168,10 @@ def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
 
 def robot_types(get_message: Callable[[str], Any], get_action: Callable[[str], Any]) -> Types:
     """A `types` lookup for nodes: generated ROS action modules expose `MoveMotors.Goal`, not
-    `MoveMotors_Goal`, so action parts are fetched from the action class."""
+    `MoveMotors_Goal`, so action parts are fetched from the action class. Cached: rosidl imports
+    the class on every lookup, and converters look types up per message."""
 
+    @functools.cache
     def types(name: str) -> Any:
         package, kind, typename = name.split("/")
         if kind == "action" and "_" in typename:

@@ -93,6 +93,17 @@ class PadContact:
     shear_y_n: float = 0.0
 
 
+def _finite(value: float) -> float:
+    """np.nan_to_num for one number: NaN -> 0, +-inf -> the largest finite float."""
+    value = float(value)
+    if value != value:
+        return 0.0
+    return max(-_FLOAT_MAX, min(_FLOAT_MAX, value))
+
+
+_FLOAT_MAX = float(np.finfo(float).max)
+
+
 class PadModel:
     """Stateful (hysteresis) pad simulator. Deterministic for a given seed and input sequence."""
 
@@ -163,11 +174,30 @@ class PadModel:
         return np.clip(counts, 0, ADC_MAX).astype(np.uint16)
 
     def sample(self, contact: PadContact | None) -> np.ndarray:
-        """Counts uint16[9] for one contact (None = nothing touching the pad)."""
-        if contact is None:
-            return self.sample_sequence(0.0, 0.0, 0.0)[0]
-        return self.sample_sequence(contact.x_mm, contact.y_mm, contact.normal_n,
-                                    contact.shear_x_n, contact.shear_y_n)[0]
+        """Counts uint16[9] for one contact (None = nothing touching the pad).
+
+        The same arithmetic as `sample_sequence` on one row, bit for bit (a test holds them equal),
+        without its array set-up: this runs for every finger of every simulated scan."""
+        p = self.params
+        fz = 0.0 if contact is None else _finite(contact.normal_n)
+        if fz > 0.0:
+            x, y = _finite(contact.x_mm), _finite(contact.y_mm)
+            sx, sy = _finite(contact.shear_x_n), _finite(contact.shear_y_n)
+        else:  # nothing touching: the pad relaxes and no shear acts
+            fz = x = y = sx = sy = 0.0
+        cx = x + p.shear_shift_mm_per_n * sx
+        cy = y + p.shear_shift_mm_per_n * sy
+        sigma = p.sigma0_mm + p.sigma_growth_mm * np.cbrt(fz)
+        d2 = (self._positions[:, 0] - cx) ** 2 + (self._positions[:, 1] - cy) ** 2
+        pressure = fz * np.exp(-d2 / (2.0 * sigma ** 2))
+        self._memory = np.minimum(np.maximum(self._memory, pressure), pressure * (1.0 + p.hysteresis))
+        # response_volts, one row
+        along = sx * self._positions[:, 0] + sy * self._positions[:, 1]
+        tilt = p.shear_tilt_volts_per_n * along / p.pitch_mm
+        v = self._rest + self._gains * (p.span_volts * (1.0 - np.exp(-self._memory / p.pressure_sat_n)) + tilt)
+        volts = p.rail_volts - p.rail_softness_volts * np.logaddexp(0.0, (p.rail_volts - v) / p.rail_softness_volts)
+        volts = volts + self._rng.standard_normal(volts.shape) * (p.noise_lsb * p.lsb_volts)
+        return np.clip(np.rint(volts / p.lsb_volts), 0, ADC_MAX).astype(np.uint16)
 
     def voltages(self, contact: PadContact | None) -> np.ndarray:
         """float32[9] volts of one sample (quantised like the real ADC)."""

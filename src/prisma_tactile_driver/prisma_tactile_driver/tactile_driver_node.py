@@ -5,6 +5,7 @@
 """
 from __future__ import annotations
 
+import functools
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import TaxelArray
 from rclpy.node import Node
@@ -12,6 +13,7 @@ from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from .node_process import run_node
+from .sample_streams import stream_publisher, stream_subscription
 
 from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
@@ -21,6 +23,7 @@ from .ros_conversions import diagnostics_to_msg, ns_from_stamp, taxel_frame_to_m
 class TactileDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_driver", **kwargs)
+        self.types = functools.cache(get_message)  # rosidl imports the class on every call
         self.hub: TactileHub | None = None
         defaults = DriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
@@ -34,14 +37,14 @@ class TactileDriverNode(Node):
             # imported only when asked for: the hand/world model lives in prisma_manipulation
             from prisma_manipulation.hand_world import HandWorldContactSource
             source = HandWorldContactSource()
-            self._joint_sub = self.create_subscription(JointState, "joint_states", self._on_joints, 10)
+            self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
         self._source = source
         self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
                               tare_samples=cfg.tare_samples,
                               stale_timeout_ns=int(cfg.stale_timeout * 1e9),
                               name=self.get_name(), hardware_id=self._hardware_id())
 
-        self._taxel_pubs = {f: self.create_publisher(TaxelArray, f"prisma/{f}/taxels", 10) for f in cfg.fingers}
+        self._taxel_pubs = {f: stream_publisher(self, TaxelArray, f"prisma/{f}/taxels") for f in cfg.fingers}
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tare_service = self.create_service(Trigger, "~/tare", self._on_tare)
         poll_hz = cfg.serial_poll_hz if cfg.backend == "serial" else cfg.rate_hz
@@ -65,13 +68,13 @@ class TactileDriverNode(Node):
     def _on_poll(self) -> None:
         for frame in self.hub.poll(self._now_ns()):
             self._taxel_pubs[frame.finger].publish(
-                taxel_frame_to_msg(frame, get_message, self.config.frame_id(frame.finger)))
+                taxel_frame_to_msg(frame, self.types, self.config.frame_id(frame.finger)))
         for error in self.hub.take_errors():  # each new link error once, with the port and OS reason
             self.get_logger().error(error)
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()
-        self._diag_pub.publish(diagnostics_to_msg(get_message, stamp_ns, self.hub.diagnostics(stamp_ns)))
+        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.hub.diagnostics(stamp_ns)))
 
     def _on_joints(self, msg: JointState) -> None:
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],

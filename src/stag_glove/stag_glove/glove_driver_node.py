@@ -6,6 +6,7 @@ rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
 """
 from __future__ import annotations
 
+import functools
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import GloveFrame
 from rclpy.node import Node
@@ -25,6 +26,7 @@ from .ros_conversions import diagnostics_to_msg, glove_frame_to_msg, pressure_im
 class GloveDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("glove_driver", **kwargs)
+        self.types = functools.cache(get_message)  # rosidl imports the class on every call
         self.driver: GloveDriver | None = None
         defaults = GloveDriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
@@ -66,14 +68,14 @@ class GloveDriverNode(Node):
 
     def _on_poll(self) -> None:
         for frame in self.driver.poll(self._now_ns()):
-            self._frame_pub.publish(glove_frame_to_msg(frame, get_message, self.config.frame_id))
-            self._image_pub.publish(pressure_image_msg(frame, get_message, self.config.frame_id))
+            self._frame_pub.publish(glove_frame_to_msg(frame, self.types, self.config.frame_id))
+            self._image_pub.publish(pressure_image_msg(frame, self.types, self.config.frame_id))
         for error in self.driver.backend.take_errors():  # each new one once, with port and OS reason
             self.get_logger().error(error)
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()
-        self._diag_pub.publish(diagnostics_to_msg(get_message, stamp_ns, self.driver.diagnostics(stamp_ns)))
+        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.driver.diagnostics(stamp_ns)))
 
     def _on_capture(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         result = self.driver.capture_empty_hand()

@@ -6,6 +6,7 @@ Shorted frames are ignored.
 """
 from __future__ import annotations
 
+import functools
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
@@ -21,6 +22,7 @@ from .ros_conversions import estimate_to_msg, glove_frame_from_msg, weight_to_ms
 class GlovePerceptionNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("glove_perception", **kwargs)
+        self.types = functools.cache(get_message)  # rosidl imports the class on every call
         defaults = GlovePerceptionConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
@@ -50,11 +52,11 @@ class GlovePerceptionNode(Node):
         out = self.perception.update(frame)
         stamp, frame_id = frame.stamp_ns, self.config.frame_id
         if out.object is not None:
-            self._object_pub.publish(estimate_to_msg(out.object, get_message, stamp, frame_id))
+            self._object_pub.publish(estimate_to_msg(out.object, self.types, stamp, frame_id))
         if out.pose is not None:
-            self._pose_pub.publish(estimate_to_msg(out.pose, get_message, stamp, frame_id))
+            self._pose_pub.publish(estimate_to_msg(out.pose, self.types, stamp, frame_id))
         if out.weight is not None:
-            self._weight_pub.publish(weight_to_msg(out.weight, get_message, stamp, frame_id))
+            self._weight_pub.publish(weight_to_msg(out.weight, self.types, stamp, frame_id))
 
 
 def main(args=None) -> None:
