@@ -1,0 +1,322 @@
+"""launch_testing: the Grasp and Manipulate actions of `hand.launch.py sim:=true`, through rclpy
+ActionClients on the launched graph over DDS (the tests run in order, on one launch):
+
+1. goals from the moment the action servers appear: each is re-sent only while it is rejected (the
+   node refuses goals until every stream they need flows); failing goals (a grasp to 3 N at 1 rpm with
+   a 0.3 s timeout, a horizontal manipulation with a 0.1 s timeout: both end ABORTED `timeout`)
+   alternate with succeeding ones (Grasp pinch: SUCCEEDED `force_reached`; then Manipulate horizontal:
+   SUCCEEDED `edge_lost`), twice over; every accepted goal gets its result and the manipulation
+   process is still running at the end;
+2. a cancel during a Grasp ends CANCELED and the motors stop (rule below);
+3. a Grasp and a Manipulate sent together: exactly one runs to its normal end, the other is rejected
+   (or aborted) naming the goal in the way; the node then serves the other one;
+4. goals beyond the configured limits are rejected, the log naming the value;
+5. `ros2 param set /manipulation k 0.7` shows in every ContactState stamped after it, `k 2.0` is
+   refused and changes nothing;
+6. the tactile driver's tare Trigger answers with the baselines: each the mean of the last 100
+   voltages of its taxel.
+After the launch is stopped (SIGINT to every node, as Ctrl-C on `ros2 launch`): every node exits 0
+with no traceback, the motor driver logging that it turned the torque off.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import math
+import subprocess
+import time
+import unittest
+
+import numpy as np
+import pytest
+from ros_harness import (
+    RosHarness,
+    assert_clean_shutdown,
+    include_launch,
+    output_of,
+    require_ros,
+    stamp_ns,
+)
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from launch.events.process import ProcessExited  # noqa: E402
+from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
+from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
+from rcl_interfaces.srv import GetParameters  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
+STATUS = {SUCCEEDED: "SUCCEEDED", CANCELED: "CANCELED", ABORTED: "ABORTED"}
+# "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm), which
+# reads 0 there. The sim motors' velocity follows the command with a 10 ms time constant: from
+# 10 rpm it is below that 38 ms after the stop.
+STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
+CANCEL_STOP_S = 0.05
+RETRY_S = 0.1
+# a goal that ends sensor_stale after start-up is sent again this often at most (see run_goal)
+STALE_RETRIES = 3
+K = 0.8  # config/manipulation.yaml
+TARE_SAMPLES = 100  # config/tactile_driver.yaml
+TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
+
+FAILING_GRASP = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=1.0, timeout=0.3)
+PINCH = Grasp.Goal(grasp="pinch")
+# at 1 rpm neither can get anywhere before its timeout, and they leave the hand where it was (a
+# horizontal goal that times out does not turn back: at 20 rpm the next one would start at the edge)
+FAILING_HORIZONTAL = Manipulate.Goal(motion="horizontal", speed_rpm=1.0, timeout=0.1)
+HORIZONTAL = Manipulate.Goal(motion="horizontal")
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
+                                     launch_testing.actions.ReadyToTest()])
+
+
+def stopped(msg: JointState) -> bool:
+    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
+
+
+def closing_at_10_rpm(joints: list) -> bool:
+    """The latest 5 /joint_states show the fingers motor closing steadily at 10 rpm (1.05 rad/s)."""
+    return len(joints) >= 5 and all(0.95 < m.velocity[list(m.name).index("fingers")] < 1.15 for m in joints[-5:])
+
+
+def outcome(result) -> tuple[str, str]:
+    """(status, reason) of a Grasp or Manipulate result."""
+    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
+    return STATUS.get(result.status, str(result.status)), reason
+
+
+class TestHandActions(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        ros = cls.ros = RosHarness()
+        try:
+            ros.capture_logs()
+            cls.joints = ros.collect(JointState, "/joint_states")
+            cls.contacts = ros.collect(ContactState, "/prisma/thumb/contact")
+            cls.taxels = ros.collect(TaxelArray, "/prisma/thumb/taxels")
+            # made before the servers exist: test 1 sends its first goals the moment they appear
+            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
+            cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
+        except BaseException:
+            ros.shutdown()
+            raise
+
+    @classmethod
+    def tearDownClass(cls):
+        for client in (cls.grasp, cls.manipulate):
+            client.destroy()  # Node.destroy_node would leave them in the graph for the next launch test
+        cls.ros.shutdown()
+
+    def client(self, goal):
+        return self.grasp if isinstance(goal, Grasp.Goal) else self.manipulate
+
+    def run_goal(self, goal, expected: tuple[str, str] | None = None, stale_retries: int = 0,
+                 timeout_sec: float = 60.0):
+        """Send `goal`, again every RETRY_S while it is rejected, and wait for its result; with
+        `stale_retries`, send it again (that often at most) when it ends ABORTED `sensor_stale` instead
+        of `expected`: the watchdog stopping it on a machine too busy to deliver a sample within
+        100 ms. Returns (rejections, sensor_stale ends, the last result)."""
+        deadline = time.monotonic() + timeout_sec
+        rejections, stale = 0, 0
+        while True:
+            ended_stale = len(self.ros.logs(name="manipulation", contains="goal ended: sensor_stale"))
+            handle = self.ros.send_goal(self.client(goal), goal)
+            if not handle.accepted:
+                rejections += 1
+                self.assertLess(time.monotonic(), deadline, f"{goal} still rejected after {timeout_sec} s")
+                self.ros.spin_for(RETRY_S)
+                continue
+            result = self.ros.result(handle, timeout_sec=30.0)
+            if outcome(result) == ("ABORTED", "sensor_stale") != expected and stale < stale_retries:
+                stale += 1
+                why = self.ros.wait_for_log(name="manipulation", contains="goal ended: sensor_stale")[ended_stale:]
+                print(f"  {why}: again")
+                continue
+            return rejections, stale, result
+
+    def test_1_goals_from_the_moment_the_servers_appear(self, proc_info):
+        ros = self.ros
+        start = time.monotonic()
+        servers = (self.grasp, self.manipulate)
+        self.assertTrue(ros.spin_until(lambda: all(s.server_is_ready() for s in servers), 90.0))
+        print(f"action servers up {time.monotonic() - start:.1f} s after the launch")
+        expected = [(FAILING_GRASP, ("ABORTED", "timeout")), (PINCH, ("SUCCEEDED", "force_reached")),
+                    (FAILING_HORIZONTAL, ("ABORTED", "timeout")), (HORIZONTAL, ("SUCCEEDED", "edge_lost"))] * 2
+        outcomes = []
+        for i, (goal, want) in enumerate(expected):
+            # the first two goals meet the graph just started: the node must refuse them until it is
+            # ready, then carry them out (no sensor_stale); later ones may meet a machine too busy
+            rejections, stale, result = self.run_goal(goal, want, stale_retries=0 if i < 2 else STALE_RETRIES)
+            outcomes.append(outcome(result))
+            print(f"{type(goal).__name__} {goal.grasp if hasattr(goal, 'grasp') else goal.motion} "
+                  f"timeout {goal.timeout:g}: {rejections} rejections, {stale} sensor_stale, then {outcomes[-1]} "
+                  f"at {time.monotonic() - start:.1f} s")
+        rejected = ros.logs(name="manipulation", contains="goal rejected")
+        print(f"rejections logged: {sorted(set(rejected))}")
+        self.assertEqual(outcomes, [want for _, want in expected])
+        # the node lived through it: its process runs and it still answers
+        self.assertNotIsInstance(proc_info["manipulation"], ProcessExited)
+        response = ros.call(GetParameters, "/manipulation/get_parameters", GetParameters.Request(names=["k"]))
+        self.assertAlmostEqual(response.values[0].double_value, K)
+
+    def test_2_cancel_during_a_grasp_stops_the_motors(self):
+        """Rule: t_result = the wall clock when the CANCELED result reached this client (the nodes stamp
+        /joint_states with the same system clock). The fingers were moving at 10 rpm when the cancel
+        was sent; every /joint_states stamped later than t_result + 50 ms has every velocity 0
+        (below one Dynamixel velocity unit, 0.024 rad/s), and there are such messages."""
+        ros = self.ros
+        # a slow grasp to a force the ball never reaches: the fingers close at 10 rpm for seconds
+        goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
+        for attempt in range(5):
+            handle = ros.send_until_accepted(self.grasp, goal)
+            result = handle.get_result_async()
+            accepted = len(self.joints)
+            ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)
+            if not result.done():
+                break
+            # a starved machine can end it sensor_stale before it gets going (the watchdog working)
+            self.assertEqual(outcome(result.result()), ("ABORTED", "sensor_stale"))
+            print(f"attempt {attempt}: the grasp ended sensor_stale before the cancel")
+        self.assertFalse(result.done(), "the grasp ended sensor_stale five times before the cancel")
+        moving = len(self.joints)
+        cancel = handle.cancel_goal_async()
+        self.assertTrue(ros.spin_until(result, 10.0), "no result after the cancel")
+        result_ns = time.time_ns()
+        ros.spin_until(cancel, 5.0)
+        ros.spin_for(0.3)  # /joint_states up to 300 ms after the result
+        self.assertEqual(outcome(result.result()), ("CANCELED", "canceled"))
+
+        after = self.joints[moving:]
+        first_stop = next((m for m in after if stopped(m)), None)
+        self.assertIsNotNone(first_stop, f"still moving: {list(after[-1].velocity)}")
+        print(f"cancel: every velocity 0 at {(stamp_ns(first_stop) - result_ns) * 1e-6:+.0f} ms from the result")
+        late = [m for m in after if stamp_ns(m) > result_ns + CANCEL_STOP_S * 1e9]
+        self.assertGreater(len(late), 10)
+        self.assertEqual([list(m.velocity) for m in late if not stopped(m)], [])
+
+    def test_3_grasp_and_manipulate_sent_together(self):
+        """Both goals go out before either is answered. Exactly one runs to its normal end; the other
+        is rejected, or accepted and then aborted, the log naming the goal in the way. Both rejected
+        happens only while a stream they need is late: then both are sent again."""
+        ros = self.ros
+        normal_end = {"grasp": ("SUCCEEDED", "force_reached"), "manipulate": ("SUCCEEDED", "edge_lost")}
+        # from the ball held in a pinch (whatever the tests before left), where either can run
+        _, _, held = self.run_goal(PINCH, normal_end["grasp"], stale_retries=STALE_RETRIES)
+        self.assertEqual(outcome(held), normal_end["grasp"])
+        stale = 0
+        for _ in range(100):
+            futures = [self.grasp.send_goal_async(PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
+            self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))
+            handles = dict(zip(("grasp", "manipulate"), (f.result() for f in futures)))
+            if not any(h.accepted for h in handles.values()):
+                ros.spin_for(RETRY_S)
+                continue
+            results = {kind: (ros.result(h) if h.accepted else None) for kind, h in handles.items()}
+            ended = {kind: outcome(r) if r else "rejected" for kind, r in results.items()}
+            print(f"sent together: {ended}")
+            if ("ABORTED", "sensor_stale") in ended.values() and stale < STALE_RETRIES:
+                stale += 1  # the watchdog on a machine too busy (see run_goal): again
+                continue
+            break
+        ran = [kind for kind, r in results.items() if r is not None and r.status == SUCCEEDED]
+        self.assertEqual(len(ran), 1, ended)
+        (other,) = {"grasp", "manipulate"} - set(ran)
+        self.assertEqual(ended[ran[0]], normal_end[ran[0]])
+        why = f"a {ran[0]} goal"  # "... is running" or "... was accepted and is starting"
+        if results[other] is None:
+            refused = ros.wait_for_log(name="manipulation", contains=f"{other.capitalize()} goal rejected: {why}")
+        else:
+            self.assertEqual(results[other].status, ABORTED)
+            refused = ros.wait_for_log(name="manipulation", contains=why)
+        self.assertTrue(refused, ros.logs(name="manipulation")[-5:])
+        # the node serves the other one now
+        _, _, result = self.run_goal(PINCH if other == "grasp" else HORIZONTAL, normal_end[other],
+                                     stale_retries=STALE_RETRIES)
+        self.assertEqual(outcome(result), normal_end[other])
+
+    def test_4_goals_beyond_the_limits_are_rejected(self):
+        ros = self.ros
+        beyond = [
+            (Grasp.Goal(grasp="pinch", finger_force=3.5),
+             "Grasp goal rejected: finger_force 3.5 above the configured limit 3.0"),
+            (Grasp.Goal(grasp="pinch", thumb_force=4.0),
+             "Grasp goal rejected: thumb_force 4.0 above the configured limit 3.0"),
+            (Grasp.Goal(grasp="pinch", speed_rpm=80.0),
+             "Grasp goal rejected: speed_rpm 80.0 above the configured limit 70.0"),
+            (Grasp.Goal(grasp="fist"), "Grasp goal rejected: grasp 'fist' is not one of"),
+            (Manipulate.Goal(motion="horizontal", speed_rpm=71.0),
+             "Manipulate goal rejected: speed_rpm 71.0 above the configured limit 70.0"),
+            (Manipulate.Goal(motion="horizontal", k=2.0), "Manipulate goal rejected: k 2.0 outside (0.0, 1.5]"),
+            (Manipulate.Goal(motion="diagonal"), "Manipulate goal rejected: motion 'diagonal' is not one of"),
+        ]
+        for goal, message in beyond:
+            self.assertFalse(ros.send_goal(self.client(goal), goal).accepted, goal)
+            self.assertTrue(ros.wait_for_log(name="manipulation", contains=message), message)
+
+    def param_set(self, value: str) -> str:
+        """`ros2 param set /manipulation k <value>` as an operator types it; its output."""
+        done = subprocess.run(["ros2", "param", "set", "--no-daemon", "/manipulation", "k", value],
+                              capture_output=True, text=True, timeout=60)
+        return (done.stdout + done.stderr).strip()
+
+    def contacts_after(self, t_ns: int, count: int = 20) -> list:
+        """ContactStates stamped after `t_ns`: at least `count` of them."""
+        def newest() -> list:  # from the end: the list grows by 100 a second
+            found = []
+            for m in reversed(self.contacts):
+                if stamp_ns(m) <= t_ns:
+                    break
+                found.append(m)
+            return found[::-1]
+        self.assertTrue(self.ros.spin_until(lambda: len(newest()) >= count, 10.0),
+                        f"{len(newest())} ContactStates stamped after {t_ns}")
+        return newest()
+
+    def test_5_k_at_run_time(self):
+        ros = self.ros
+        before = self.contacts_after(time.time_ns() - 10**9)
+        self.assertEqual({round(m.k, 6) for m in before}, {K})
+        self.assertEqual(self.param_set("0.7"), "Set parameter successful")
+        changed_ns = time.time_ns()
+        after = self.contacts_after(changed_ns)
+        self.assertEqual({round(m.k, 6) for m in after}, {0.7})
+        for m in after:  # Algorithm 1 with the new k: v_t = k * mean voltage
+            self.assertAlmostEqual(m.threshold, np.float32(0.7) * m.mean_voltage, places=5)
+
+        self.assertEqual(self.param_set("2.0"), "Setting parameter failed: parameter k: k 2.0 outside (0.0, 1.5]")
+        refused_ns = time.time_ns()
+        self.assertEqual({round(m.k, 6) for m in self.contacts_after(refused_ns)}, {0.7})
+        self.assertTrue(ros.set_parameters("/manipulation", k=K)[0].successful)
+        self.assertEqual({round(m.k, 6) for m in self.contacts_after(time.time_ns())}, {K})
+
+    def test_6_tare_answers_with_the_baselines(self):
+        ros = self.ros
+        response = ros.call(Trigger, "/tactile_driver/tare", Trigger.Request())
+        self.assertTrue(response.success, response.message)
+        self.assertTrue(response.message.startswith("tared: thumb ["), response.message)
+        thumb = response.message.split("thumb [", 1)[1].split("]", 1)[0]
+        baseline = np.array([float(v) for v in thumb.split()])
+        # no goal runs: the pads are still, so the driver's last 100 samples are ours (to the noise)
+        recent = np.array([list(m.voltages) for m in self.taxels[-TARE_SAMPLES:]])
+        np.testing.assert_allclose(baseline, recent.mean(axis=0), atol=0.002)
+        for finger in FINGERS:
+            self.assertIn(f"{finger} [", response.message)
+
+
+@launch_testing.post_shutdown_test()
+class TestHandActionsShutdown(unittest.TestCase):
+    def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)
+
+    def test_motor_driver_turns_the_torque_off(self, proc_output):
+        self.assertIn(TORQUE_OFF, output_of(proc_output, "motor_driver"))
