@@ -1,4 +1,4 @@
-"""Single benchmark entry point (DESIGN.md section 8).
+"""Single benchmark entry point (docs/architecture.md, Benchmarks).
 
     python bench/run.py [--only NAME] [--json FILE]
 

@@ -1,4 +1,4 @@
-"""bench/run.py: table and JSON rows of DESIGN.md section 8."""
+"""bench/run.py: table and JSON rows (docs/architecture.md, Benchmarks)."""
 from __future__ import annotations
 
 import importlib.util

@@ -1,4 +1,4 @@
-"""The four networks: architecture as DESIGN.md section 6 lists it, shapes, taxel image layout."""
+"""The four networks: architecture as docs/force_estimation.md lists it, shapes, taxel image layout."""
 import pytest
 import torch
 from torch import nn

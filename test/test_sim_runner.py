@@ -20,7 +20,7 @@ FINGERS = ("thumb", "index", "middle", "ring", "little")
 NS = 1_000_000_000
 PERIOD_NS = 10_000_000  # 100 Hz: tactile scan, motor ticks, controller steps
 
-# The stop each experiment must end with, for the physical reason the paper gives (DESIGN.md 6).
+# The stop each experiment must end with, for the physical reason the paper gives (docs/manipulation.md).
 EXPECTED = {
     "pinch_grasp": ("grasp", "force_reached"),
     "lateral_grasp": ("grasp", "force_reached"),

@@ -52,7 +52,7 @@ class BagWriter:
     """Write typestore messages to a new bag directory; one connection per topic.
 
     Receive time defaults to the message's header stamp, so replayed bags keep the
-    sensor's time line (logic uses header stamps, DESIGN.md section 4).
+    sensor's time line (logic uses header stamps, docs/architecture.md).
     """
 
     def __init__(self, path: str | Path, storage: str = "mcap", replace: bool = False) -> None:

@@ -1,4 +1,4 @@
-"""One hand scenario of DESIGN.md section 6, run in the ROS-free closed loop and recorded as the ROS
+"""One hand scenario of the paper (docs/manipulation.md), run in the ROS-free closed loop and recorded as the ROS
 graph would publish it.
 
 The closed loop (`prisma_manipulation.closed_loop.ClosedLoop`) composes the sim motors, the
@@ -67,7 +67,7 @@ DIAGNOSTICS_PERIOD_NS = NS  # every driver's diagnostics_period default (1 s)
 # action_msgs/msg/GoalStatus
 STATUS_EXECUTING, STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED = 2, 4, 5, 6
 
-# default topic names (DESIGN.md section 4)
+# default topic names (docs/architecture.md, Topic table)
 TAXELS, WRENCH, CONTACT = "/prisma/{finger}/taxels", "/prisma/{finger}/wrench", "/prisma/{finger}/contact"
 JOINT_STATES, DIAGNOSTICS = "/joint_states", "/diagnostics"
 ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "move": "/prisma/motors/move"}

@@ -33,7 +33,7 @@ NS = 1_000_000_000
 # importing the closed loop and torch (test_sim_runner checks that they agree)
 HAND_SCENARIO_NAMES = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
 
-# The stop each experiment ends with in the paper (DESIGN.md section 6); a run that ends otherwise
+# The stop each experiment ends with in the paper (docs/manipulation.md); a run that ends otherwise
 # is reported and makes prisma-sim exit 1.
 EXPECTED_REASONS = {
     "pinch_grasp": "force_reached",

@@ -2,7 +2,7 @@
 
 The .msg/.action files are read from the directory named by PRISMA_MSGS_DIR, else from the
 source tree, share/prisma_msgs of a colcon install or of the wheel's prefix (share_data).
-`types(name)` is the message-class lookup the converters take (DESIGN.md section 2).
+`types(name)` is the message-class lookup the converters take (docs/architecture.md, Pure core, thin node).
 """
 from __future__ import annotations
 

@@ -21,7 +21,7 @@ SLIDE_SEED = 10_002
 LOW_FORCE_N = 1.2
 CONTACT_N = 0.05  # below this the pad is considered untouched; excluded from the low-force error
 
-# The paper's numbers on its own data (DESIGN.md section 6); None = not reported.
+# The paper's numbers on its own data (docs/force_estimation.md); None = not reported.
 PAPER = {
     "ann": {"val": {"fx": 0.053, "fy": 0.049, "fz": 0.319}, "push_fz": None, "slide_fx": None, "slide_fy": None},
     "cnn": {"val": {"fx": 0.022, "fy": 0.022, "fz": 0.148}, "push_fz": 0.35, "slide_fx": 0.023, "slide_fy": 0.012},

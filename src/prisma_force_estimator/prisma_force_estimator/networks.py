@@ -1,4 +1,4 @@
-"""The four taxel-to-wrench networks of the PRISMA Hand II sensor paper (DESIGN.md section 6).
+"""The four taxel-to-wrench networks of the PRISMA Hand II sensor paper (docs/force_estimation.md).
 
 Every network takes the 9 taxel voltages of one fingertip as a 1-channel 3x3 image, shape
 [B, 1, 3, 3], where image[row, col] is taxel i = 3*row + col (row 0 = bottom, column 0 = right

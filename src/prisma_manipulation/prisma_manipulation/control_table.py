@@ -1,6 +1,6 @@
 """Dynamixel X-series control table (Protocol 2.0) and unit conversions.
 
-Addresses and units from DESIGN.md section 5 / the X-series e-manual. The motor bus, the emulator and
+Addresses and units from the X-series e-manual (docs/protocols.md). The motor bus, the emulator and
 the tests all take their numbers from here so the three can never disagree.
 """
 from __future__ import annotations

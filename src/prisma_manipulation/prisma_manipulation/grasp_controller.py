@@ -1,4 +1,4 @@
-"""Force-controlled grasp (DESIGN.md section 6): fingers close at speed until their normal force
+"""Force-controlled grasp (docs/manipulation.md): fingers close at speed until their normal force
 reaches the finger target, then the thumb flexes at speed until its normal force reaches the thumb
 target.
 

@@ -1,4 +1,4 @@
-"""Hand/world model (DESIGN.md section 7): motor positions -> fingertip contacts on a compliant object.
+"""Hand/world model (docs/manipulation.md): motor positions -> fingertip contacts on a compliant object.
 
 What it models, along the grasp axis z (fingers push +z, the thumb pushes -z):
 - Tendon-coupled closure. Each finger pad's free position follows its motor, s = travel * angle

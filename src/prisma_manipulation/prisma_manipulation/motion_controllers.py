@@ -1,4 +1,4 @@
-"""In-hand manipulation controllers driven by Algorithm 1 (DESIGN.md section 6).
+"""In-hand manipulation controllers driven by Algorithm 1 (docs/manipulation.md).
 
 All of them watch one fingertip (the thumb by default) through its ContactEvaluation:
 - HorizontalController: thumb rotation clockwise at 20 rpm until the right side (6-3-0) is lost or

@@ -122,7 +122,7 @@ class ManipulationConfig(_Params):
     watchdog_period: float = 0.02  # s
     max_speed_rpm: float = 70.0  # goals asking more are rejected
     max_force_n: float = 3.0  # goals asking more are rejected
-    hold_min_k: float = 0.6  # the hold needs K above this (DESIGN.md section 6)
+    hold_min_k: float = 0.6  # the hold needs K above this (docs/manipulation.md)
     # defaults for goal fields left at 0
     grasp_finger_force: float = 0.8
     grasp_thumb_force: float = 1.0

@@ -1,4 +1,4 @@
-"""The DESIGN.md section 6 scenarios as ready closed loops (tests, bench, plots and the CLI).
+"""The paper's scenarios (docs/manipulation.md) as ready closed loops (tests, bench, plots and the CLI).
 
 - horizontal: object pinched between thumb and index at 1 N; HorizontalController at 20 rpm.
 - vertical: same start; VerticalController at 10 rpm.

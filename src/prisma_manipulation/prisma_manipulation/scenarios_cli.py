@@ -1,4 +1,4 @@
-"""prisma-manip-scenarios: run the DESIGN.md section 6 scenarios in the ROS-free closed loop and
+"""prisma-manip-scenarios: run the paper's scenarios (docs/manipulation.md) in the ROS-free closed loop and
 write one PNG per scenario plus summary.json (stop reasons, stop times, forces).
 
     prisma-manip-scenarios --out docs/img [--only horizontal] [--bundle config/models/cnn2]

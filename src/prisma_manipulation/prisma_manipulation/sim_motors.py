@@ -1,4 +1,4 @@
-"""Simulated motors with the MotorBus interface (DESIGN.md section 7, motor model).
+"""Simulated motors with the MotorBus interface (motor model: docs/manipulation.md).
 
 Each motor follows its velocity command with a first-order lag (the servo's velocity loop), stops
 hard at its position limits (the tendon end stops), and draws current for its load torque, for speed

@@ -1,4 +1,4 @@
-"""Sensor watchdog: data older than `stale_ns` (100 ms) stops the motors (DESIGN.md section 8).
+"""Sensor watchdog: data older than `stale_ns` (100 ms) stops the motors (docs/safety.md).
 
 Two clocks, two questions:
 - Age, by header stamps. A stream's age is the latest /joint_states header stamp minus the stream's

@@ -1,6 +1,6 @@
 """Core taxel data: one fingertip sample of 3x3 optoelectronic taxels.
 
-Taxel numbering (DESIGN.md section 3): index i = 3*row + col; row 0 = bottom (0-1-2),
+Taxel numbering (docs/architecture.md, Interfaces): index i = 3*row + col; row 0 = bottom (0-1-2),
 row 2 = top (6-7-8); column 0 = right lateral side (0-3-6), column 2 = left lateral side (2-5-8).
 Counts are 12-bit MAX11617 readings; V = vref * counts / 4096.
 """

@@ -1,6 +1,6 @@
 """Model bundles: a directory with model.pt (state_dict) and metadata.json (architecture, labels,
 normalisation, training command and results). Loading checks that the weights match the declared
-architecture and fails naming the path and the expected shape (DESIGN.md section 8).
+architecture and fails naming the path and the expected shape (docs/glove.md).
 """
 from __future__ import annotations
 

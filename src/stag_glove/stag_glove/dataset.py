@@ -1,6 +1,6 @@
 """Glove datasets: the public STAG metadata.mat format and an HDF5 equivalent.
 
-metadata.mat (DESIGN.md section 5) holds pressure [N, 32, 32] raw counts and per-frame objectId,
+metadata.mat (docs/glove.md) holds pressure [N, 32, 32] raw counts and per-frame objectId,
 recordingId, splitId, hasValidLabel, isBalanced, plus the cell array `objects` of class names.
 The public files are MATLAB v5 (scipy.io.loadmat); MATLAB v7.3 files are HDF5 underneath (column
 major, so every array comes back with its axes reversed, and strings are cell arrays of object

@@ -1,5 +1,5 @@
 """Separating the object signal from the hand-pose signal, and the correlation maps of the STAG
-paper (DESIGN.md section 6).
+paper (docs/glove.md).
 
 Grasp detection on one recording (pressure [T, rows, cols], normalised):
 1. m_t = mean pressure of frame t, smoothed by a Gaussian of sigma 3 frames; r_t = m_t scaled to

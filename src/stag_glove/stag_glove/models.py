@@ -1,4 +1,4 @@
-"""STAG perception networks (DESIGN.md section 6): the shared per-frame trunk, the N-frame
+"""STAG perception networks (docs/glove.md): the shared per-frame trunk, the N-frame
 classifier and the single-frame weight regressor.
 
 The trunk follows the STAG reference code: conv 3x3 s1 p1 -> BN -> ReLU -> maxpool(3, 2, 1) ->

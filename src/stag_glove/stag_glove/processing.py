@@ -1,4 +1,4 @@
-"""Frame processing core (DESIGN.md section 5): normalisation, shorted-frame rejection, empty-hand
+"""Frame processing core (docs/glove.md): normalisation, shorted-frame rejection, empty-hand
 calibration and the contact flag.
 
 Raw frames are 10-bit counts [rows, cols] (0..1023 = 0..5 V). The useful signal of the STAG

@@ -1,4 +1,4 @@
-"""Choosing the N input frames of the N-frame classifier (DESIGN.md section 6).
+"""Choosing the N input frames of the N-frame classifier (docs/glove.md).
 
 Random: the anchor frame plus N-1 frames drawn at random from the same recording.
 Cluster: the frames of each recording are embedded with PCA (8 dims), scaled to 0..1, and split into

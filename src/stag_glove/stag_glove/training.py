@@ -1,6 +1,6 @@
 """Training and evaluation loops for the glove networks (CPU-friendly, with per-epoch progress).
 
-Paper recipe (DESIGN.md section 6): Adam 1e-3, learning rate x0.1 every 100 epochs, batch 32,
+Paper recipe (docs/glove.md): Adam 1e-3, learning rate x0.1 every 100 epochs, batch 32,
 Gaussian noise 0.015 on training inputs. Epoch counts here are parameters; the CPU runs documented
 in docs/glove.md use fewer epochs and a narrower trunk.
 """
