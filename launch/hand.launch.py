@@ -9,6 +9,11 @@ sim:=true runs the drivers' sim backends: motor_driver simulates the motors and 
 /joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world).
 sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
 not given here comes from config/<node>.yaml.
+
+The four nodes run at nice -5 (`nice:=0` for the default priority): the hand's control path comes
+before a plotting tool or a recorder on the same cores. Without the right to raise priority (not
+root, no `nice` limit in /etc/security/limits.conf; README, "On the robot") `nice` says "cannot set
+niceness" and the nodes run at the default priority.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
@@ -40,18 +45,22 @@ def generate_launch_description():
                               description="Force estimator model bundle directory (model.pt + metadata.json)"),
         DeclareLaunchArgument("namespace", default_value="",
                               description="Namespace for every node of the hand (topics follow it)"),
+        DeclareLaunchArgument("nice", default_value="-5",
+                              description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
     ]
+    # every hand node starts under `nice -n <nice>`: the priority covers all its threads (DDS too)
+    prefix = ["nice -n ", LaunchConfiguration("nice")]
 
     tactile_sim = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": "sim", "contact_source": "hand_world"}],
         condition=IfCondition(sim),
     )
     tactile_hardware = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
                      "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str)}],
@@ -59,13 +68,13 @@ def generate_launch_description():
     )
     motors_sim = Node(
         package="prisma_manipulation", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
         condition=IfCondition(sim),
     )
     motors_hardware = Node(
         package="prisma_manipulation", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": LaunchConfiguration("motor_backend"),
                      "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
@@ -73,13 +82,13 @@ def generate_launch_description():
     )
     force_estimator = Node(
         package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="force_estimator",
         parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
                     {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
     )
     manipulation = Node(
         package="prisma_manipulation", executable="manipulation", name="manipulation",
-        namespace=namespace, output="screen",
+        namespace=namespace, output="screen", prefix=prefix, exec_name="manipulation",
         parameters=[PathJoinSubstitution([config, "manipulation.yaml"])],
     )
 

@@ -1,0 +1,87 @@
+"""The hand graph with the robot's own tools running beside it: `hand.launch.py sim:=true`, rqt_plot
+(the executable, plotting the thumb threshold against taxel 3, as the README's rqt section starts
+it) and `ros2 bag record` of the README's topic list. Ten consecutive pinch Grasp goals, each
+followed by opening the hand, all end SUCCEEDED `force_reached`: no goal is stopped by a stream
+starved of CPU (sensor_stale) and none is retried. Then the bag holds every topic of the list.
+
+rqt_plot needs PyQt5 (`PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh`; apt's python3-pyqt5 on a
+robot); it renders on Qt's offscreen platform when there is no display. Skips without ROS 2 or
+PyQt5 (fails under PRISMA_REQUIRE_ROS=1, or PRISMA_ROS_GUI=1 for PyQt5).
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+
+import pytest
+from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
+
+require_ros()
+
+if importlib.util.find_spec("PyQt5") is None:
+    if os.environ.get("PRISMA_ROS_GUI") == "1":
+        raise RuntimeError("PRISMA_ROS_GUI=1 but PyQt5 is missing: rqt_plot cannot start")
+    pytest.skip("rqt_plot needs PyQt5: PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh", allow_module_level=True)
+
+from prisma_msgs.action import Grasp, MoveMotors  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+# the README's `ros2 bag record` topic list
+BAG_TOPICS = ["/joint_states", "/diagnostics"] + [f"/prisma/{f}/{kind}" for f in FINGERS
+                                                  for kind in ("taxels", "wrench", "contact")]
+PLOTTED = ["/prisma/thumb/contact/threshold", "/prisma/thumb/contact/voltages[3]"]
+GRASPS = 10
+SUCCEEDED = 4  # action_msgs/GoalStatus
+# Default forces, fingers at 60 rpm. Between goals the hand opens at full speed, thumb first, each
+# motor until its open stop (bench/ros_graph.py's grasp cycle: the sim ball stays on its support)
+GRASP = Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=0.7, speed_rpm=60.0, timeout=10.0)
+OPEN_RPM = 70.0
+
+
+def contact_readers(ros) -> list[str]:
+    """Names of the nodes reading the thumb's contact stream (rqt_plot, the recorder)."""
+    return [info.node_name for info in ros.probe.get_subscriptions_info_by_topic("/prisma/thumb/contact")]
+
+
+def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros, tmp_path):
+    env = dict(os.environ)
+    if not env.get("DISPLAY"):
+        env["QT_QPA_PLATFORM"] = "offscreen"
+    ros.capture_logs()
+    hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true")
+    tools: list[NodeProcess] = []
+    try:
+        grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=90.0)
+        move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=30.0)
+        tools.append(NodeProcess(["ros2", "run", "rqt_plot", "rqt_plot", *PLOTTED], env=env))
+        # rqt_plot's first start on a machine builds matplotlib's font cache: allow for it
+        assert ros.spin_until(lambda: any(name.startswith("rqt_gui_py_node") for name in contact_readers(ros)),
+                              180.0), tools[0].output
+        bag = tmp_path / "hand_run"
+        tools.append(NodeProcess(["ros2", "bag", "record", "-s", "mcap", "-o", str(bag), *BAG_TOPICS]))
+        assert ros.spin_until(lambda: "rosbag2_recorder" in contact_readers(ros), 60.0), tools[1].output
+        joints = ros.collect(JointState, "/joint_states")
+        assert ros.spin_until(lambda: len(joints) > 50, 30.0)
+
+        outcomes = []
+        for _ in range(GRASPS):
+            result = ros.result(ros.send_until_accepted(grasp, GRASP, timeout_sec=60.0))
+            outcomes.append((result.status, result.result.reason))
+            for motor in ("thumb_flexion", "fingers"):
+                opened = ros.result(ros.send_until_accepted(
+                    move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
+                assert opened.result.success, opened.result.reason
+        for tool in tools:
+            assert tool.proc.poll() is None, f"{tool.args} exited: {tool.output[-2000:]}"
+    finally:
+        recorded = [stop_process(tool) for tool in reversed(tools)]
+        stop_process(hand)
+
+    ended = ros.logs(name="manipulation", contains="goal ended")
+    assert outcomes == [(SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)
+    assert recorded[0].returncode == 0, recorded[0].output  # the recorder, stopped with Ctrl-C
+    info = run_process(["ros2", "bag", "info", str(bag)])
+    assert info.returncode == 0, info.output
+    for topic in BAG_TOPICS:
+        assert f"Topic: {topic} |" in info.output, f"{topic} not in the bag:\n{info.output}"
