@@ -19,7 +19,7 @@ require_ros()
 from builtin_interfaces.msg import Time  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
-from prisma_msgs.msg import TaxelArray  # noqa: E402
+from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 
 from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # noqa: E402
@@ -196,6 +196,45 @@ def test_behind_the_simulated_tactile_driver_every_scan_gets_wrenches(ros, node_
         assert len(taxels[f]) == 50
         # a whole scan is estimated as soon as its fifth finger arrives, so nothing lags behind
         assert [stamp_ns(m) for m in wrenches[f]] == [stamp_ns(m) for m in taxels[f]]
+
+
+def test_takes_the_per_hand_taxels_once_they_come_each_sample_once(ros, node_cls, bundles):
+    wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+    hands = ros.collect(HandWrench, "/prisma/hand/wrench")
+    node = ros.node(node_cls, params={"model_bundle": str(bundles["cnn2"])})
+    reference = ForceEstimator.from_bundle(bundles["cnn2"])
+    rng = np.random.default_rng(3)
+    t0 = ros.now_ns()
+    scans = [(t0 + k * 10_000_000, {f: rng.uniform(0.4, 2.5, 9).astype(np.float32) for f in FINGERS})
+             for k in range(4)]
+    # scans 0 and 1 per finger (a bag recorded without the per-hand topic plays only these) ...
+    for stamp, volts in scans[:2]:
+        for f in FINGERS:
+            send(ros, node, f, taxel_msg(f, stamp, volts[f]))
+    # ... then per hand, from scan 1 on: around the switch both forms carry the same scan
+    for k, (stamp, volts) in enumerate(scans[1:]):
+        received = sum(c.received for c in node.pipeline.counts.values())
+        hand = HandTaxels(header=Header(stamp=Time(sec=stamp // 10**9, nanosec=stamp % 10**9)),
+                          samples=[taxel_msg(f, stamp, volts[f]) for f in FINGERS])
+        ros.publish("/prisma/hand/taxels", hand)
+        if k == 0:
+            assert ros.spin_until(lambda: node._taxels.state.switched)
+        else:
+            assert ros.spin_until(lambda: sum(c.received for c in node.pipeline.counts.values()) == received + 5)
+    assert ros.spin_until(lambda: len(hands) == 4)
+    ros.spin_for(0.1)
+    stamps = [s for s, _ in scans]
+    for f in FINGERS:
+        assert [stamp_ns(m) for m in wrenches[f]] == stamps  # scan 1 once, not twice
+        expected = reference.estimate(np.stack([volts[f] for _, volts in scans]))
+        np.testing.assert_allclose(wrench_rows(wrenches[f]), expected, atol=1e-5)
+    assert [stamp_ns(m) for m in hands] == stamps
+    for m, (stamp, _) in zip(hands, scans):
+        assert list(m.fingers) == list(FINGERS) and [stamp_ns(w) for w in m.wrenches] == [stamp] * 5
+    assert hands[-1].wrenches[2] == wrenches["middle"][-1]
+    # the per-finger subscriptions are gone: the tactile driver's per-finger topics cost it nothing
+    assert ros.spin_until(lambda: all(ros.probe.count_subscribers(f"/prisma/{f}/taxels") == 0 for f in FINGERS))
+    assert [c.received for c in node.pipeline.counts.values()] == [4] * 5
 
 
 # ---- main() as a process ------------------------------------------------------------------------

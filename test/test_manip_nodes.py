@@ -23,7 +23,7 @@ from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors  # noqa: E402
-from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
+from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rosidl_runtime_py.utilities import get_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -50,9 +50,10 @@ class SensorSide(Node):
     """Fingertip hub + force estimator stand-ins driven by the hand/world model, on sim time.
 
     `age_ns`: stamps this much older than the clock; `silent`: publishes nothing; `taxels_on` /
-    `wrenches_on`: which streams it publishes (a hub or an estimator still starting)."""
+    `wrenches_on`: which streams it publishes (a hub or an estimator still starting); `per_hand`:
+    each tick's samples also as one HandTaxels and one HandWrench, as the real drivers publish them."""
 
-    def __init__(self, world: HandWorld, publishing: bool = True, **kwargs) -> None:
+    def __init__(self, world: HandWorld, publishing: bool = True, per_hand: bool = False, **kwargs) -> None:
         super().__init__("sensor_side", **kwargs)
         self.world = world
         self.reseed()
@@ -63,6 +64,9 @@ class SensorSide(Node):
         self.create_subscription(JointState, "joint_states", self._on_joints, 10)
         self.taxels = {f: self.create_publisher(TaxelArray, f"prisma/{f}/taxels", 10) for f in FINGERS}
         self.wrenches = {f: self.create_publisher(WrenchStamped, f"prisma/{f}/wrench", 10) for f in FINGERS}
+        self.per_hand = per_hand
+        self.hand_taxels = self.create_publisher(HandTaxels, "prisma/hand/taxels", 10)
+        self.hand_wrench = self.create_publisher(HandWrench, "prisma/hand/wrench", 10)
         self.create_timer(STEP, self._tick)
 
     def reseed(self) -> None:
@@ -78,14 +82,22 @@ class SensorSide(Node):
         if self.silent:
             return
         stamp = self.get_clock().now().nanoseconds - self.age_ns
+        taxels, wrenches = [], []
         for f in FINGERS:
             if self.taxels_on:
                 frame = TaxelFrame.from_counts(f, stamp, self.pads[f].sample(self.world.contact(f)))
-                self.taxels[f].publish(taxel_frame_to_msg(frame, get_message, f"prisma_{f}_pad"))
+                taxels.append(taxel_frame_to_msg(frame, get_message, f"prisma_{f}_pad"))
+                self.taxels[f].publish(taxels[-1])
             if self.wrenches_on:
                 force = Vector3(x=0.0, y=0.0, z=float(self.world.forces()[f]))
-                self.wrenches[f].publish(WrenchStamped(header=make_header(get_message, stamp, f"prisma_{f}_pad"),
-                                                       wrench=Wrench(force=force, torque=Vector3())))
+                wrenches.append(WrenchStamped(header=make_header(get_message, stamp, f"prisma_{f}_pad"),
+                                              wrench=Wrench(force=force, torque=Vector3())))
+                self.wrenches[f].publish(wrenches[-1])
+        if self.per_hand and taxels:
+            self.hand_taxels.publish(HandTaxels(header=make_header(get_message, stamp, ""), samples=taxels))
+        if self.per_hand and wrenches:
+            self.hand_wrench.publish(HandWrench(header=make_header(get_message, stamp, ""),
+                                                fingers=list(FINGERS), wrenches=wrenches))
         self.published += 1
 
 
@@ -122,12 +134,13 @@ class Hand:
     """Handles of one test's nodes and streams."""
 
     def __init__(self, ros, world: HandWorld, motor: bool, sensors: bool, params: dict,
-                 publishing: bool = True) -> None:
+                 publishing: bool = True, per_hand: bool = False) -> None:
         self.ros, self.world = ros, world
         self.move_goals: list[tuple[int, object]] = []  # (sim ns, MoveGoal) the driver started
         self.joints = ros.collect(JointState, f"{NS}/joint_states")
         self.motor = self.start_motor_driver() if motor else None
-        self.sensors = ros.node(SensorSide, namespace=NS, sim_time=True, world=world, publishing=publishing) if sensors else None
+        self.sensors = (ros.node(SensorSide, namespace=NS, sim_time=True, world=world, publishing=publishing,
+                                 per_hand=per_hand) if sensors else None)
         self.manipulation = ros.node(ManipulationNode, namespace=NS, params=params, sim_time=True)
 
     def start_motor_driver(self):
@@ -169,8 +182,8 @@ class Hand:
 @pytest.fixture
 def hand(ros):
     def make(world: HandWorld, motor: bool = True, sensors: bool = True, wait: bool = True,
-             publishing: bool = True, **params) -> Hand:
-        h = Hand(ros, world, motor, sensors, params, publishing)
+             publishing: bool = True, per_hand: bool = False, **params) -> Hand:
+        h = Hand(ros, world, motor, sensors, params, publishing, per_hand)
         if wait:
             h.wait_ready()
         return h
@@ -245,6 +258,33 @@ def test_grasp_goal_moves_the_motors_streams_feedback_and_returns_the_forces(ros
     assert abs(velocity(h.joints, "thumb_flexion")) < 0.01 and abs(velocity(h.joints, "fingers")) < 0.01
     assert h.world.forces()["thumb"] == pytest.approx(1.0, abs=0.1)
     assert not h.motor.core.runner.active  # the stop canceled the MoveMotors goal
+
+
+def test_per_hand_streams_give_each_sample_once_and_the_same_grasp(ros, hand):
+    """Sensors publishing both forms, as the tactile driver and the force estimator do: the node
+    switches to the per-hand topics and evaluates every sample once."""
+    h = hand(stand_world(), per_hand=True)
+    seen = {f: ros.collect(ContactState, f"{NS}/prisma/{f}/contact") for f in FINGERS}
+    together = ros.collect(HandContact, f"{NS}/prisma/hand/contact")
+    assert ros.spin_until(lambda: h.manipulation._hand_contact_pub.get_subscription_count() >= 1)
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=1.0,
+                                                          speed_rpm=60.0, timeout=5.0))
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.reason == "force_reached"
+    assert 1.0 <= outcome.result.thumb_force <= 1.1 and 0.8 <= outcome.result.finger_force <= 0.95
+    m = h.manipulation
+    assert m._taxels.state.switched and m._wrenches.state.switched
+    assert all(ros.probe.count_subscribers(f"{NS}/prisma/{f}/{kind}") == 0 for f in FINGERS
+               for kind in ("taxels", "wrench"))
+    ros.spin_for(0.1)
+    for f in FINGERS:
+        stamps = [stamp_ns(c) for c in seen[f]]
+        assert len(stamps) > 100 and np.all(np.diff(stamps) == 10 * MS), f  # one ContactState per sample
+    # the same ContactStates, one HandContact per scan with every finger
+    assert all(list(c.finger for c in m.contacts) == list(FINGERS) for m in together)
+    by_stamp = {stamp_ns(m): m for m in together}
+    thumb = [c for c in seen["thumb"] if stamp_ns(c) in by_stamp]
+    assert len(thumb) > 100 and all(by_stamp[stamp_ns(c)].contacts[0] == c for c in thumb)
 
 
 def test_cancel_stops_the_motors(ros, hand):

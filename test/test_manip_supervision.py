@@ -33,6 +33,7 @@ from prisma_manipulation.ros_conversions import (
     contact_state_from_msg,
     contact_state_to_msg,
     grasp_result_to_msg,
+    hand_contact_to_msg,
     joint_sample_from_msg,
     joint_state_to_msg,
     manipulate_feedback_to_msg,
@@ -464,6 +465,20 @@ def test_contact_state_round_trip():
     assert np.array_equal(back.voltages, e.voltages) and np.array_equal(back.safe, e.safe)
     assert back.lost_edges == ("right",) and back.feasible is False
     assert back.threshold == pytest.approx(e.threshold, rel=1e-6) and back.k == pytest.approx(0.8)
+
+
+def test_hand_contact_holds_each_fingers_contact_state():
+    monitor = ContactMonitor(0.8)
+    evaluations = [monitor.evaluate("thumb", 3_000_000_000, _volts()),
+                   monitor.evaluate("index", 3_000_400_000, _volts(right_lost=True))]
+    msg = roundtrip(hand_contact_to_msg(types, [contact_state_to_msg(types, e, f"{e.finger}_pad")
+                                                for e in evaluations]))
+    assert msg.__msgtype__ == "prisma_msgs/msg/HandContact"
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (3, 400_000)  # the newest
+    back = [contact_state_from_msg(c) for c in msg.contacts]
+    assert [(b.finger, b.stamp_ns, b.lost_edges) for b in back] == [("thumb", 3_000_000_000, ()),
+                                                                    ("index", 3_000_400_000, ("right",))]
+    assert np.array_equal(back[1].safe, evaluations[1].safe)
 
 
 def test_joint_state_round_trip_units():

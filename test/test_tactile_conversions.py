@@ -4,9 +4,9 @@ import pytest
 
 from prisma_bringup.typestore import get_typestore, types
 from prisma_tactile_driver.hub import DiagnosticStatusData
-from prisma_tactile_driver.ros_conversions import (diagnostics_from_msg, diagnostics_to_msg, make_header,
-                                                   ns_from_stamp, stamp_from_ns, taxel_frame_from_msg,
-                                                   taxel_frame_to_msg)
+from prisma_tactile_driver.ros_conversions import (diagnostics_from_msg, diagnostics_to_msg, hand_taxels_samples,
+                                                   hand_taxels_to_msg, make_header, ns_from_stamp, stamp_from_ns,
+                                                   taxel_frame_from_msg, taxel_frame_to_msg)
 from prisma_tactile_driver.taxels import TaxelFrame
 
 
@@ -35,6 +35,23 @@ def test_taxel_frame_cdr_round_trip():
     np.testing.assert_array_equal(back.counts, counts)
     np.testing.assert_array_equal(back.voltages, frame.voltages)
     np.testing.assert_allclose(back.voltages, counts * 3.3 / 4096, rtol=1e-6)
+
+
+def test_hand_taxels_carry_every_sample_of_a_poll_in_order():
+    # a serial poll that drained two scans of the thumb and one of the index
+    frames = [TaxelFrame.from_counts("thumb", 1_000_000_000, np.full(9, 1000, np.uint16)),
+              TaxelFrame.from_counts("index", 1_000_200_000, np.arange(9, dtype=np.uint16) * 400),
+              TaxelFrame.from_counts("thumb", 1_010_000_000, np.full(9, 1100, np.uint16))]
+    msg = cdr_round_trip(hand_taxels_to_msg(types, [taxel_frame_to_msg(f, types, f"{f.finger}_pad") for f in frames]))
+    assert msg.__msgtype__ == "prisma_msgs/msg/HandTaxels"
+    assert ns_from_stamp(msg.header.stamp) == 1_010_000_000  # the newest sample's
+    pairs = hand_taxels_samples(msg)
+    assert [finger for finger, _ in pairs] == ["thumb", "index", "thumb"]
+    for frame, (_, sample) in zip(frames, pairs):
+        back = taxel_frame_from_msg(sample)
+        assert back.stamp_ns == frame.stamp_ns and sample.header.frame_id == f"{frame.finger}_pad"
+        np.testing.assert_array_equal(back.counts, frame.counts)
+        np.testing.assert_array_equal(back.voltages, frame.voltages)
 
 
 def test_diagnostics_cdr_round_trip():

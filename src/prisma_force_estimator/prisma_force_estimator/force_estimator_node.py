@@ -1,6 +1,8 @@
 """force_estimator: /prisma/<finger>/taxels -> /prisma/<finger>/wrench with a neural network.
 
-Each WrenchStamped carries its input's header stamp. Samples with non-finite voltages get no
+Input: /prisma/hand/taxels once the tactile driver publishes it, the per-finger topics until then
+(a bag of only those replays as well). Output: every wrench on its finger's topic and the wrenches
+of each scan together on /prisma/hand/wrench. Each WrenchStamped carries its input's header stamp. Samples with non-finite voltages get no
 wrench; they are counted per finger on /diagnostics (as are received and estimated samples).
 A missing or mismatched model bundle stops the node at start with the path and the problem.
 
@@ -11,19 +13,19 @@ from __future__ import annotations
 import functools
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from prisma_msgs.msg import TaxelArray
+from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, taxel_frame_from_msg
+from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, hand_taxels_samples, taxel_frame_from_msg
 from prisma_tactile_driver.node_process import run_node
-from prisma_tactile_driver.sample_streams import stream_publisher, stream_subscription
+from prisma_tactile_driver.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
 from .node_config import EstimatorConfig, ParameterError
 from .pipeline import TaxelSample, WrenchPipeline, build_estimators
-from .ros_conversions import wrench_to_msg
+from .ros_conversions import hand_wrench_to_msg, wrench_to_msg
 
 
 class ForceEstimatorNode(Node):
@@ -42,11 +44,10 @@ class ForceEstimatorNode(Node):
         self.pipeline = WrenchPipeline(estimators, cfg.frame_id_format, int(round(cfg.batch_window * 1e9)))
 
         self._wrench_pubs = {f: stream_publisher(self, WrenchStamped, f"prisma/{f}/wrench") for f in cfg.fingers}
-        self._taxel_subs = [
-            stream_subscription(self, TaxelArray, f"prisma/{f}/taxels",
-                                lambda msg, finger=f: self._on_taxels(finger, msg))
-            for f in cfg.fingers
-        ]
+        self._hand_pub = stream_publisher(self, HandWrench, "prisma/hand/wrench")
+        self._results: list = []  # (finger, WrenchSample) of the message being handled
+        self._taxels = FingerAndHandInput(self, TaxelArray, HandTaxels, "taxels", cfg.fingers,
+                                          hand_taxels_samples, self._on_taxels, self._publish)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
         kinds = sorted({f"{e.model_kind} ({self.bundle_paths[f]})" for f, e in estimators.items()})
@@ -54,11 +55,20 @@ class ForceEstimatorNode(Node):
 
     def _on_taxels(self, finger: str, msg: TaxelArray) -> None:
         frame = taxel_frame_from_msg(msg)
-        self._publish(self.pipeline.add(TaxelSample(finger, frame.stamp_ns, frame.voltages, msg.header.frame_id)))
+        self._results += self.pipeline.add(TaxelSample(finger, frame.stamp_ns, frame.voltages, msg.header.frame_id))
 
-    def _publish(self, results) -> None:
-        for finger, sample in results:
-            self._wrench_pubs[finger].publish(wrench_to_msg(self.types, sample))
+    def _publish(self) -> None:
+        """The wrenches of the scans the last message completed: per finger, then per hand."""
+        if not self._results:
+            return
+        fingers, msgs = [], []
+        for finger, sample in self._results:
+            msg = wrench_to_msg(self.types, sample)
+            publish_if_subscribed(self._wrench_pubs[finger], msg)
+            fingers.append(finger)
+            msgs.append(msg)
+        self._results = []
+        publish_if_subscribed(self._hand_pub, hand_wrench_to_msg(self.types, fingers, msgs))
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self.get_clock().now().nanoseconds

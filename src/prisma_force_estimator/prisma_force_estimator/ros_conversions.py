@@ -7,7 +7,7 @@ workspace).
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -36,3 +36,13 @@ def wrench_from_msg(msg: Any) -> WrenchSample:
     return WrenchSample(ns_from_stamp(msg.header.stamp),
                         np.array([f.x, f.y, f.z, t.x, t.y, t.z], dtype=np.float64),
                         str(msg.header.frame_id))
+
+
+def hand_wrench_to_msg(types: MessageLookup, fingers: Sequence[str], wrenches: Sequence[Any]) -> Any:
+    """prisma_msgs/HandWrench: wrenches[i] (WrenchStamped) of fingers[i], stamped with the newest."""
+    if len(fingers) != len(wrenches):
+        raise ValueError(f"{len(fingers)} fingers for {len(wrenches)} wrenches")
+    newest = max((ns_from_stamp(w.header.stamp) for w in wrenches), default=0)
+    return types("prisma_msgs/msg/HandWrench")(header=make_header(types, newest, ""),
+                                               fingers=list(fingers), wrenches=list(wrenches))
+

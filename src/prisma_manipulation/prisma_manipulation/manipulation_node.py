@@ -4,7 +4,10 @@ the Grasp (/prisma/grasp) and Manipulate (/prisma/manipulate) action servers, a 
 
     ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
 
-Subscribes /prisma/<finger>/taxels, /prisma/<finger>/wrench (Fz = normal force) and /joint_states.
+Subscribes /prisma/hand/taxels and /prisma/hand/wrench (Fz = normal force), or the per-finger
+/prisma/<finger>/taxels and /prisma/<finger>/wrench until those speak, and /joint_states; publishes
+each sample's ContactState on /prisma/<finger>/contact (while subscribed) and those of each received
+scan together on /prisma/hand/contact.
 The parameter `k` can be changed at run time (`ros2 param set /manipulation k 0.7`).
 Goals are accepted only when every stream they need flows and the MoveMotors server is up; motion
 goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when this node
@@ -15,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors
-from prisma_msgs.msg import ContactState, TaxelArray
+from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -25,9 +28,10 @@ from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
-from prisma_tactile_driver.ros_conversions import ns_from_stamp
+from prisma_tactile_driver.ros_conversions import hand_taxels_samples, ns_from_stamp
 from prisma_tactile_driver.node_process import run_node
-from prisma_tactile_driver.sample_streams import stream_publisher, stream_subscription
+from prisma_tactile_driver.sample_streams import (FingerAndHandInput, publish_if_subscribed, stream_publisher,
+                                                  stream_subscription)
 
 from .contact_monitor import check_k
 from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
@@ -37,6 +41,8 @@ from .ros_conversions import (
     grasp_feedback_to_msg,
     grasp_request_from_msg,
     grasp_result_to_msg,
+    hand_contact_to_msg,
+    hand_wrench_samples,
     joint_sample_from_msg,
     manipulate_feedback_to_msg,
     manipulate_request_from_msg,
@@ -66,13 +72,15 @@ class ManipulationNode(Node):
         self._move_seq = 0  # increments with every MoveMotors goal we send or stop
         group = ReentrantCallbackGroup()
 
-        self._contact_pubs = {}
-        for finger in self.config.fingers:
-            self._contact_pubs[finger] = stream_publisher(self, ContactState, f"prisma/{finger}/contact")
-            stream_subscription(self, TaxelArray, f"prisma/{finger}/taxels",
-                                lambda msg, f=finger: self._on_taxels(f, msg), callback_group=group)
-            stream_subscription(self, WrenchStamped, f"prisma/{finger}/wrench",
-                                lambda msg, f=finger: self._on_wrench(f, msg), callback_group=group)
+        self._contact_pubs = {f: stream_publisher(self, ContactState, f"prisma/{f}/contact")
+                              for f in self.config.fingers}
+        self._hand_contact_pub = stream_publisher(self, HandContact, "prisma/hand/contact")
+        self._contacts: list = []  # ContactState of the taxel message being handled
+        self._taxels = FingerAndHandInput(self, TaxelArray, HandTaxels, "taxels", self.config.fingers,
+                                          hand_taxels_samples, self._on_taxels, self._publish_contacts,
+                                          callback_group=group)
+        self._wrenches = FingerAndHandInput(self, WrenchStamped, HandWrench, "wrench", self.config.fingers,
+                                            hand_wrench_samples, self._on_wrench, callback_group=group)
         stream_subscription(self, JointState, "joint_states", self._on_joints, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
         self._grasp_server = ActionServer(self, Grasp, "prisma/grasp", self._execute,
@@ -107,9 +115,16 @@ class ManipulationNode(Node):
     def _on_taxels(self, finger: str, msg: TaxelArray) -> None:
         evaluation, actions = self.core.on_taxels(finger, ns_from_stamp(msg.header.stamp),
                                                   np.asarray(msg.voltages, dtype=np.float32), self._now_ns())
-        self._contact_pubs[finger].publish(contact_state_to_msg(
-            self.types, evaluation, self.config.frame_id_format.format(finger=finger)))
+        contact = contact_state_to_msg(self.types, evaluation, self.config.frame_id_format.format(finger=finger))
+        publish_if_subscribed(self._contact_pubs[finger], contact)
+        self._contacts.append(contact)
         self._apply(actions)
+
+    def _publish_contacts(self) -> None:
+        """The ContactStates of the taxel message just handled, together."""
+        if self._contacts:
+            publish_if_subscribed(self._hand_contact_pub, hand_contact_to_msg(self.types, self._contacts))
+            self._contacts = []
 
     def _on_wrench(self, finger: str, msg: WrenchStamped) -> None:
         stamp_ns, fz = normal_force_from_wrench(msg)

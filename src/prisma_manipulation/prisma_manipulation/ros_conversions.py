@@ -44,6 +44,12 @@ def contact_state_to_msg(types: Types, e: ContactEvaluation, frame_id: str) -> A
     )
 
 
+def hand_contact_to_msg(types: Types, contacts: list[Any]) -> Any:
+    """prisma_msgs/HandContact holding `contacts` (ContactState messages), stamped with the newest."""
+    newest = max((ns_from_stamp(c.header.stamp) for c in contacts), default=0)
+    return types("prisma_msgs/msg/HandContact")(header=make_header(types, newest, ""), contacts=list(contacts))
+
+
 def contact_state_from_msg(msg: Any) -> ContactEvaluation:
     lost = tuple(name for name in EDGE_NAMES if name in list(msg.lost_edges))
     return ContactEvaluation(msg.finger, ns_from_stamp(msg.header.stamp), np.asarray(msg.voltages, dtype=np.float32),
@@ -180,3 +186,9 @@ def robot_types(get_message: Callable[[str], Any], get_action: Callable[[str], A
         return get_message(name)
 
     return types
+
+
+def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:
+    """(finger, WrenchStamped) pairs of a prisma_msgs/HandWrench; a malformed message (fingers and
+    wrenches of different lengths) pairs up to the shorter list."""
+    return [(str(finger), wrench) for finger, wrench in zip(msg.fingers, msg.wrenches)]

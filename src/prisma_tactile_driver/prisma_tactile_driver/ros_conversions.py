@@ -84,6 +84,18 @@ def taxel_frame_from_msg(msg: Any) -> TaxelFrame:
                       np.asarray(msg.counts, dtype=np.uint16), np.asarray(msg.voltages, dtype=np.float32))
 
 
+def hand_taxels_to_msg(types: Types, samples: list[Any], frame_id: str = "") -> Any:
+    """prisma_msgs/HandTaxels holding `samples` (TaxelArray messages, in the order read), stamped
+    with the newest sample's stamp."""
+    newest = max((ns_from_stamp(m.header.stamp) for m in samples), default=0)
+    return types("prisma_msgs/msg/HandTaxels")(header=make_header(types, newest, frame_id), samples=list(samples))
+
+
+def hand_taxels_samples(msg: Any) -> list[tuple[str, Any]]:
+    """(finger, TaxelArray) for each sample of a HandTaxels message."""
+    return [(str(sample.finger), sample) for sample in msg.samples]
+
+
 def _level(status_cls: Any, level: int) -> Any:
     # `byte` fields are bytes of length 1 in rclpy and int in rosbags: follow the class constant
     return bytes([level]) if isinstance(getattr(status_cls, "OK", 0), bytes) else level

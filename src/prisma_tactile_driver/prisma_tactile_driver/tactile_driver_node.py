@@ -1,4 +1,5 @@
 """tactile_driver: publishes /prisma/<finger>/taxels from the fingertip hub (serial, I2C or sim),
+the same samples once per poll on /prisma/hand/taxels (for the nodes that take all five fingers),
 /diagnostics at 1 Hz with the link counters, and the ~/tare service.
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
@@ -7,17 +8,17 @@ from __future__ import annotations
 
 import functools
 from diagnostic_msgs.msg import DiagnosticArray
-from prisma_msgs.msg import TaxelArray
+from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from .node_process import run_node
-from .sample_streams import stream_publisher, stream_subscription
+from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
-from .ros_conversions import diagnostics_to_msg, ns_from_stamp, taxel_frame_to_msg
+from .ros_conversions import diagnostics_to_msg, hand_taxels_to_msg, ns_from_stamp, taxel_frame_to_msg
 
 
 class TactileDriverNode(Node):
@@ -45,6 +46,7 @@ class TactileDriverNode(Node):
                               name=self.get_name(), hardware_id=self._hardware_id())
 
         self._taxel_pubs = {f: stream_publisher(self, TaxelArray, f"prisma/{f}/taxels") for f in cfg.fingers}
+        self._hand_pub = stream_publisher(self, HandTaxels, "prisma/hand/taxels")
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tare_service = self.create_service(Trigger, "~/tare", self._on_tare)
         poll_hz = cfg.serial_poll_hz if cfg.backend == "serial" else cfg.rate_hz
@@ -66,9 +68,12 @@ class TactileDriverNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _on_poll(self) -> None:
-        for frame in self.hub.poll(self._now_ns()):
-            self._taxel_pubs[frame.finger].publish(
-                taxel_frame_to_msg(frame, self.types, self.config.frame_id(frame.finger)))
+        samples = [taxel_frame_to_msg(frame, self.types, self.config.frame_id(frame.finger))
+                   for frame in self.hub.poll(self._now_ns())]
+        for msg in samples:
+            publish_if_subscribed(self._taxel_pubs[msg.finger], msg)
+        if samples:
+            publish_if_subscribed(self._hand_pub, hand_taxels_to_msg(self.types, samples))
         for error in self.hub.take_errors():  # each new link error once, with the port and OS reason
             self.get_logger().error(error)
 
