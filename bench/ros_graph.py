@@ -10,8 +10,9 @@ rclpy's default executor) one after the other in the same invocation, in the sam
 - hand at 100 Hz: the real graph through `ros2 launch prisma_bringup hand.launch.py sim:=true`. After
   `settle_s`, the CPU of every node process over `cpu_s` (utime + stime from /proc/<pid>/stat, all
   threads; per thread name too), with nothing else subscribed. Then the probe, `ros2 bag record`
-  (C++, keep-last 1000 per topic), records taxels, wrenches, contacts, /joint_states, /diagnostics
-  and the MoveMotors status and feedback topics while pinch Grasp goals run, each followed by a
+  (C++, keep-last 1000 per topic), records taxels, wrenches, contacts (the graph's per-hand
+  topics, the relays' per-finger ones), /joint_states, /diagnostics and the MoveMotors status and
+  feedback topics while pinch Grasp goals run, each followed by a
   MoveMotors position goal that opens the hand. Latencies are from the taxel header stamp (the
   sensor's clock when the scan was read) to the probe's receipt of the ContactState / WrenchStamped
   with that stamp (bag log time) and to their publication (bag publish time = DDS source
@@ -58,6 +59,11 @@ MOVE_STATUS = "/prisma/motors/move/_action/status"
 MOVE_FEEDBACK = "/prisma/motors/move/_action/feedback"
 HAND_TOPICS = ([f"/prisma/{f}/{s}" for s in ("taxels", "wrench", "contact") for f in FINGERS]
                + ["/joint_states", "/diagnostics", MOVE_STATUS, MOVE_FEEDBACK])
+# The graph's nodes take each other's per-hand topics and publish the per-finger ones only while
+# someone subscribes: its probe records the per-hand form (the same samples, read back per finger),
+# as the graph's own consumers do. The relays have only the per-finger topics.
+HAND_STREAMS = {"/prisma/hand/taxels": "taxels", "/prisma/hand/wrench": "wrench", "/prisma/hand/contact": "contact"}
+GRAPH_TOPICS = list(HAND_STREAMS) + ["/joint_states", "/diagnostics", MOVE_STATUS, MOVE_FEEDBACK]
 GLOVE_TOPICS = ["/stag/frame", "/stag/image", "/stag/object", "/stag/hand_pose", "/stag/weight"]
 GLOVE_RATE_HZ = 7.3  # config/glove_driver.yaml frame_rate_hz, the real glove's readout rate
 # thumb_force 0.7 N, not the default 1.0: the sim world's support lets go of the ball once thumb and
@@ -431,6 +437,18 @@ def read_probe(bag: Path) -> Recording:
                             level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
                             rec.diagnostics.append((stamp, s.name, level, s.message))
                     continue
+                if topic in HAND_STREAMS:  # one message per scan: each sample as if on its finger's topic
+                    msg = deserialize_message(message.data, types[topic])
+                    kind = HAND_STREAMS[topic]
+                    pairs = (zip(msg.fingers, msg.wrenches) if kind == "wrench" else
+                             ((s.finger, s) for s in (msg.samples if kind == "taxels" else msg.contacts)))
+                    for finger, sample in pairs:
+                        stamp = sample.header.stamp.sec * 1_000_000_000 + sample.header.stamp.nanosec
+                        raw.setdefault(f"/prisma/{finger}/{kind}", []).append(
+                            (stamp, message.publish_time, message.log_time))
+                        if kind == "wrench" and finger == "index":
+                            fz.append(sample.wrench.force.z)
+                    continue
                 # every other topic starts with std_msgs/Header: CDR encapsulation (4 bytes), sec, nanosec
                 sec, nanosec = struct.unpack_from("<iI", message.data, 4)
                 stamp = sec * 1_000_000_000 + nanosec
@@ -600,9 +618,11 @@ def _check_alive(procs: list[Proc]) -> None:
 
 def run_hand(control: Control, kind: str, out: Path, rate_hz: float = 100.0, launch: bool = True,
              settle_s: float = 3.0, cpu_s: float = 12.0, grasps: int = 10, relay_s: float = 20.0,
-             probe_s: float | None = None, quiet: tuple[float | None, float] = (None, 0.0)) -> dict:
+             probe_s: float | None = None, quiet: tuple[float | None, float] = (None, 0.0),
+             graph_probe: str = "hand") -> dict:
     """One hand graph: CPU window, then the probe while grasps run (real) or for relay_s (relay).
     probe_s: record for this long (grasping meanwhile) instead of a number of grasps (the sweep).
+    graph_probe: "hand" records the graph's per-hand topics, "finger" its 15 per-finger ones.
     quiet: (max machine CPU %, max wait s) before starting, see wait_quiet."""
     before = wait_quiet(*quiet)
     tag = f"hand_{kind}_{rate_hz:g}hz_{time.strftime('%H%M%S')}"
@@ -619,7 +639,8 @@ def run_hand(control: Control, kind: str, out: Path, rate_hz: float = 100.0, lau
         time.sleep(settle_s)
         result["cpu"] = measure_cpu(pids, cpu_s) if cpu_s > 0 else None
         _check_alive(procs)
-        probe = start_probe(HAND_TOPICS, logdir / "probe", logdir, control)
+        topics = GRAPH_TOPICS if kind == "real" and graph_probe == "hand" else HAND_TOPICS
+        probe = start_probe(topics, logdir / "probe", logdir, control)
         t_lo = time.time_ns()
         cycles = []
         load_pids = {**pids, "probe (ros2 bag record)": probe.popen.pid}
@@ -882,11 +903,12 @@ def summarise_hand(runs: list[dict]) -> dict:
 
 
 def sweep(control: Control, out: Path, rates: list[float], kinds: tuple[str, ...], probe_s: float,
-          quiet: tuple[float | None, float] = (None, 0.0)) -> list[dict]:
+          quiet: tuple[float | None, float] = (None, 0.0), graph_probe: str = "hand") -> list[dict]:
     rows = []
     for rate in rates:
         for kind in kinds:
-            r = run_hand(control, kind, out, rate_hz=rate, launch=False, cpu_s=0.0, probe_s=probe_s, quiet=quiet)
+            r = run_hand(control, kind, out, rate_hz=rate, launch=False, cpu_s=0.0, probe_s=probe_s, quiet=quiet,
+                         graph_probe=graph_probe)
             f = r["flow"]
             row = {"kind": kind, "rate_hz": rate, **f, "stale": r["stale"],
                    "sensor_stale_aborts": r["sensor_stale_aborts"],
@@ -1080,6 +1102,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quiet-wait", type=float, default=600.0, help="... for at most this many seconds")
     parser.add_argument("--plots", type=Path, help="write perf_sweep.png and perf_latency_cdf.png here")
     parser.add_argument("--keep-bags", action="store_true", help="keep the probe's bags under --out")
+    parser.add_argument("--graph-probe", choices=("hand", "finger"), default="hand",
+                        help="what the probe records from the graph: its per-hand topics (what its own nodes "
+                             "take) or the 15 per-finger ones (a recorder of the README's list beside it)")
     parser.add_argument("--markdown", action="store_true",
                         help="only print the tables of an earlier run's --out/results.json (no ROS needed)")
     args = parser.parse_args(argv)
@@ -1106,7 +1131,8 @@ def main(argv: list[str] | None = None) -> int:
                                  "loadavg_at_start": [round(x, 2) for x in os.getloadavg()],
                                  "ros_domain_id": os.environ.get("ROS_DOMAIN_ID"),
                                  "rmw": os.environ.get("RMW_IMPLEMENTATION")},
-                     "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": " ".join(sys.argv)}
+                     "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": " ".join(sys.argv),
+                     "graph_probe": args.graph_probe}
     control = Control()
     try:
         if "hand" in parts:
@@ -1115,12 +1141,13 @@ def main(argv: list[str] | None = None) -> int:
                 for kind in ("real", "relay"):
                     print(f"hand 100 Hz {kind}, run {i + 1}/{args.repeat}", flush=True)
                     results["hand"].append(run_hand(control, kind, args.out, grasps=args.grasps, cpu_s=args.cpu_s,
-                                                    quiet=quiet))
+                                                    quiet=quiet, graph_probe=args.graph_probe))
             results["hand_summary"] = summarise_hand(results["hand"])
             print(json.dumps(results["hand_summary"], indent=1), flush=True)
         if "sweep" in parts and rates:
             print("scan-rate sweep", flush=True)
-            results["sweep"] = sweep(control, args.out, rates, ("real", "relay"), args.sweep_s, quiet)
+            results["sweep"] = sweep(control, args.out, rates, ("real", "relay"), args.sweep_s, quiet,
+                                     args.graph_probe)
             results["sweep_max_sustained_hz"] = {k: max_sustained(results["sweep"], k) for k in ("real", "relay")}
             print(results["sweep_max_sustained_hz"], flush=True)
         if "glove" in parts:
