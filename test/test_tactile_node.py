@@ -13,7 +13,7 @@ from ros_harness import require_ros, stamp_ns
 require_ros()
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from prisma_msgs.msg import TaxelArray  # noqa: E402
+from prisma_msgs.msg import HandTaxels, TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
@@ -45,10 +45,11 @@ def test_config_yaml_matches_declared_defaults():
 
 def test_sim_publishes_five_taxel_topics_with_pad_model_voltages(ros, node_cls):
     seen = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in FINGERS}
+    hands = ros.collect(HandTaxels, "/prisma/hand/taxels")
     ros.node(node_cls, params_files=[CONFIG], sim_time=True)
     start = ros.now_ns()
     ros.advance(1.99, step=0.01)  # scans at the start instant, then every 10 ms: 200
-    assert ros.spin_until(lambda: all(len(m) == 200 for m in seen.values()))
+    assert ros.spin_until(lambda: all(len(m) == 200 for m in seen.values()) and len(hands) == 200)
     # the same pad models and scripted contacts, driven with the stamps the node used
     reference = SimHubBackend(ScriptedContactSource(), FINGERS, seed=0)
     stamps = [stamp_ns(m) for m in seen["thumb"]]
@@ -61,6 +62,10 @@ def test_sim_publishes_five_taxel_topics_with_pad_model_voltages(ros, node_cls):
         counts = np.array([m.counts for m in msgs])
         np.testing.assert_array_equal(counts, [e[finger] for e in expected])
         np.testing.assert_allclose(np.array([m.voltages for m in msgs]), counts * 3.3 / 4096, rtol=1e-6)
+    # the same samples once per scan on the per-hand topic, stamped with the scan
+    assert [stamp_ns(h) for h in hands] == stamps
+    for k, hand in enumerate(hands):
+        assert list(hand.samples) == [seen[f][k] for f in FINGERS]
     # the scripted cycle pressed the thumb's centre in the second second
     pressed = np.array(seen["thumb"][-1].voltages)
     assert pressed[4] > np.array(seen["thumb"][0].voltages)[4] + 0.5
@@ -139,6 +144,7 @@ def test_serial_backend_publishes_what_the_hub_streams(ros, node_cls, tmp_path):
     port.open()
     try:
         index = ros.collect(TaxelArray, "/prisma/index/taxels")
+        hands = ros.collect(HandTaxels, "/prisma/hand/taxels")
         node = ros.node(node_cls, params={"backend": "serial", "port": str(port.link_path),
                                           "fingers": ["index", "thumb"], "finger_channels": [0, 1]})
         assert ros.spin_until(lambda: node.hub.backend.counters().get("opens", 0) == 1)
@@ -147,6 +153,11 @@ def test_serial_backend_publishes_what_the_hub_streams(ros, node_cls, tmp_path):
         port.write(b"junk" + b"".join(encode_frame(i, c) for i, c in enumerate(sent)))
         assert ros.spin_until(lambda: len(index) == 10)
         assert [m.counts.tolist() for m in index] == [c[1].tolist() for c in sent]
+        # the frames drained together travel together: every sample once, in the order read
+        assert ros.spin_until(lambda: sum(len(h.samples) for h in hands) == 20)
+        samples = [s for h in hands for s in h.samples]
+        assert [s for s in samples if s.finger == "index"] == list(index)
+        assert len(hands) < 10 and all(stamp_ns(h) == stamp_ns(h.samples[-1]) for h in hands)
     finally:
         port.close()
 
