@@ -28,6 +28,7 @@ from rclpy.node import Node  # noqa: E402
 from rosidl_runtime_py.utilities import get_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
 from prisma_manipulation.hand_world import OBJECTS, HandWorld, released  # noqa: E402
 from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S  # noqa: E402
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
@@ -35,7 +36,7 @@ from prisma_manipulation.motor_bus import MOTOR_NAMES  # noqa: E402
 from prisma_manipulation.motor_driver_node import MotorDriverNode  # noqa: E402
 from prisma_tactile_driver.driver_config import ParameterError  # noqa: E402
 from prisma_tactile_driver.pad_model import PadModel  # noqa: E402
-from prisma_tactile_driver.ros_conversions import make_header, taxel_frame_to_msg  # noqa: E402
+from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, make_header, taxel_frame_to_msg  # noqa: E402
 from prisma_tactile_driver.taxels import FINGERS, TaxelFrame  # noqa: E402
 
 MS = 1_000_000
@@ -94,10 +95,9 @@ class SensorSide(Node):
                                               wrench=Wrench(force=force, torque=Vector3())))
                 self.wrenches[f].publish(wrenches[-1])
         if self.per_hand and taxels:
-            self.hand_taxels.publish(HandTaxels(header=make_header(get_message, stamp, ""), samples=taxels))
+            self.hand_taxels.publish(hand_taxels_to_msg(get_message, taxels))
         if self.per_hand and wrenches:
-            self.hand_wrench.publish(HandWrench(header=make_header(get_message, stamp, ""),
-                                                fingers=list(FINGERS), wrenches=wrenches))
+            self.hand_wrench.publish(hand_wrench_to_msg(get_message, FINGERS, wrenches))
         self.published += 1
 
 
@@ -281,8 +281,8 @@ def test_per_hand_streams_give_each_sample_once_and_the_same_grasp(ros, hand):
         stamps = [stamp_ns(c) for c in seen[f]]
         assert len(stamps) > 100 and np.all(np.diff(stamps) == 10 * MS), f  # one ContactState per sample
     # the same ContactStates, one HandContact per scan with every finger
-    assert all(list(c.finger for c in m.contacts) == list(FINGERS) for m in together)
-    by_stamp = {stamp_ns(m): m for m in together}
+    assert all([c.finger for c in scan.contacts] == list(FINGERS) for scan in together)
+    by_stamp = {stamp_ns(scan): scan for scan in together}
     thumb = [c for c in seen["thumb"] if stamp_ns(c) in by_stamp]
     assert len(thumb) > 100 and all(by_stamp[stamp_ns(c)].contacts[0] == c for c in thumb)
 

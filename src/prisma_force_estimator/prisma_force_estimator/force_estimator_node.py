@@ -2,8 +2,9 @@
 
 Input: /prisma/hand/taxels once the tactile driver publishes it, the per-finger topics until then
 (a bag of only those replays as well). Output: every wrench on its finger's topic and the wrenches
-of each scan together on /prisma/hand/wrench. Each WrenchStamped carries its input's header stamp. Samples with non-finite voltages get no
-wrench; they are counted per finger on /diagnostics (as are received and estimated samples).
+of each scan together on /prisma/hand/wrench. Each WrenchStamped carries its input's header stamp.
+Samples with non-finite voltages get no wrench; they are counted per finger on /diagnostics (as are
+received and estimated samples).
 A missing or mismatched model bundle stops the node at start with the path and the problem.
 
     ros2 run prisma_force_estimator force_estimator --ros-args --params-file config/force_estimator.yaml

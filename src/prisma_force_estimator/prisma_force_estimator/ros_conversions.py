@@ -11,7 +11,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp
+from prisma_tactile_driver.ros_conversions import make_header, newest_header, ns_from_stamp
 
 from .wrench import WrenchSample
 
@@ -42,7 +42,5 @@ def hand_wrench_to_msg(types: MessageLookup, fingers: Sequence[str], wrenches: S
     """prisma_msgs/HandWrench: wrenches[i] (WrenchStamped) of fingers[i], stamped with the newest."""
     if len(fingers) != len(wrenches):
         raise ValueError(f"{len(fingers)} fingers for {len(wrenches)} wrenches")
-    newest = max((ns_from_stamp(w.header.stamp) for w in wrenches), default=0)
-    return types("prisma_msgs/msg/HandWrench")(header=make_header(types, newest, ""),
+    return types("prisma_msgs/msg/HandWrench")(header=newest_header(types, wrenches),
                                                fingers=list(fingers), wrenches=list(wrenches))
-

@@ -17,7 +17,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from prisma_tactile_driver.ros_conversions import make_header, ns_from_stamp, sequence_field
+from prisma_tactile_driver.ros_conversions import make_header, newest_header, ns_from_stamp, sequence_field
 
 from .contact_monitor import EDGE_NAMES, ContactEvaluation
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
@@ -46,8 +46,7 @@ def contact_state_to_msg(types: Types, e: ContactEvaluation, frame_id: str) -> A
 
 def hand_contact_to_msg(types: Types, contacts: list[Any]) -> Any:
     """prisma_msgs/HandContact holding `contacts` (ContactState messages), stamped with the newest."""
-    newest = max((ns_from_stamp(c.header.stamp) for c in contacts), default=0)
-    return types("prisma_msgs/msg/HandContact")(header=make_header(types, newest, ""), contacts=list(contacts))
+    return types("prisma_msgs/msg/HandContact")(header=newest_header(types, contacts), contacts=list(contacts))
 
 
 def contact_state_from_msg(msg: Any) -> ContactEvaluation:

@@ -36,6 +36,12 @@ def make_header(types: Types, stamp_ns: int, frame_id: str) -> Any:
     return types("std_msgs/msg/Header")(stamp=stamp_from_ns(types, stamp_ns), frame_id=frame_id)
 
 
+def newest_header(types: Types, messages: Iterable[Any], frame_id: str = "") -> Any:
+    """The header of a per-hand message: the newest stamp among the stamped `messages` it carries
+    (0 when it carries none)."""
+    return make_header(types, max((ns_from_stamp(m.header.stamp) for m in messages), default=0), frame_id)
+
+
 # rosidl_generator_py's typecodes for numeric sequences (its SPECIAL_NESTED_BASIC_TYPES).
 _TYPECODES = {np.dtype(t): code for t, code in (
     (np.float32, "f"), (np.float64, "d"), (np.int8, "b"), (np.uint8, "B"), (np.int16, "h"),
@@ -87,8 +93,7 @@ def taxel_frame_from_msg(msg: Any) -> TaxelFrame:
 def hand_taxels_to_msg(types: Types, samples: list[Any], frame_id: str = "") -> Any:
     """prisma_msgs/HandTaxels holding `samples` (TaxelArray messages, in the order read), stamped
     with the newest sample's stamp."""
-    newest = max((ns_from_stamp(m.header.stamp) for m in samples), default=0)
-    return types("prisma_msgs/msg/HandTaxels")(header=make_header(types, newest, frame_id), samples=list(samples))
+    return types("prisma_msgs/msg/HandTaxels")(header=newest_header(types, samples, frame_id), samples=list(samples))
 
 
 def hand_taxels_samples(msg: Any) -> list[tuple[str, Any]]:
