@@ -8,8 +8,10 @@ toward Goal Position at Profile Velocity (position modes) into Present Position,
 writes while torque is on (Access error), as the firmware does.
 
 Faults for tests: `inject_hardware_error(id, bit)` sets Hardware Error Status and the alert bit of
-every later status packet; `drop_status(id, n)` processes the next n instructions to that ID but sends
-no status packet (the host sees a timeout).
+every later status packet (`clear_hardware_error` is the power cycle that clears it);
+`drop_status(id, n)` processes the next n instructions to that ID but sends no status packet (the
+host sees a timeout); `set_silent(id, True)` takes the servo off the bus (a cut cable): it neither
+acts on nor answers anything until set back.
 
 Time comes from `clock()` (seconds); tests pass a manual clock so motion is deterministic.
 """
@@ -62,6 +64,7 @@ class EmulatedServo:
     position_ticks: float = 0.0  # continuous position; Present Position is its rounding
     load_current_units: int = 0  # added to Present Current while torque is on
     drop_status: int = 0
+    silent: bool = False  # processes nothing and answers nothing: a servo off the bus
     instructions: int = 0
 
     def __post_init__(self) -> None:
@@ -161,13 +164,18 @@ class DynamixelEmulator:
         return self
 
     def close(self) -> None:
+        """Stop serving and close the pty; safe to call twice, or without start()."""
         self._stop.set()
-        self._thread.join(timeout=2.0)
+        if self._thread.ident is not None:
+            self._thread.join(timeout=2.0)
         for fd in (self._master, self._slave):
+            if fd < 0:
+                continue  # closed before: the number may be another file's by now
             try:
                 os.close(fd)
             except OSError:
                 pass
+        self._master = self._slave = -1
 
     def __enter__(self) -> "DynamixelEmulator":
         return self.start()
@@ -181,6 +189,20 @@ class DynamixelEmulator:
             servo = self.servos[servo_id]
             servo.write_int(ct.ADDR_HARDWARE_ERROR_STATUS, 1, servo.hardware_error | (1 << bit))
 
+    def clear_hardware_error(self, servo_id: int) -> None:
+        with self._lock:
+            self.servos[servo_id].write_int(ct.ADDR_HARDWARE_ERROR_STATUS, 1, 0)
+
+    def set_silent(self, servo_id: int, silent: bool) -> None:
+        with self._lock:
+            self.servos[servo_id].silent = silent
+
+    def present(self) -> dict[int, tuple[float, bool, int]]:
+        """(position ticks, torque on, hardware error status) of each servo, integrated to now."""
+        with self._lock:
+            self._integrate()
+            return {i: (s.position_ticks, s.torque_on, s.hardware_error) for i, s in self.servos.items()}
+
     def drop_status(self, servo_id: int, count: int = 1) -> None:
         with self._lock:
             self.servos[servo_id].drop_status += count
@@ -193,6 +215,15 @@ class DynamixelEmulator:
     def set_position_ticks(self, servo_id: int, ticks: float) -> None:
         with self._lock:
             self.servos[servo_id].set_position_ticks(ticks)
+
+    def place(self, servo_id: int, ticks: int) -> None:
+        """The servo moved there by hand and told to stay: present and goal position at `ticks`,
+        goal velocity 0."""
+        with self._lock:
+            servo = self.servos[servo_id]
+            servo.write_int(ct.ADDR_GOAL_VELOCITY, 4, 0)
+            servo.write_int(ct.ADDR_GOAL_POSITION, 4, ticks)
+            servo.set_position_ticks(ticks)
 
     def sync(self, timeout_s: float = 1.0) -> None:
         """Block until every byte the host has written so far is processed. Broadcast writes have
@@ -258,7 +289,7 @@ class DynamixelEmulator:
             self._sync_write(p)
             return b""  # broadcast: no status
         servo = self.servos.get(packet.packet_id)
-        if servo is None:
+        if servo is None or servo.silent:
             return b""  # nobody on the bus with that ID
         servo.instructions += 1
         if inst == INST_PING:
@@ -300,7 +331,7 @@ class DynamixelEmulator:
         out = bytearray()
         for servo_id in p[4:]:
             servo = self.servos.get(servo_id)
-            if servo is None:
+            if servo is None or servo.silent:
                 continue
             servo.instructions += 1
             out += self._status(servo, 0, bytes(servo.table[address : address + length]))
@@ -311,6 +342,6 @@ class DynamixelEmulator:
         body = p[4:]
         for offset in range(0, len(body) - length, length + 1):
             servo = self.servos.get(body[offset])
-            if servo is not None:
+            if servo is not None and not servo.silent:
                 servo.instructions += 1
                 self._write(servo, address, body[offset + 1 : offset + 1 + length])

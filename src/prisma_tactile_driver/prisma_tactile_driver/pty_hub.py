@@ -55,12 +55,43 @@ def check_link_path(path: str | Path) -> None:
                           f"pseudo-terminal) is replaced there: choose another link path")
 
 
+class PtyLink:
+    """A symlink at a path the user names, pointing at a pseudo-terminal this process opened.
+
+    `point_at` goes through a temporary link and a rename, so a reader never sees the path missing
+    or half made; it replaces only an emulator's link (`check_link_path`). `remove` deletes the link
+    only while it still points at this process's pty (someone may have replaced it meanwhile)."""
+
+    def __init__(self, link_path: str | Path) -> None:
+        self.link_path = Path(link_path)
+        self.target: str | None = None
+
+    def point_at(self, target: str) -> None:
+        check_link_path(self.link_path)
+        tmp = self.link_path.with_name(f"{self.link_path.name}.new-{os.getpid()}")
+        if is_pty_link(tmp):
+            tmp.unlink()  # this pid's own leftover
+        os.symlink(target, tmp)  # FileExistsError if anything else is there
+        try:
+            check_link_path(self.link_path)  # again, just before the rename
+            os.replace(tmp, self.link_path)
+        except BaseException:
+            tmp.unlink()
+            raise
+        self.target = target
+
+    def remove(self) -> None:
+        if self.target is not None and self.link_path.is_symlink() and os.readlink(self.link_path) == self.target:
+            self.link_path.unlink()
+        self.target = None
+
+
 class PtyHubPort:
     def __init__(self, link_path: str | Path) -> None:
         self.link_path = Path(link_path)
+        self._link = PtyLink(link_path)
         self._master: int | None = None
         self._slave: int | None = None
-        self._target: str | None = None  # the pty the link points at while this port owns it
 
     @property
     def is_open(self) -> bool:
@@ -72,24 +103,14 @@ class PtyHubPort:
             raise RuntimeError("pty already open")
         check_link_path(self.link_path)
         master, slave = os.openpty()
-        tmp = self.link_path.with_name(f"{self.link_path.name}.new-{os.getpid()}")
         try:
             tty.setraw(slave)  # the driver reopens with pyserial, which also sets raw mode
-            target = os.ttyname(slave)
-            if is_pty_link(tmp):
-                tmp.unlink()  # this pid's own leftover
-            os.symlink(target, tmp)  # FileExistsError if anything else is there
-            try:
-                check_link_path(self.link_path)  # again, just before the rename
-                os.replace(tmp, self.link_path)
-            except BaseException:
-                tmp.unlink()
-                raise
+            self._link.point_at(os.ttyname(slave))
         except BaseException:
             os.close(master)
             os.close(slave)
             raise
-        self._master, self._slave, self._target = master, slave, target
+        self._master, self._slave = master, slave
         return str(self.link_path)
 
     def write(self, data: bytes) -> None:
@@ -112,13 +133,8 @@ class PtyHubPort:
         return True
 
     def hang_up(self) -> None:
-        """Close both ends and remove the link: readers get EIO, reopening fails until open().
-
-        The link is removed only while it still points at this port's pty (someone may have
-        replaced it meanwhile)."""
-        if self._target is not None and self.link_path.is_symlink() and os.readlink(self.link_path) == self._target:
-            self.link_path.unlink()
-        self._target = None
+        """Close both ends and remove the link: readers get EIO, reopening fails until open()."""
+        self._link.remove()
         for fd in (self._master, self._slave):
             if fd is not None:
                 os.close(fd)
