@@ -191,6 +191,30 @@ def test_hardware_error_aborts_the_goal_naming_motor_and_bit_and_turns_its_torqu
     assert runner.validate(MoveGoal(["fingers"], "velocity", [5.0])) is None
 
 
+def test_a_cleared_hardware_error_brings_the_motor_back_holding_still_with_torque_on(rig):
+    """After the servo's power cycle or reboot clears the error, the runner takes the motor back as
+    the bus opened it (velocity mode, goal 0, torque on), and goals on it are accepted again."""
+    emu, bus, clock = rig
+    runner = MoveGoalRunner(bus)
+    assert runner.start(MoveGoal(["fingers"], "velocity", [40.0], timeout_s=5.0), 0) is None
+    emu.inject_hardware_error(1, 5)
+    _, result = runner.tick(bus.read_state(), 10_000_000)
+    assert "bit 5 overload" in result.reason
+    emu.sync()
+    assert not emu.servos[1].torque_on
+    emu.clear_hardware_error(1)
+    runner.tick(bus.read_state(), 20_000_000)
+    emu.sync()
+    servo = emu.servos[1]
+    assert servo.torque_on and servo.table[ct.ADDR_OPERATING_MODE] == ct.MODE_VELOCITY
+    assert servo.read_int(ct.ADDR_GOAL_VELOCITY, 4) == 0
+    assert runner.faults == {} and runner.validate(MoveGoal(["fingers"], "velocity", [5.0])) is None
+    position = servo.position_ticks
+    clock.advance(0.5)
+    emu.update()
+    assert servo.position_ticks == position  # holding still
+
+
 def test_dropped_status_packet_is_retried_and_counted(rig):
     emu, bus, _ = rig
     emu.drop_status(2, 1)

@@ -155,6 +155,15 @@ class DynamixelBus:
     def torque_off(self, name: str) -> None:
         self._write1(self._config(name), ct.ADDR_TORQUE_ENABLE, 0)
 
+    def torque_on(self, name: str) -> None:
+        # a power-cycled servo forgets its RAM, so every step of open() again, not just the torque
+        config = self._config(name)
+        self._write1(config, ct.ADDR_TORQUE_ENABLE, 0)
+        self._write1(config, ct.ADDR_OPERATING_MODE, ct.MODE_VELOCITY)
+        self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
+        self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
+        self._modes[name] = ct.MODE_VELOCITY
+
     def hardware_error(self, name: str) -> int:
         """Hardware Error Status of one motor, read directly."""
         c = self._config(name)

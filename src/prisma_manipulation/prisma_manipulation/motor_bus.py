@@ -103,6 +103,9 @@ class MotorBus(Protocol):
 
     def torque_off(self, name: str) -> None: ...
 
+    def torque_on(self, name: str) -> None:
+        """Velocity mode, goal 0, torque on: the motor as open() leaves it (after its error cleared)."""
+
 
 def check_velocity(config: MotorConfig, rpm: float) -> float:
     if not math.isfinite(rpm):

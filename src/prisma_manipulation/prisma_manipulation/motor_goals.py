@@ -231,7 +231,13 @@ class MoveGoalRunner:
                     self.fault_log.append(f"torque off {name} failed: {exc}")
                 reasons.append(reason)
             elif not state.hardware_error and name in self.faults:
-                del self.faults[name]  # cleared (reboot)
+                # cleared (power cycle or reboot): take the motor back as the bus opened it
+                try:
+                    self.bus.torque_on(name)
+                except BusError as exc:
+                    self.fault_log.append(f"torque on {name} after its error cleared failed: {exc}")
+                    continue  # still faulted: tried again on the next state
+                del self.faults[name]
         return "; ".join(reasons) or None
 
     def _finish(self, success: bool, reason: str, stop: bool = True) -> MoveResult:

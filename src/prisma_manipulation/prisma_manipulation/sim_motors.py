@@ -170,7 +170,8 @@ class SimMotorBus:
         m.command_rad_s = 0.0
 
     def torque_on(self, name: str) -> None:
-        self._motor(name).torque_on = True
+        m = self._motor(name)
+        m.torque_on, m.mode, m.command_rad_s = True, "velocity", 0.0
 
     def _motor(self, name: str) -> _Motor:
         try:
