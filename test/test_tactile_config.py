@@ -1,9 +1,12 @@
 """tactile_driver parameter validation (the node applies it at start)."""
 import array
 
+import numpy as np
 import pytest
 
 from prisma_tactile_driver.driver_config import DriverConfig, ParameterError, make_backend
+from prisma_tactile_driver.i2c_emulator import five_finger_bus
+from prisma_tactile_driver.i2c_socket import I2CSocketServer, SocketSMBus
 from prisma_tactile_driver.sim_backend import SimHubBackend
 
 
@@ -28,8 +31,28 @@ def test_defaults_are_valid_and_arrays_become_lists():
     ({"reconnect_backoff_max": 0.01}, "must be >= reconnect_backoff_initial"),
     ({"frame_id_format": "{hand}_pad"}, "'frame_id_format'"),
     ({"contact_source": "glove"}, "expected one of scripted|hand_world"),
+    ({"i2c_socket": "i2c.sock"}, "'i2c_socket' = 'i2c.sock': the absolute path of the emulator's Unix socket"),
+    ({"i2c_socket": "/" + "s" * 107}, "a Unix socket path has at most 107 bytes, this one 108"),
 ])
 def test_bad_values_are_named(values, message):
     with pytest.raises(ParameterError) as info:
         DriverConfig.from_parameters(values)
     assert message in str(info.value)
+
+
+def test_i2c_socket_makes_the_i2c_backend_read_the_emulator_process(tmp_path):
+    path = tmp_path / "i2c.sock"
+    config = DriverConfig.from_parameters({"backend": "i2c", "i2c_socket": str(path), "fingers": ["ring", "thumb"],
+                                           "finger_channels": [3, 0]})
+    backend = make_backend(config)
+    try:
+        assert backend.bus_name == str(path)
+        assert backend.link_status().error == f"cannot open I2C bus {path}: [Errno 2] No such file or directory"
+        values = {ch: np.arange(9) * 300 + ch for ch in range(5)}
+        with I2CSocketServer(five_finger_bus(values), path):
+            [reading] = backend.read(1_000_000_000)  # the bus is tried again once a second
+            assert isinstance(backend._bus, SocketSMBus)
+            assert {f: c.tolist() for f, c in reading.counts.items()} == {"ring": values[3].tolist(),
+                                                                        "thumb": values[0].tolist()}
+    finally:
+        backend.close()

@@ -138,6 +138,30 @@ def test_i2c_nacking_finger_goes_stale_while_four_keep_publishing(ros, node_cls,
     assert counters["ring_errors"] == str(3 * 101) and counters["ring_reads"] == "0"
 
 
+def test_i2c_socket_reads_the_emulator_process_bus_once_it_serves(ros, node_cls, tmp_path):
+    from prisma_tactile_driver.i2c_emulator import five_finger_bus
+    from prisma_tactile_driver.i2c_socket import I2CSocketServer
+    path = tmp_path / "i2c.sock"
+    values = {ch: np.arange(9) * 300 + 7 * ch for ch in range(5)}
+    ros.capture_logs()
+    seen = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in FINGERS}
+    diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+    ros.node(node_cls, params={"backend": "i2c", "i2c_socket": str(path)}, sim_time=True)
+    reason = f"cannot open I2C bus {path}: [Errno 2] No such file or directory"
+    assert ros.wait_for_log(severity="error", contains=reason) == [reason]
+    assert ros.spin_until(lambda: len(diagnostics) == 1)
+    status = diag_by_name(diagnostics[0])["tactile_driver: hub"]
+    assert status.level == DiagnosticStatus.ERROR and status.message.endswith(reason)
+    assert status.hardware_id == f"i2c-socket:{path}/0x70"
+    with I2CSocketServer(five_finger_bus(values), path):  # the emulator process comes up
+        ros.advance(2.0, step=0.01)  # the bus is tried again 1 s after the failed open
+        assert ros.spin_until(lambda: len(seen["little"]) == 101 and len(diagnostics) == 3)
+        for ch, finger in enumerate(FINGERS):
+            np.testing.assert_array_equal(seen[finger][0].counts, values[ch])
+        assert diag_by_name(diagnostics[2])["tactile_driver: hub"].level == DiagnosticStatus.OK
+    assert ros.logs(severity="error") == [reason]
+
+
 def test_serial_backend_publishes_what_the_hub_streams(ros, node_cls, tmp_path):
     from prisma_tactile_driver.pty_hub import PtyHubPort
     port = PtyHubPort(tmp_path / "ttyHUB")

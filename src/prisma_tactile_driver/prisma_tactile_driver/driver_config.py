@@ -2,6 +2,7 @@
 parameter and value, and the backend factory. The node only copies ROS parameters in."""
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -50,6 +51,7 @@ class DriverConfig:
     reconnect_backoff_max: float = 2.0
     # direct I2C
     i2c_bus: int = 1  # /dev/i2c-<n>
+    i2c_socket: str = ""  # the emulated bus of prisma-hand-emulator (a Unix socket); "" = /dev/i2c-<i2c_bus>
     mux_address: int = 0x70  # TCA9548A
     adc_address: int = 0x35  # MAX11617
     finger_channels: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])  # per finger, in order
@@ -91,6 +93,8 @@ class DriverConfig:
             raise ParameterError("baud", self.baud, "must be > 0")
         if self.i2c_retries < 0:
             raise ParameterError("i2c_retries", self.i2c_retries, "must be >= 0")
+        if self.i2c_socket:
+            self._check_i2c_socket()
         for name in ("mux_address", "adc_address"):
             if not 0x08 <= getattr(self, name) <= 0x77:
                 raise ParameterError(name, getattr(self, name), "a 7-bit I2C address 0x08..0x77")
@@ -108,6 +112,17 @@ class DriverConfig:
                                  f"expected one of {'|'.join(CONTACT_SOURCES)}")
         return self
 
+    def _check_i2c_socket(self) -> None:
+        from .i2c_socket import MAX_PATH_BYTES
+        path = self.i2c_socket
+        if not isinstance(path, str) or "\0" in path or not path.startswith("/"):
+            raise ParameterError("i2c_socket", path, "the absolute path of the emulator's Unix socket (the node "
+                                                     "may start in any directory), or empty for /dev/i2c-<i2c_bus>")
+        size = len(os.fsencode(path))
+        if size > MAX_PATH_BYTES:
+            raise ParameterError("i2c_socket", path, f"a Unix socket path has at most {MAX_PATH_BYTES} bytes, "
+                                                     f"this one {size}: choose a shorter path")
+
     def frame_id(self, finger: str) -> str:
         return self.frame_id_format.format(finger=finger)
 
@@ -121,8 +136,12 @@ def make_backend(config: DriverConfig, contact_source: ContactSource | None = No
                                 backoff_max_s=config.reconnect_backoff_max)
     if config.backend == "i2c":
         from .i2c_backend import I2CHubBackend
-        return I2CHubBackend(config.i2c_bus, dict(zip(config.fingers, config.finger_channels)),
+        bus, factory = config.i2c_bus, None
+        if config.i2c_socket:
+            from .i2c_socket import SocketSMBus
+            bus, factory = config.i2c_socket, SocketSMBus
+        return I2CHubBackend(bus, dict(zip(config.fingers, config.finger_channels)),
                              mux_address=config.mux_address, adc_address=config.adc_address,
-                             retries=config.i2c_retries)
+                             retries=config.i2c_retries, bus_factory=factory)
     from .sim_backend import SimHubBackend
     return SimHubBackend(contact_source or ScriptedContactSource(), config.fingers, seed=config.sim_seed)

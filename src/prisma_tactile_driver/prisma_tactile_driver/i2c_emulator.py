@@ -2,8 +2,10 @@
 
 `EmulatedI2CBus.ioctl` accepts exactly what smbus2's `SMBus.i2c_rdwr` hands the kernel
 (I2C_RDWR with an i2c_rdwr_ioctl_data array of i2c_msg), so the driver's real smbus2 code runs
-unchanged; `emulated_smbus(bus)` returns an `SMBus` wired to it. Like the Linux i2c-dev driver,
-an address nobody acknowledges aborts the transfer with OSError(EREMOTEIO).
+unchanged; `EmulatedSMBus(bus)` is an `SMBus` wired to it (`i2c_socket.SocketSMBus` reaches one
+in another process). Like the Linux i2c-dev driver, an address nobody acknowledges aborts the
+transfer with OSError(EREMOTEIO), and more than 42 messages or one longer than 8192 bytes are
+refused with OSError(EINVAL).
 
 Device behaviour modelled from the datasheets:
 - TCA9548A (0x70): one control byte, bit n enables downstream channel n; a new value takes effect
@@ -16,8 +18,10 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import itertools
 import os
 from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 import smbus2
@@ -25,6 +29,11 @@ from smbus2.smbus2 import I2C_M_RD, I2C_RDWR
 
 MUX_ADDRESS = 0x70
 ADC_ADDRESS = 0x35
+I2C_RDWR_MAX_MSGS = 42  # the kernel's I2C_RDWR_IOCTL_MAX_MSGS
+I2C_MSG_MAX_LEN = 8192  # i2c-dev refuses longer messages
+
+# (address, is_read, length, write data) of each message of one I2C_RDWR transaction
+Messages = list[tuple[int, bool, int, bytes]]
 
 
 def _nack(address: int) -> OSError:
@@ -90,7 +99,7 @@ class EmulatedI2CBus:
             answering.append(adc)
         return answering
 
-    def transfer(self, messages: list[tuple[int, bool, int, bytes]]) -> list[bytes]:
+    def transfer(self, messages: Messages) -> list[bytes]:
         """messages: (address, is_read, length, data). Returns the data of each read message."""
         self.transfers += 1
         pending_mux = None
@@ -117,30 +126,65 @@ class EmulatedI2CBus:
             self.mux_control = pending_mux  # the TCA9548A latches its channel at STOP
         return results
 
-    def ioctl(self, fd: int, request: int, arg) -> int:
+    def ioctl(self, fd: int, request: int, arg: Any) -> int:
         """Stands in for fcntl.ioctl on the i2c-dev file descriptor."""
-        if request != I2C_RDWR:
-            raise OSError(errno.ENOTTY, f"emulated bus only handles I2C_RDWR, got 0x{request:X}")
-        msgs = [arg.msgs[i] for i in range(arg.nmsgs)]
-        decoded = [(m.addr, bool(m.flags & I2C_M_RD), m.len,
-                    b"" if m.flags & I2C_M_RD else ctypes.string_at(m.buf, m.len)) for m in msgs]
-        reads = iter(self.transfer(decoded))
-        for m in msgs:
-            if m.flags & I2C_M_RD:
-                ctypes.memmove(m.buf, next(reads), m.len)
-        return 0
+        return i2c_rdwr_ioctl(self.transfer, request, arg)
 
 
-# Emulated buses get negative pseudo file descriptors; smbus2's module-level `ioctl` is routed
-# through _routing_ioctl, which hands those to the emulator and everything else to fcntl.ioctl.
-_EMULATED: dict[int, EmulatedI2CBus] = {}
+def check_messages(messages: Messages) -> None:
+    """OSError(EINVAL) for a transaction i2c-dev refuses before it reaches the bus."""
+    if not 1 <= len(messages) <= I2C_RDWR_MAX_MSGS:
+        raise OSError(errno.EINVAL, f"{os.strerror(errno.EINVAL)} ({len(messages)} messages in one I2C_RDWR, "
+                                    f"i2c-dev takes 1..{I2C_RDWR_MAX_MSGS})")
+    for address, _is_read, length, _data in messages:
+        if length > I2C_MSG_MAX_LEN:
+            raise OSError(errno.EINVAL, f"{os.strerror(errno.EINVAL)} ({length}-byte message to 0x{address:02X}, "
+                                        f"i2c-dev takes at most {I2C_MSG_MAX_LEN})")
+
+
+def i2c_rdwr_ioctl(transfer: Callable[[Messages], list[bytes]], request: int, arg: Any) -> int:
+    """The I2C_RDWR ioctl on top of `transfer` (`EmulatedI2CBus.transfer` or a remote one): decodes
+    smbus2's i2c_rdwr_ioctl_data and copies the data read back into its i2c_msg buffers."""
+    if request != I2C_RDWR:
+        raise OSError(errno.ENOTTY, f"emulated bus only handles I2C_RDWR, got 0x{request:X}")
+    msgs = [arg.msgs[i] for i in range(arg.nmsgs)]
+    decoded = [(m.addr, bool(m.flags & I2C_M_RD), m.len,
+                b"" if m.flags & I2C_M_RD else ctypes.string_at(m.buf, m.len)) for m in msgs]
+    check_messages(decoded)
+    reads = iter(transfer(decoded))
+    for m in msgs:
+        if m.flags & I2C_M_RD:
+            ctypes.memmove(m.buf, next(reads), m.len)
+    return 0
+
+
+# Emulated buses get negative pseudo file descriptors, never one the OS hands out and never
+# reused while the process lives (a closed bus's number must not reach a newer one); smbus2's
+# module-level `ioctl` is routed through _routing_ioctl, which hands those to their handler and
+# everything else to fcntl.ioctl.
+IoctlHandler = Callable[[int, int, Any], int]  # (fd, request, arg) -> result, like fcntl.ioctl
+_ROUTES: dict[int, IoctlHandler] = {}
+_pseudo_fds = itertools.count(-1, -1)
 _real_ioctl = smbus2.smbus2.ioctl
 
 
 def _routing_ioctl(fd, request, arg=0, *rest):
-    if isinstance(fd, int) and fd in _EMULATED:
-        return _EMULATED[fd].ioctl(fd, request, arg)
+    handler = _ROUTES.get(fd) if isinstance(fd, int) else None
+    if handler is not None:
+        return handler(fd, request, arg)
     return _real_ioctl(fd, request, arg, *rest)
+
+
+def route_ioctl(handler: IoctlHandler) -> int:
+    """A pseudo file descriptor for an SMBus whose ioctls `handler` serves instead of the kernel."""
+    smbus2.smbus2.ioctl = _routing_ioctl
+    fd = next(_pseudo_fds)
+    _ROUTES[fd] = handler
+    return fd
+
+
+def unroute_ioctl(fd: int | None) -> None:
+    _ROUTES.pop(fd, None)
 
 
 class EmulatedSMBus(smbus2.SMBus):
@@ -149,13 +193,11 @@ class EmulatedSMBus(smbus2.SMBus):
 
     def __init__(self, bus: EmulatedI2CBus) -> None:
         super().__init__(None)
-        smbus2.smbus2.ioctl = _routing_ioctl
         self.emulated = bus
-        self.fd = -1 - len(_EMULATED)
-        _EMULATED[self.fd] = bus
+        self.fd = route_ioctl(bus.ioctl)
 
     def close(self) -> None:
-        _EMULATED.pop(self.fd, None)
+        unroute_ioctl(self.fd)  # SMBus.close would os.close() the pseudo descriptor
         self.fd = None
 
 

@@ -61,7 +61,8 @@ class TactileDriverNode(Node):
         if cfg.backend == "serial":
             return f"{cfg.port}@{cfg.baud}"
         if cfg.backend == "i2c":
-            return f"i2c-{cfg.i2c_bus}/0x{cfg.mux_address:02x}"
+            bus = f"i2c-socket:{cfg.i2c_socket}" if cfg.i2c_socket else f"i2c-{cfg.i2c_bus}"
+            return f"{bus}/0x{cfg.mux_address:02x}"
         return f"sim/{cfg.contact_source}"
 
     def _now_ns(self) -> int:
