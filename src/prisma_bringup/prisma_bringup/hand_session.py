@@ -92,12 +92,11 @@ class HandScenarioSpec:
     name: str
     action: str  # "grasp" | "manipulate": the goal the scenario stands for
     goal: dict  # that goal's fields (the controller runs exactly these settings)
-    make: Callable[[], Scenario]
+    world: str  # the prisma_manipulation scenario it runs: its world (scenario_world) and controller
     description: str
 
-
-def _renamed(name: str, scenario: Scenario) -> Scenario:
-    return replace(scenario, name=name)
+    def make(self) -> Scenario:
+        return replace(build(self.world), name=self.name)
 
 
 HAND_SCENARIOS: dict[str, HandScenarioSpec] = {
@@ -105,37 +104,37 @@ HAND_SCENARIOS: dict[str, HandScenarioSpec] = {
         HandScenarioSpec(
             "pinch_grasp", "grasp",
             {"grasp": "pinch", "finger_force": 0.8, "thumb_force": 1.0, "speed_rpm": 60.0, "timeout": 10.0},
-            lambda: _renamed("pinch_grasp", build("grasp")),
+            "grasp",
             "foam ball on a stand; fingers close at 60 rpm to 0.8 N on the index pad, then the thumb "
             "flexes at 60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
             "lateral_grasp", "grasp",
             {"grasp": "lateral", "finger_force": 0.8, "thumb_force": 1.0, "speed_rpm": 60.0, "timeout": 10.0},
-            lambda: _renamed("lateral_grasp", build("lateral")),
+            "lateral",
             "card against the side of the index: fingers close to the lateral fist, thumb flexes at "
             "60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
             "horizontal", "manipulate",
             {"motion": "horizontal", "speed_rpm": 20.0, "k": DEFAULT_K, "use_force": False, "timeout": 10.0},
-            lambda: build("horizontal"),
+            "horizontal",
             "ball pinched at 1 N; thumb rotates clockwise at 20 rpm until the right taxels 6-3-0 are "
             "lost, then back to the start angle"),
         HandScenarioSpec(
             "vertical", "manipulate",
             {"motion": "vertical", "speed_rpm": 10.0, "k": DEFAULT_K, "use_force": False, "timeout": 15.0},
-            lambda: build("vertical"),
+            "vertical",
             "ball pinched at 1 N; fingers close + thumb extends at 10 rpm until the top row 6-7-8 is "
             "lost, then the reverse until the bottom row 0-1-2 is lost"),
         HandScenarioSpec(
             "disturbance", "manipulate",
             {"motion": "hold", "speed_rpm": 20.0, "k": DEFAULT_K, "use_force": False, "timeout": 3.0},
-            lambda: build("disturbance"),
+            "disturbance",
             "ball pinched; at 0.5 s a push slips it 4 mm toward the thumb pad's right side; the thumb "
             "rotates at 20 rpm until two left taxels are back above v_t"),
         HandScenarioSpec(
             "combined", "manipulate",
             {"motion": "hold", "speed_rpm": 20.0, "k": DEFAULT_K, "use_force": True, "timeout": 3.0},
-            lambda: build("combined"),
+            "combined",
             "as disturbance, and the object slips to a narrower section: the estimated thumb force "
             "is restored to 1 N while the voltages steer the rotation"),
     )

@@ -51,35 +51,42 @@ def pinched_world(force_n: float = 1.0, disturbances=()) -> HandWorld:
     return world
 
 
+def scenario_world(name: str) -> HandWorld:
+    """The world a scenario starts from: its object, pose and disturbances (times from the start)."""
+    if name in ("horizontal", "vertical"):
+        return pinched_world()
+    if name == "disturbance":
+        return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0)])
+    if name == "combined":
+        return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
+    if name == "grasp":
+        # presented on a stand that does not let go: each phase's force stays what it reached
+        return HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
+    if name == "lateral":
+        # a card against the side of the index: the fingers close to the lateral fist by position
+        return HandWorld(obj="lateral_card")
+    raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
+
+
 def build(name: str, force_fn: ForceFn | None = None, k: float = DEFAULT_K, seed: int = 0,
           rate_hz: float = 100.0, speed_rpm: float | None = None) -> Scenario:
     limits = ControlLimits(default_motors())
+    world = scenario_world(name)
+    loop = _loop(world, k, force_fn, seed, rate_hz)
     if name == "horizontal":
-        loop = _loop(pinched_world(), k, force_fn, seed, rate_hz)
         return Scenario(name, loop, HorizontalController(limits, speed_rpm or 20.0), 10.0)
     if name == "vertical":
-        loop = _loop(pinched_world(), k, force_fn, seed, rate_hz)
         return Scenario(name, loop, VerticalController(limits, speed_rpm or 10.0), 15.0)
     if name == "disturbance":
-        world = pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0)])
-        loop = _loop(world, k, force_fn, seed, rate_hz)
         return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0), 4.0, 0.0)
     if name == "grasp":
-        # presented on a stand that does not let go: each phase's force stays what it reached
-        world = HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
-        loop = _loop(world, k, force_fn, seed, rate_hz)
         return Scenario(name, loop, GraspController(limits, "pinch", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
     if name == "lateral":
-        # a card against the side of the index: the fingers close to the lateral fist by position
-        loop = _loop(HandWorld(obj="lateral_card"), k, force_fn, seed, rate_hz)
         return Scenario(name, loop, GraspController(limits, "lateral", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
-    if name == "combined":
-        world = pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
-        loop = _loop(world, k, force_fn, seed, rate_hz)
-        keeper = ForceKeeper(target_n=1.0, band_n=0.15, speed_rpm=20.0)
-        return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0, force_keeper=keeper),
-                        4.0, 0.0)
-    raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
+    assert name == "combined"  # scenario_world refused every other name
+    keeper = ForceKeeper(target_n=1.0, band_n=0.15, speed_rpm=20.0)
+    return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0, force_keeper=keeper),
+                    4.0, 0.0)
 
 
 SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "lateral", "combined")
