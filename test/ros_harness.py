@@ -572,3 +572,26 @@ def assert_clean_shutdown(proc_info: Any, proc_output: Any) -> None:
 def stamp_rate_hz(msgs: Iterable[Any], start_ns: int, end_ns: int) -> float:
     """Messages per second whose header stamp lies in [start_ns, end_ns)."""
     return sum(start_ns <= stamp_ns(m) < end_ns for m in msgs) / ((end_ns - start_ns) * 1e-9)
+
+
+def diagnostic_values(diagnostics: Sequence[Any], name_end: str, since_ns: int = 0) -> dict[str, str] | None:
+    """The key/values of the newest /diagnostics status named `...<name_end>` in a `collect` list,
+    None if there is none stamped at or after `since_ns`."""
+    for msg in reversed(diagnostics):
+        if stamp_ns(msg) < since_ns:
+            return None
+        for status in msg.status:
+            if status.name.endswith(name_end):
+                return {v.key: v.value for v in status.values}
+    return None
+
+
+def hand_fault(emulator_dir: str | Path, *args: str) -> str:
+    """`prisma-hand-fault --dir <emulator_dir> <args>` (the emulated hand's fault CLI); its output,
+    AssertionError naming the command when it fails."""
+    import shutil
+
+    command = [shutil.which("prisma-hand-fault") or "prisma-hand-fault", "--dir", str(emulator_dir), *args]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, f"prisma-hand-fault {' '.join(args)}: {result.stderr}"
+    return result.stdout

@@ -38,6 +38,8 @@ setup(
     entry_points={
         "console_scripts": [
             "prisma-sim = prisma_bringup.sim_cli:main",
+            "prisma-hand-emulator = prisma_bringup.emulator_cli:emulator_main",
+            "prisma-hand-fault = prisma_bringup.emulator_cli:fault_main",
         ],
     },
 )

@@ -134,6 +134,14 @@ def _ticks_per_s(velocity_units: int) -> float:
 
 
 @dataclass
+class ServoPresent:
+    position_ticks: float
+    velocity_rpm: float
+    torque_on: bool
+    hardware_error: int
+
+
+@dataclass
 class EmulatorStats:
     instructions: int = 0
     status_sent: int = 0
@@ -197,11 +205,12 @@ class DynamixelEmulator:
         with self._lock:
             self.servos[servo_id].silent = silent
 
-    def present(self) -> dict[int, tuple[float, bool, int]]:
-        """(position ticks, torque on, hardware error status) of each servo, integrated to now."""
+    def present(self) -> dict[int, "ServoPresent"]:
+        """What each servo is doing, integrated to now."""
         with self._lock:
             self._integrate()
-            return {i: (s.position_ticks, s.torque_on, s.hardware_error) for i, s in self.servos.items()}
+            return {i: ServoPresent(s.position_ticks, ct.units_to_rpm(s.read_int(ct.ADDR_PRESENT_VELOCITY, 4, signed=True)),
+                                    s.torque_on, s.hardware_error) for i, s in self.servos.items()}
 
     def drop_status(self, servo_id: int, count: int = 1) -> None:
         with self._lock:

@@ -1,0 +1,179 @@
+"""prisma-hand-emulator and prisma-hand-fault: the hand's hardware emulated, and faults injected into it.
+
+    prisma-hand-emulator                          # devices in /tmp/prisma_hand_emulator
+    prisma-hand-emulator --dir /tmp/left --world horizontal
+    prisma-hand-fault hub-unplug --seconds 1      # another shell, while it runs
+    prisma-hand-fault servo-error --motor fingers --bit overload
+    prisma-hand-fault status
+
+`ros2 launch prisma_bringup hand.launch.py hardware:=emulated` starts the emulator with the drivers
+on its devices; prisma-hand-fault reaches it with the same --dir (`emulator_dir:=` of the launch).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import threading
+from pathlib import Path
+from typing import Any, Callable
+
+from prisma_tactile_driver.cli_args import (
+    ArgumentParser,
+    UserError,
+    command,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
+
+from .hand_emulator import DEFAULT_DIR, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
+
+
+@command("prisma-hand-emulator")
+def emulator_main(argv: list[str] | None = None) -> int:
+    parser = ArgumentParser(prog="prisma-hand-emulator", description=__doc__.splitlines()[0],
+                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=_devices_help())
+    parser.add_argument("--dir", type=Path, default=DEFAULT_DIR,
+                        help=f"where the devices appear (default {DEFAULT_DIR}); created if missing")
+    parser.add_argument("--rate", type=positive_float, default=100.0, help="hub scans per second (default 100)")
+    parser.add_argument("--world", choices=WORLDS, default="hand",
+                        help="object and pose: hand = a foam ball presented for a pinch (as sim:=true); "
+                             "the others start as prisma-sim's scenarios (default hand)")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="pad noise seed")
+    parser.add_argument("--seconds", type=non_negative_float, default=0.0,
+                        help="stop after this long (0 = until Ctrl-C or SIGTERM)")
+    parser.add_argument("--linger", type=non_negative_float, default=1.0,
+                        help="after Ctrl-C or SIGTERM keep the devices up this long (default 1 s): drivers "
+                             "shut down with it still turn their torque off; a second signal stops at once")
+    args = parser.parse_args(argv)
+
+    if args.dir.exists() and not args.dir.is_dir():
+        raise UserError(f"--dir {args.dir} is not a directory; choose another path")
+    paths = EmulatorPaths(args.dir.absolute())  # the drivers, started elsewhere, need whole paths
+    hand = EmulatedHand(paths, EmulatorSettings(rate_hz=args.rate, world=args.world, seed=args.seed))
+    try:
+        hand.start()
+    except FileExistsError as exc:
+        raise UserError(f"--dir {args.dir}: {exc}") from None
+    except OSError as exc:  # no permission to create the directory or a device there
+        raise UserError(f"--dir {args.dir}: {exc.strerror or exc}; choose another path") from None
+
+    from .emulator_control import ControlServer
+
+    stop = threading.Event()
+    server = ControlServer(paths.control, lambda name, request: _handle(hand, name, request))
+    signals: list[int] = []
+
+    def on_signal(number: int, _frame: Any) -> None:
+        signals.append(number)
+        if len(signals) > 1 or not args.linger:
+            stop.set()
+        else:
+            _later(args.linger, stop.set)
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)
+    if args.seconds:
+        _later(args.seconds, stop.set)
+    try:
+        server.start()
+    except OSError as exc:  # FileExistsError included: something else at control.sock
+        hand.close()
+        raise UserError(f"--dir {args.dir}: {exc}") from None
+    try:
+        print(f"emulated hand ({args.world}, {args.rate:g} Hz): hub {paths.hub}, servos {paths.servos}, "
+              f"i2c {paths.i2c}, control {paths.control}", flush=True)
+        ticks = hand.run(stop)
+    finally:
+        server.close()
+        hand.close()
+    print(f"emulated hand stopped after {ticks} scans; hub frames sent {hand.hub.frames_sent}", flush=True)
+    return 0
+
+
+def _later(seconds: float, action: Callable[[], None]) -> None:
+    timer = threading.Timer(seconds, action)
+    timer.daemon = True  # the run may end sooner
+    timer.start()
+
+
+def _handle(hand: EmulatedHand, name: str, args: dict[str, Any]) -> dict[str, Any]:
+    if name == "status":
+        return {"ok": True, "status": hand.status()}
+    try:
+        return {"ok": True, "message": hand.apply(name, **args)}
+    except FaultError as exc:
+        return {"ok": False, "error": str(exc)}
+    except TypeError as exc:  # an argument the command does not take, or one it needs missing
+        return {"ok": False, "error": f"{name}: {exc}"}
+
+
+def _devices_help() -> str:
+    return ("devices in --dir: hub (pty, tactile_driver port), servos (pty, motor_driver port), i2c.sock "
+            "(tactile_driver i2c_socket), control.sock (prisma-hand-fault)")
+
+
+# command -> its options: (flag, type, help, default or None when required)
+FAULTS: dict[str, tuple[str, list[tuple[str, Any, str, Any]]]] = {
+    "status": ("what the emulated hardware is doing (JSON)", []),
+    "hub-unplug": ("unplug the fingertip hub's USB cable", [
+        ("--seconds", non_negative_float, "plug it back after this long (0 = at hub-replug)", 0.0)]),
+    "hub-replug": ("plug the hub back in (a new pty behind the same link)", []),
+    "hub-garbage": ("write garbage bytes on the hub link before the next frame", [
+        ("--bytes", positive_int, "how many", None)]),
+    "hub-crc": ("corrupt the CRC of the next frames", [("--frames", positive_int, "how many", None)]),
+    "i2c-nack": ("a finger's ADC stops acknowledging on the I2C bus", [
+        ("--finger", str, "thumb, index, middle, ring or little", None),
+        ("--count", non_negative_int, "this many addressings, then it recovers (0 = until i2c-clear)", 0)]),
+    "i2c-glitch": ("a finger's next reads return all-zero bytes", [
+        ("--finger", str, "thumb, index, middle, ring or little", None), ("--count", positive_int, "how many", None)]),
+    "i2c-clear": ("every ADC answers again", []),
+    "servo-error": ("set a Hardware Error Status bit on a servo", [
+        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
+        ("--bit", str, "0-7 or input_voltage, overheating, motor_encoder, electrical_shock, overload", None)]),
+    "servo-silent": ("a servo stops answering (off the bus)", [
+        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
+        ("--seconds", non_negative_float, "back after this long (0 = at servo-clear)", 0.0)]),
+    "servo-clear": ("power-cycle servos: hardware errors cleared, answering again", [
+        ("--motor", str, "one motor (default: all)", "")]),
+    "push": ("push the object across the pads / to a narrower section", [
+        ("--dx-mm", float, "slip toward the thumb pad's left side (mm)", 0.0),
+        ("--dy-mm", float, "slip toward the thumb pad's top row (mm)", 0.0),
+        ("--dwidth-mm", float, "change of the grip width (mm, negative = narrower)", 0.0),
+        ("--duration-s", non_negative_float, "over this long (s)", 0.3)]),
+    "world": ("place another object: the hand is posed as that world starts", [
+        ("name", str, ", ".join(WORLDS), None)]),
+}
+
+
+@command("prisma-hand-fault")
+def fault_main(argv: list[str] | None = None) -> int:
+    parser = ArgumentParser(prog="prisma-hand-fault", description="Inject a fault into the running emulated hand")
+    parser.add_argument("--dir", type=Path, default=DEFAULT_DIR,
+                        help=f"the emulator's --dir (default {DEFAULT_DIR})")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="command",
+                                     parser_class=ArgumentParser)
+    for name, (summary, options) in FAULTS.items():
+        sub = commands.add_parser(name, help=summary, description=summary)
+        for flag, kind, text, default in options:
+            if not flag.startswith("--"):
+                sub.add_argument(flag, help=text)
+            elif default is None:
+                sub.add_argument(flag, type=kind, required=True, help=text)
+            else:
+                sub.add_argument(flag, type=kind, default=default, help=f"{text} (default {default!r})")
+    args = parser.parse_args(argv)
+
+    from .emulator_control import send
+
+    values = {k: v for k, v in vars(args).items() if k not in ("dir", "command")}
+    try:
+        reply = send(EmulatorPaths(args.dir).control, args.command, values)
+    except (ConnectionError, OSError) as exc:
+        raise UserError(str(exc)) from None
+    if not reply.get("ok"):
+        raise UserError(f"{args.command}: {reply.get('error', reply)}")
+    print(json.dumps(reply["status"], indent=2) if "status" in reply else reply["message"])
+    return 0

@@ -1,0 +1,429 @@
+"""The hand's hardware emulated in one process, for `hand.launch.py hardware:=emulated`.
+
+Three byte-level devices share one hand/world model, so a goal closes the loop through every real
+driver path:
+- the Dynamixel servos (IDs 1-3, Protocol 2.0) on a pseudo-terminal, `<dir>/servos`: motor_driver's
+  dynamixel backend opens it through dynamixel-sdk;
+- the fingertip hub on a second pseudo-terminal, `<dir>/hub`: 78-byte frames at the scan rate,
+  read by tactile_driver's serial backend through pyserial;
+- the same five pads as a TCA9548A + MAX11617 bus served on `<dir>/i2c.sock`: tactile_driver's i2c
+  backend reaches it through smbus2 (`i2c_socket`).
+Every scan period `tick` reads the servos' present positions, moves the world to them, puts the
+pads' contacts through the pad model into counts (hub frame and ADC registers alike) and loads the
+servos with the world's tendon torques.
+
+Faults are applied by `apply`, as the emulator's control socket receives them (`prisma-hand-fault`):
+the hub unplugged and plugged back (a new pty behind the same link, sequence restarting at 0 as a
+powered-down Arduino does), garbage bytes and CRC-corrupted frames on the hub link, a pad's ADC not
+acknowledging or glitching on I2C, a servo hardware error bit, a servo off the bus, an external push
+on the object, and a new scenario world (the experimenter placing another object).
+
+Nothing here reads ROS. Time is `clock_ns()` (monotonic); the world's time starts at 0 with each
+scenario, so the scenarios' disturbances keep their timing.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from prisma_manipulation import control_table as ct
+from prisma_manipulation.dynamixel_emulator import DynamixelEmulator, ServoPresent
+from prisma_manipulation.hand_world import Disturbance, HandWorld
+from prisma_manipulation.motor_bus import MOTOR_NAMES
+from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
+from prisma_manipulation.sim_motors import SimMotorParams
+from prisma_tactile_driver.i2c_emulator import five_finger_bus
+from prisma_tactile_driver.pad_model import PadModel
+from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame
+from prisma_tactile_driver.pty_hub import PtyHubPort, PtyLink
+from prisma_tactile_driver.taxels import FINGERS
+
+# The hand's wiring as config/motor_driver.yaml and config/tactile_driver.yaml have it.
+MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
+FINGER_CHANNELS = dict(zip(FINGERS, range(5)))
+# "hand": the world of the sim graph (a foam ball presented for a pinch, let go once held); the
+# others start as prisma-sim's scenarios do (prisma_manipulation.scenarios.scenario_world).
+WORLDS = ("hand",) + SCENARIO_NAMES
+DEFAULT_DIR = Path("/tmp/prisma_hand_emulator")
+
+
+def world_for(name: str) -> HandWorld:
+    if name == "hand":
+        return HandWorld()
+    if name not in SCENARIO_NAMES:
+        raise ValueError(f"unknown world {name!r}; choose one of {', '.join(WORLDS)}")
+    return scenario_world(name)
+
+
+@dataclass(frozen=True)
+class EmulatorPaths:
+    """Where the emulated devices appear: the drivers' `port` / `i2c_socket` parameters name these."""
+
+    root: Path
+
+    @property
+    def hub(self) -> Path:
+        return self.root / "hub"
+
+    @property
+    def servos(self) -> Path:
+        return self.root / "servos"
+
+    @property
+    def i2c(self) -> Path:
+        return self.root / "i2c.sock"
+
+    @property
+    def control(self) -> Path:
+        return self.root / "control.sock"
+
+
+@dataclass(frozen=True)
+class EmulatorSettings:
+    rate_hz: float = 100.0  # hub scans per second (the Arduino firmware's rate)
+    world: str = "hand"
+    seed: int = 0  # pad noise
+    directions: tuple[int, ...] = (1, 1, 1)  # as motor_driver's `directions`, per MOTOR_NAMES
+    zero_ticks: tuple[int, ...] = (0, 0, 0)  # as motor_driver's `zero_ticks`
+    # a USB-serial adapter buffers only so much for a host that does not read: frames beyond this
+    # are lost at the adapter, as on the robot (and the emulator never blocks on its pty)
+    hub_buffer_bytes: int = 4096
+
+
+@dataclass
+class HubState:
+    plugged: bool = True
+    replug_at_ns: int | None = None  # a timed unplug ends here
+    sequence: int = 0
+    garbage_pending: int = 0
+    corrupt_pending: int = 0
+    frames_sent: int = 0
+    frames_unread: int = 0  # dropped at the "adapter": nobody read the link
+    frames_corrupted: int = 0
+    garbage_sent: int = 0
+    unplugs: int = 0
+
+
+@dataclass
+class ServoFaults:
+    silent_until_ns: dict[str, int | None] = field(default_factory=dict)  # None = until cleared
+
+
+class FaultError(ValueError):
+    """A fault command that names something the emulator does not have; the message says what."""
+
+
+class EmulatedHand:
+    def __init__(self, paths: EmulatorPaths, settings: EmulatorSettings | None = None,
+                 clock_ns: Callable[[], int] = time.monotonic_ns) -> None:
+        self.paths = paths
+        self.settings = settings or EmulatorSettings()
+        if self.settings.rate_hz <= 0:
+            raise ValueError(f"rate_hz {self.settings.rate_hz}: must be > 0")
+        self.clock_ns = clock_ns
+        self.period_ns = int(round(1e9 / self.settings.rate_hz))
+        self.lock = threading.Lock()  # world, pads and ADC registers: the tick vs the I2C server
+        self.world = world_for(self.settings.world)
+        self.world_name = self.settings.world
+        self._world_start_ns = clock_ns()
+        self.pads = {f: PadModel(seed=self.settings.seed + i) for i, f in enumerate(FINGERS)}
+        self.i2c_bus = five_finger_bus()
+        self.servos = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9)
+        self.hub = HubState()
+        self.servo_faults = ServoFaults()
+        self._hub_port = PtyHubPort(paths.hub)
+        self._servo_link = PtyLink(paths.servos)
+        self._i2c_server: Any = None
+        self._rng = np.random.default_rng(self.settings.seed)
+        self._place_servos()
+
+    # ---- lifecycle -------------------------------------------------------------------------
+    def start(self) -> "EmulatedHand":
+        """Create the devices. FileExistsError (naming the path) if one of the paths holds something
+        that is not an earlier emulator's link or socket; nothing is replaced then."""
+        from prisma_tactile_driver.i2c_socket import I2CSocketServer
+
+        self.paths.root.mkdir(parents=True, exist_ok=True)
+        started: list[Callable[[], None]] = []
+        try:
+            # the socket first: a live one (another emulator on this dir) is refused, and the pty
+            # links, which an earlier run's may replace, are then left alone
+            self._i2c_server = I2CSocketServer(self.i2c_bus, self.paths.i2c, self.lock).start()
+            started.append(self._i2c_server.close)
+            self._hub_port.open()
+            started.append(self._hub_port.hang_up)
+            self.servos.start()
+            started.append(self.servos.close)
+            self._servo_link.point_at(self.servos.port_name)
+        except BaseException:
+            for undo in reversed(started):
+                undo()
+            self._i2c_server = None
+            raise
+        return self
+
+    def close(self) -> None:
+        if self._i2c_server is not None:
+            self._i2c_server.close()
+            self._i2c_server = None
+        self._servo_link.remove()
+        self.servos.close()
+        if self._hub_port.is_open:
+            self._hub_port.hang_up()
+
+    def __enter__(self) -> "EmulatedHand":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def run(self, stop: threading.Event, progress: Callable[[str], None] | None = None) -> int:
+        """Tick at the scan rate until `stop` is set; returns the ticks run. A tick that comes late
+        (the machine was busy) is run at once and the schedule kept, as the hub's timer does."""
+        next_ns = self.clock_ns()
+        ticks = 0
+        while not stop.is_set():
+            self.tick(self.clock_ns())
+            ticks += 1
+            next_ns += self.period_ns
+            delay = (next_ns - self.clock_ns()) * 1e-9
+            if delay > 0:
+                stop.wait(delay)
+            elif delay < -1.0:  # more than a second behind (suspended): start the schedule afresh
+                next_ns = self.clock_ns()
+        return ticks
+
+    # ---- one scan period -------------------------------------------------------------------
+    def tick(self, now_ns: int) -> None:
+        self._expire_faults(now_ns)
+        present = self.servos.present()
+        with self.lock:
+            positions = self._motor_positions(present)
+            self.world.update_joints(positions, now_ns - self._world_start_ns)
+            counts = {f: self.pads[f].sample(self.world.contact(f)) for f in FINGERS}
+            for finger, channel in FINGER_CHANNELS.items():
+                self.i2c_bus.adcs[channel].values[: len(counts[finger])] = counts[finger]
+            loads = self.world.motor_loads()
+        for name, servo_id in MOTOR_IDS.items():
+            self.servos.set_load(servo_id, _current_units(loads[name]))
+        self._send_frame(counts)
+
+    def _motor_positions(self, present: dict[int, ServoPresent]) -> dict[str, float]:
+        s = self.settings
+        return {name: s.directions[i] * ct.ticks_to_rad(present[MOTOR_IDS[name]].position_ticks - s.zero_ticks[i])
+                for i, name in enumerate(MOTOR_NAMES)}
+
+    def _send_frame(self, counts: dict[str, np.ndarray]) -> None:
+        hub = self.hub
+        frame = bytearray(encode_frame(hub.sequence, counts))
+        hub.sequence = (hub.sequence + 1) % SEQUENCE_MODULO
+        if not hub.plugged:
+            return
+        out = bytearray()
+        if hub.garbage_pending:
+            # no sync pattern in it: garbage that forms a false frame start would only delay the
+            # next real frame, and the count of skipped bytes must equal what was sent
+            garbage = self._rng.integers(0, 256, hub.garbage_pending, dtype=np.uint8)
+            garbage[garbage == 0xA5] = 0xA4
+            out += garbage.tobytes()
+            hub.garbage_sent += hub.garbage_pending
+            hub.garbage_pending = 0
+        if hub.corrupt_pending:
+            frame[-1] ^= 0xFF  # the CRC's high byte
+            hub.corrupt_pending -= 1
+            hub.frames_corrupted += 1
+        out += frame
+        if self._hub_port.pending() + len(out) > self.settings.hub_buffer_bytes:
+            hub.frames_unread += 1
+            return
+        self._hub_port.write(bytes(out))
+        hub.frames_sent += 1
+
+    def _expire_faults(self, now_ns: int) -> None:
+        if not self.hub.plugged and self.hub.replug_at_ns is not None and now_ns >= self.hub.replug_at_ns:
+            self._replug()
+        for name, until in list(self.servo_faults.silent_until_ns.items()):
+            if until is not None and now_ns >= until:
+                self._servo_back(name)
+
+    # ---- faults ----------------------------------------------------------------------------
+    def apply(self, command: str, **args: Any) -> str:
+        """Carry out one fault command (`prisma-hand-fault --help`); returns what was done.
+        FaultError for an unknown name or a value out of range, naming it."""
+        handler = getattr(self, "_fault_" + command.replace("-", "_"), None)
+        if handler is None:
+            raise FaultError(f"unknown command {command!r}")
+        return handler(**args)
+
+    def status(self) -> dict[str, Any]:
+        """What the emulated hardware is doing, as plain data (JSON-ready)."""
+        present = self.servos.present()
+        positions = self._motor_positions(present)
+        servos = {}
+        for i, (name, servo_id) in enumerate(MOTOR_IDS.items()):
+            servo = present[servo_id]
+            servos[name] = {"id": servo_id, "position_rad": round(positions[name], 4),
+                            "velocity_rpm": round(self.settings.directions[i] * servo.velocity_rpm, 3),
+                            "torque_on": servo.torque_on, "hardware_error": servo.hardware_error,
+                            "silent": self.servos.servos[servo_id].silent}
+        with self.lock:
+            forces = {f: round(v, 4) for f, v in self.world.forces().items()}
+            i2c = {"transfers": self.i2c_bus.transfers, "nacks": self.i2c_bus.nacks,
+                   "failing": [f for f, ch in FINGER_CHANNELS.items() if self.i2c_bus.adcs[ch].failing]}
+        hub = self.hub
+        return {
+            "world": self.world_name,
+            "forces_n": forces,
+            "hub": {"plugged": hub.plugged, "frames_sent": hub.frames_sent, "frames_unread": hub.frames_unread,
+                    "frames_corrupted": hub.frames_corrupted, "garbage_bytes": hub.garbage_sent,
+                    "unplugs": hub.unplugs, "sequence": hub.sequence},
+            "servos": servos,
+            "i2c": i2c,
+        }
+
+    def _fault_hub_unplug(self, seconds: float = 0.0) -> str:
+        _check_non_negative("seconds", seconds)
+        if self.hub.plugged:
+            self._hub_port.hang_up()
+            self.hub.plugged = False
+            self.hub.unplugs += 1
+        self.hub.replug_at_ns = self.clock_ns() + int(seconds * 1e9) if seconds else None
+        return f"hub unplugged{f' for {seconds:g} s' if seconds else ' until hub-replug'}"
+
+    def _fault_hub_replug(self) -> str:
+        if self.hub.plugged:
+            return "hub already plugged in"
+        self._replug()
+        return "hub plugged in"
+
+    def _replug(self) -> None:
+        self._hub_port.open()
+        self.hub.plugged = True
+        self.hub.replug_at_ns = None
+        self.hub.sequence = 0  # the Nano is powered from USB: it restarts with the link
+
+    def _fault_hub_garbage(self, bytes: int) -> str:  # noqa: A002 (the CLI's option name)
+        _check_positive("bytes", bytes)
+        self.hub.garbage_pending += int(bytes)
+        return f"{bytes} garbage bytes before the next frame"
+
+    def _fault_hub_crc(self, frames: int) -> str:
+        _check_positive("frames", frames)
+        self.hub.corrupt_pending += int(frames)
+        return f"CRC of the next {frames} frame(s) corrupted"
+
+    def _adc(self, finger: str):
+        if finger not in FINGER_CHANNELS:
+            raise FaultError(f"finger {finger!r}: choose one of {', '.join(FINGERS)}")
+        return self.i2c_bus.adcs[FINGER_CHANNELS[finger]]
+
+    def _fault_i2c_nack(self, finger: str, count: int = 0) -> str:
+        _check_non_negative("count", count)
+        adc = self._adc(finger)
+        with self.lock:
+            if count:
+                adc.nack_next += int(count)
+            else:
+                adc.failing = True
+        return f"{finger} ADC does not acknowledge{f' {count} time(s)' if count else ' until i2c-clear'}"
+
+    def _fault_i2c_glitch(self, finger: str, count: int) -> str:
+        _check_positive("count", count)
+        with self.lock:
+            self._adc(finger).glitch_next += int(count)
+        return f"the next {count} read(s) of the {finger} ADC return all-zero bytes"
+
+    def _fault_i2c_clear(self) -> str:
+        with self.lock:
+            for adc in self.i2c_bus.adcs.values():
+                adc.failing, adc.nack_next, adc.glitch_next = False, 0, 0
+        return "every ADC answers again"
+
+    def _servo_id(self, motor: str) -> int:
+        if motor not in MOTOR_IDS:
+            raise FaultError(f"motor {motor!r}: choose one of {', '.join(MOTOR_NAMES)}")
+        return MOTOR_IDS[motor]
+
+    def _fault_servo_error(self, motor: str, bit: int | str) -> str:
+        servo_id = self._servo_id(motor)
+        names = {name: b for b, name in ct.HARDWARE_ERROR_BITS.items()}
+        if isinstance(bit, str) and not bit.isdigit():
+            if bit not in names:
+                raise FaultError(f"bit {bit!r}: choose a number 0-7 or one of {', '.join(names)}")
+            bit = names[bit]
+        bit = int(bit)
+        if not 0 <= bit <= 7:
+            raise FaultError(f"bit {bit}: Hardware Error Status has bits 0-7")
+        self.servos.inject_hardware_error(servo_id, bit)
+        return f"{motor} (ID {servo_id}): {ct.describe_hardware_error(1 << bit)}"
+
+    def _fault_servo_silent(self, motor: str, seconds: float = 0.0) -> str:
+        _check_non_negative("seconds", seconds)
+        servo_id = self._servo_id(motor)
+        self.servos.set_silent(servo_id, True)
+        self.servo_faults.silent_until_ns[motor] = self.clock_ns() + int(seconds * 1e9) if seconds else None
+        return f"{motor} (ID {servo_id}) off the bus{f' for {seconds:g} s' if seconds else ' until servo-clear'}"
+
+    def _servo_back(self, motor: str) -> None:
+        self.servos.set_silent(MOTOR_IDS[motor], False)
+        self.servo_faults.silent_until_ns.pop(motor, None)
+
+    def _fault_servo_clear(self, motor: str = "") -> str:
+        motors = [motor] if motor else list(MOTOR_NAMES)
+        for name in motors:
+            servo_id = self._servo_id(name)
+            self.servos.clear_hardware_error(servo_id)
+            self._servo_back(name)
+        return f"{', '.join(motors)}: hardware error cleared, answering"
+
+    def _fault_push(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dwidth_mm: float = 0.0,
+                    duration_s: float = 0.3) -> str:
+        _check_non_negative("duration_s", duration_s)
+        values = (dx_mm, dy_mm, dwidth_mm)
+        if not all(math.isfinite(v) for v in values):
+            raise FaultError(f"push {values}: every displacement must be a finite number of mm")
+        with self.lock:
+            start_s = (self.clock_ns() - self._world_start_ns) * 1e-9
+            self.world.add_disturbance(Disturbance(start_s, duration_s, dx_mm, dy_mm, dwidth_mm))
+        return f"push dx {dx_mm:g} mm, dy {dy_mm:g} mm, width {dwidth_mm:+g} mm over {duration_s:g} s"
+
+    def _fault_world(self, name: str) -> str:
+        try:
+            world = world_for(name)
+        except ValueError as exc:
+            raise FaultError(str(exc)) from None
+        with self.lock:
+            self.world, self.world_name = world, name
+            self._world_start_ns = self.clock_ns()
+        self._place_servos()
+        return f"world {name}: motors at " + ", ".join(f"{n} {v:.3f} rad" for n, v in world.positions.items())
+
+    def _place_servos(self) -> None:
+        """Put the servos where the world's hand is, at rest: the experimenter posing the hand."""
+        s = self.settings
+        for i, name in enumerate(MOTOR_NAMES):
+            servo_id = MOTOR_IDS[name]
+            self.servos.place(servo_id, s.zero_ticks[i] + ct.rad_to_ticks(s.directions[i] * self.world.positions[name]))
+
+
+def _current_units(load_nm: float, params: SimMotorParams = SimMotorParams()) -> int:
+    """Present Current (units of 2.69 mA) for a load torque on the shaft."""
+    return int(round(load_nm / params.torque_constant_nm_per_a * 1000.0 / ct.MA_PER_CURRENT_UNIT))
+
+
+def _check_positive(name: str, value: Any) -> None:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
+        raise FaultError(f"{name} {value!r}: must be a number > 0")
+
+
+def _check_non_negative(name: str, value: Any) -> None:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not value >= 0 or not math.isfinite(value):
+        raise FaultError(f"{name} {value!r}: must be a number >= 0")
+
+

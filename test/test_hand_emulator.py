@@ -1,0 +1,382 @@
+"""The emulated hand (prisma_bringup.hand_emulator, emulator_cli, emulator_control) without ROS.
+
+One EmulatedHand per test in pytest's tmp_path, on a manual clock (ticks and servo motion are
+deterministic), reached through the real host-side driver code: DynamixelBus (dynamixel-sdk) on
+<dir>/servos, SerialHubBackend (pyserial + FrameParser) on <dir>/hub and I2CHubBackend over
+SocketSMBus on <dir>/i2c.sock. Covered: device creation/removal and refusal of a foreign file, one
+world driving all three devices, motion closing the grasp and loading the servos, every fault command
+(hub, servo, I2C, push, world) and its bad values, and the two console scripts as subprocesses.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import select
+import signal
+import stat
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from prisma_bringup.hand_emulator import FINGER_CHANNELS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
+from prisma_manipulation import control_table as ct
+from prisma_manipulation.dynamixel_bus import DynamixelBus
+from prisma_manipulation.motor_bus import BusError, MotorMap
+from prisma_manipulation.sim_motors import SimMotorParams
+from prisma_tactile_driver.i2c_backend import I2CHubBackend
+from prisma_tactile_driver.i2c_socket import SocketSMBus
+from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size
+from prisma_tactile_driver.serial_backend import SerialHubBackend
+from prisma_tactile_driver.taxels import FINGERS
+
+TICK_S = 0.01  # the emulator's 100 Hz scan period
+RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV
+FRAME_BYTES = frame_size(ALL_FINGERS_MASK)  # 78: a five-finger frame
+DEVICES = ("hub", "servos", "i2c.sock")
+
+
+class Clock:
+    """Manual monotonic clock in ns; starts away from 0 so world time != clock time."""
+
+    ns = 5_000_000_000
+
+    def __call__(self) -> int:
+        return self.ns
+
+    def advance(self, seconds: float) -> None:
+        self.ns += int(round(seconds * 1e9))
+
+
+class Rig:
+    """A started EmulatedHand plus the host-side drivers opened on its devices (closed in reverse)."""
+
+    def __init__(self, root, world: str) -> None:
+        self.clock, self.paths = Clock(), EmulatorPaths(root)
+        self.hand = EmulatedHand(self.paths, EmulatorSettings(world=world), clock_ns=self.clock).start()
+        self._closers = [self.hand.close]
+
+    def tick(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.clock.advance(TICK_S)
+            self.hand.tick(self.clock.ns)
+
+    def bus(self) -> DynamixelBus:
+        motors = MotorMap.from_lists(["fingers", "thumb_flexion", "thumb_rotation"], [1, 2, 3],
+                                     [0.0, 0.0, -2.0], [20.0, 20.0, 2.0], [100.0] * 3).motors
+        bus = DynamixelBus(str(self.paths.servos), 1_000_000, motors, retries=1)
+        bus.open()
+        self._closers.append(bus.close)
+        return bus
+
+    def serial(self) -> SerialHubBackend:
+        backend = SerialHubBackend(str(self.paths.hub), 1_000_000, read_timeout_s=0.0,
+                                   monotonic=lambda: self.clock.ns * 1e-9)
+        assert backend.read(self.clock.ns) == [] and backend.connected  # opened (pyserial flushes on open)
+        self._closers.append(backend.close)
+        return backend
+
+    def i2c(self) -> I2CHubBackend:
+        backend = I2CHubBackend(str(self.paths.i2c), dict(FINGER_CHANNELS), bus_factory=SocketSMBus)
+        self._closers.append(backend.close)
+        return backend
+
+    def close(self) -> None:
+        for close in reversed(self._closers):
+            with contextlib.suppress(BusError):
+                close()
+
+
+@pytest.fixture
+def rig(tmp_path):
+    """rig(world="hand"): a Rig in tmp_path, closed after the test."""
+    rigs: list[Rig] = []
+    yield lambda world="hand": rigs.append(Rig(tmp_path, world)) or rigs[-1]
+    for r in rigs:
+        r.close()
+
+
+def read_frames(backend: SerialHubBackend, clock: Clock, n: int, timeout_s: float = 2.0) -> list:
+    """At least n frames (the pty hands bytes over asynchronously), or what came by the deadline."""
+    got, deadline = [], time.monotonic() + timeout_s
+    while len(got) < n and time.monotonic() < deadline:
+        got += backend.read(clock.ns)
+        time.sleep(0.001)
+    return got
+
+
+def delta(after: dict, before: dict) -> dict:
+    return {k: after[k] - before[k] for k in after}
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(list(args), capture_output=True, text=True, timeout=20)
+
+
+# ---- lifecycle --------------------------------------------------------------------------------
+def test_start_creates_the_devices_and_close_removes_exactly_them(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(), clock_ns=Clock()).start()
+    try:
+        for link in (tmp_path / "hub", tmp_path / "servos"):
+            assert link.is_symlink() and os.readlink(link).startswith("/dev/pts/") and link.is_char_device()
+        assert stat.S_ISSOCK(os.lstat(tmp_path / "i2c.sock").st_mode)
+        assert sorted(os.listdir(tmp_path)) == sorted(DEVICES + ("notes.txt",))
+    finally:
+        hand.close()
+    assert os.listdir(tmp_path) == ["notes.txt"] and (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_a_regular_file_at_hub_is_refused_and_nothing_is_created(tmp_path):
+    (tmp_path / "hub").write_text("calibration notes")
+    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(), clock_ns=Clock())
+    with pytest.raises(FileExistsError, match=str(tmp_path / "hub")):
+        hand.start()
+    assert (tmp_path / "hub").read_text() == "calibration notes" and not (tmp_path / "hub").is_symlink()
+    assert os.listdir(tmp_path) == ["hub"]
+    hand.close()
+
+
+def test_close_after_a_failed_start_does_not_raise(tmp_path):
+    """close() is safe after a failed start (and twice): it releases the servo pty opened in __init__."""
+    (tmp_path / "hub").write_text("x")
+    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(), clock_ns=Clock())
+    with pytest.raises(FileExistsError):
+        hand.start()
+    hand.close()
+    hand.close()
+
+
+def test_a_second_hand_on_a_live_dir_is_refused_and_leaves_the_first_alone(rig, tmp_path):
+    """A second emulator on a running one's directory is refused (its live socket) before it
+    touches the running one's links."""
+    first = rig()
+    links = {name: os.readlink(tmp_path / name) for name in ("hub", "servos")}
+    with pytest.raises(FileExistsError, match="live socket"):
+        EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(), clock_ns=first.clock).start()
+    assert {n: os.readlink(tmp_path / n) if os.path.lexists(tmp_path / n) else None for n in links} == links
+
+
+# ---- one world, three devices -----------------------------------------------------------------
+def test_one_world_drives_servos_hub_and_i2c_alike(rig):
+    r = rig("horizontal")
+    bus, serial, i2c = r.bus(), r.serial(), r.i2c()
+    states = bus.read_state()
+    for name, rad in r.hand.world.positions.items():
+        assert states[name].position_rad == pytest.approx(rad, abs=RAD_PER_TICK)
+    assert states["fingers"].position_rad > 3.0  # the 1 N pinch pose: beyond the index contact at 3.0 rad
+    r.tick()
+    frames = read_frames(serial, r.clock, 1)
+    scan = i2c.scan()  # same tick: nothing ticks between the frame and the scan
+    assert [f.sequence for f in frames] == [0] and set(frames[0].counts) == set(scan) == set(FINGERS)
+    for finger in FINGERS:
+        np.testing.assert_array_equal(frames[0].counts[finger], scan[finger], err_msg=finger)
+    forces = r.hand.status()["forces_n"]
+    assert forces["thumb"] == pytest.approx(1.0, abs=1e-3) and forces["index"] == pytest.approx(1.0, abs=1e-3)
+    assert forces["middle"] == 0.0
+    middle = scan["middle"].astype(int)
+    for finger in ("thumb", "index"):
+        assert (scan[finger].astype(int) - middle).mean() > 300  # pressed vs baseline (~520 counts)
+    assert serial.counters()["crc_errors"] == 0
+
+
+def test_motion_closes_the_grasp_and_loads_the_servos(rig):
+    r = rig("grasp")
+    bus = r.bus()
+    bus.set_velocities({"fingers": 60.0, "thumb_flexion": 60.0})
+    r.hand.servos.sync()  # sync write has no status packet: let the servos take it before time moves
+    r.tick(30)  # 0.3 s at 2 pi rad/s: 1.9 rad, short of the thumb contact (2.5) and index (3.0)
+    free, free_forces = bus.read_state(), r.hand.status()["forces_n"]
+    assert free_forces["thumb"] == free_forces["index"] == 0.0
+    r.tick(170)
+    loaded, forces = bus.read_state(), r.hand.status()["forces_n"]
+    assert forces["thumb"] > 0.5 and forces["index"] > 0.5
+    assert loaded["fingers"].position_rad == pytest.approx(2.0 * 2 * math.pi, rel=1e-3)
+    loads = r.hand.world.motor_loads()
+    for name in ("fingers", "thumb_flexion"):
+        grown = loaded[name].current_ma - free[name].current_ma  # the speed term is the same in both
+        assert grown > 0
+        assert grown == pytest.approx(loads[name] / SimMotorParams().torque_constant_nm_per_a * 1e3,
+                                      abs=ct.MA_PER_CURRENT_UNIT)
+
+
+# ---- hub faults -------------------------------------------------------------------------------
+def test_hub_crc_and_garbage_are_counted_exactly_by_the_serial_backend(rig):
+    r = rig("horizontal")
+    serial = r.serial()
+    r.tick()
+    assert len(read_frames(serial, r.clock, 1)) == 1
+    before = serial.counters()
+    r.hand.apply("hub-crc", frames=2)
+    r.hand.apply("hub-garbage", bytes=50)
+    r.tick(3)  # garbage + corrupted #1, corrupted #2, a good frame
+    assert [f.sequence for f in read_frames(serial, r.clock, 1)] == [3]
+    d = delta(serial.counters(), before)
+    assert (d["frames"], d["crc_errors"], d["bad_headers"], d["gaps"], d["missed_frames"]) == (1, 2, 0, 1, 2)
+    # each CRC failure skips one byte, the resync skips the rest of the frame: all 78 are garbage
+    assert d["garbage_bytes"] == 50 + 2 * FRAME_BYTES and d["resyncs"] == 1
+    hub = r.hand.status()["hub"]
+    assert (hub["frames_corrupted"], hub["garbage_bytes"]) == (2, 50)
+
+
+def test_hub_unplug_replug_and_timed_unplug(rig, tmp_path):
+    r = rig("horizontal")
+    serial = r.serial()
+    r.tick(4)
+    assert [f.sequence for f in read_frames(serial, r.clock, 4)] == [0, 1, 2, 3]
+    r.hand.apply("hub-unplug", seconds=0)
+    hub = r.hand.status()["hub"]
+    assert not os.path.lexists(tmp_path / "hub") and (hub["plugged"], hub["unplugs"]) == (False, 1)
+    assert serial.read(r.clock.ns) == [] and not serial.connected and "lost" in serial.last_error
+    sent = r.hand.hub.frames_sent
+    r.tick(3)
+    assert r.hand.hub.frames_sent == sent  # nothing goes out while unplugged
+    r.hand.apply("hub-replug")
+    assert os.readlink(tmp_path / "hub").startswith("/dev/pts/") and r.hand.status()["hub"]["plugged"]
+    r.clock.advance(0.1)  # past the backend's reopen backoff (0.05 s on the same clock)
+    assert serial.read(r.clock.ns) == [] and serial.connected
+    r.tick(2)
+    assert [f.sequence for f in read_frames(serial, r.clock, 2)] == [0, 1]  # the Nano restarted
+    counters = serial.counters()
+    assert (counters["restarts"], counters["reconnects"], counters["missed_frames"]) == (1, 1, 0)
+    # a timed unplug plugs back by itself after 0.5 s of clock time
+    r.hand.apply("hub-unplug", seconds=0.5)
+    r.tick(49)
+    assert not os.path.lexists(tmp_path / "hub") and r.hand.status()["hub"]["plugged"] is False
+    r.tick()
+    hub = r.hand.status()["hub"]
+    assert (tmp_path / "hub").is_symlink() and (hub["plugged"], hub["unplugs"]) == (True, 2)
+
+
+# ---- servo and I2C faults ---------------------------------------------------------------------
+def test_servo_error_silent_and_clear_through_the_dynamixel_bus(rig):
+    r = rig()
+    bus = r.bus()
+    r.hand.apply("servo-error", motor="fingers", bit="overload")
+    states = bus.read_state()
+    assert states["fingers"].hardware_error == 0x20 and states["thumb_flexion"].hardware_error == 0
+    assert r.hand.status()["servos"]["fingers"]["hardware_error"] == 0x20
+    r.hand.apply("servo-silent", motor="thumb_flexion")
+    with pytest.raises(BusError):
+        bus.read_state()
+    assert r.hand.status()["servos"]["thumb_flexion"]["silent"] is True
+    r.hand.apply("servo-clear")
+    assert {name: s.hardware_error for name, s in bus.read_state().items()} == dict.fromkeys(states, 0)
+    assert not any(s["silent"] for s in r.hand.status()["servos"].values())
+
+
+def test_i2c_nack_clear_and_glitch_through_the_i2c_backend(rig):
+    r = rig("horizontal")
+    i2c = r.i2c()
+    r.tick()
+    assert set(i2c.scan()) == set(FINGERS)
+    before = i2c.counters()
+    r.hand.apply("i2c-nack", finger="index")
+    assert set(i2c.scan()) == set(FINGERS) - {"index"}
+    d = delta(i2c.counters(), before)
+    assert (d["index_errors"], d["index_failed_scans"], d["thumb_errors"]) == (3, 1, 0)  # 1 try + 2 retries
+    assert r.hand.status()["i2c"]["failing"] == ["index"]
+    r.hand.apply("i2c-clear")
+    assert set(i2c.scan()) == set(FINGERS) and r.hand.status()["i2c"]["failing"] == []
+    before = i2c.counters()
+    r.hand.apply("i2c-glitch", finger="index", count=1)
+    scan = i2c.scan()
+    d = delta(i2c.counters(), before)
+    assert "index" in scan and (d["index_bad_reads"], d["index_errors"], d["index_reads"]) == (1, 1, 1)
+    assert d["index_failed_scans"] == 0
+
+
+# ---- push and world ---------------------------------------------------------------------------
+def test_push_slips_the_contact_across_the_thumb_pad(rig):
+    r = rig("horizontal")
+    r.tick()
+    x0 = r.hand.world.contact("thumb").x_mm
+    forces = r.hand.status()["forces_n"]
+    r.hand.apply("push", dx_mm=-4.0, duration_s=0.3)
+    r.tick(15)  # halfway: the smoothstep is at 0.5
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(x0 - 2.0, abs=1e-6)
+    r.tick(20)
+    # the object slips dx in the hand (= thumb pad) frame: -4 mm toward the thumb pad's right side;
+    # the index pad faces it, so its x (mirrored) moves +4 mm
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(x0 - 4.0, abs=1e-6)
+    assert r.hand.world.contact("index").x_mm == pytest.approx(-(x0 - 4.0), abs=1e-6)
+    assert r.hand.status()["forces_n"] == forces  # a slip, not a squeeze
+
+
+def test_world_command_poses_the_servos_and_changes_the_world(rig):
+    r = rig("horizontal")
+    bus = r.bus()
+    assert bus.read_state()["fingers"].position_rad > 3.0
+    bus.set_velocities({"fingers": 30.0})
+    r.hand.servos.sync()
+    assert r.hand.apply("world", name="grasp").startswith("world grasp")
+    r.clock.advance(0.5)  # posed at rest: the goal velocity was zeroed
+    assert all(s.position_rad == pytest.approx(0.0, abs=RAD_PER_TICK) for s in bus.read_state().values())
+    r.tick()
+    status = r.hand.status()
+    assert status["world"] == "grasp" and all(f == 0.0 for f in status["forces_n"].values())
+
+
+@pytest.mark.parametrize("command, args, named", [
+    ("hub-crc", {"frames": 0}, "frames 0"),
+    ("servo-error", {"motor": "wrist", "bit": 5}, "'wrist'"),
+    ("servo-error", {"motor": "fingers", "bit": 9}, "bit 9"),
+    ("world", {"name": "nope"}, "'nope'"),
+    ("nope", {}, "'nope'"),
+])
+def test_bad_fault_values_raise_fault_error_naming_them(rig, command, args, named):
+    r = rig()
+    with pytest.raises(FaultError) as info:
+        r.hand.apply(command, **args)
+    assert named in str(info.value)
+    status = r.hand.status()  # nothing was changed
+    assert status["world"] == "hand" and status["servos"]["fingers"]["hardware_error"] == 0
+    assert r.hand.hub.corrupt_pending == 0
+
+
+# ---- console scripts --------------------------------------------------------------------------
+def test_cli_refuses_a_missing_hand_and_a_file_as_dir(tmp_path):
+    done = run_cli("prisma-hand-fault", "--dir", str(tmp_path), "status")  # an empty directory
+    assert done.returncode == 2 and "no emulated hand at" in done.stderr and "Traceback" not in done.stderr
+    (regular := tmp_path / "a_file").write_text("x")
+    done = run_cli("prisma-hand-emulator", "--dir", str(regular), "--seconds", "1")
+    assert done.returncode == 2 and str(regular) in done.stderr and "Traceback" not in done.stderr
+
+
+def test_cli_emulator_refuses_an_occupied_control_socket_path(tmp_path):
+    """Something at control.sock: exit 2 naming it, and the devices already made are removed."""
+    (tmp_path / "control.sock").write_text("x")
+    done = run_cli("prisma-hand-emulator", "--dir", str(tmp_path), "--seconds", "1")
+    assert os.listdir(tmp_path) == ["control.sock"]
+    assert done.returncode == 2 and "control.sock" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_cli_running_emulator_answers_faults_and_stops_on_sigint(tmp_path):
+    d = str(tmp_path)
+    proc = subprocess.Popen(["prisma-hand-emulator", "--dir", d, "--seconds", "20"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert select.select([proc.stdout], [], [], 10.0)[0], "the emulator printed nothing in 10 s"
+        assert proc.stdout.readline().startswith("emulated hand (hand, 100 Hz)")
+        done = run_cli("prisma-hand-fault", "--dir", d, "status")
+        assert done.returncode == 0, done.stderr
+        status = json.loads(done.stdout)
+        assert status["world"] == "hand" and status["hub"]["plugged"] is True
+        done = run_cli("prisma-hand-fault", "--dir", d, "servo-error", "--motor", "fingers", "--bit", "9")
+        assert done.returncode == 2 and "bit 9" in done.stderr and "Traceback" not in done.stderr
+        done = run_cli("prisma-hand-fault", "--dir", d, "servo-error", "--motor", "fingers", "--bit", "overload")
+        assert done.returncode == 0 and "overload" in done.stdout
+        status = json.loads(run_cli("prisma-hand-fault", "--dir", d, "status").stdout)
+        assert status["servos"]["fingers"]["hardware_error"] == 0x20
+        start = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=5) == 0 and time.monotonic() - start < 2.5  # lingers 1 s by default
+        assert "emulated hand stopped after" in proc.stdout.read()
+        assert os.listdir(d) == []  # hub, servos, i2c.sock and control.sock removed
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()

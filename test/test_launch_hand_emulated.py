@@ -1,0 +1,264 @@
+"""launch_testing: `hand.launch.py hardware:=emulated`, the drivers' hardware paths on emulated hardware.
+
+prisma-hand-emulator holds the servos and the fingertip hub behind pseudo-terminals, driven by one
+hand/world model; motor_driver talks Dynamixel Protocol 2.0 to it through dynamixel-sdk and
+tactile_driver reads the hub's frames through pyserial. The tests run in order, on one launch:
+
+1. the drivers are on the emulator's devices (their /diagnostics name the ports) and bytes flow both
+   ways; a pinch Grasp SUCCEEDED force_reached, then a horizontal Manipulate SUCCEEDED edge_lost;
+2. CRC-corrupted frames and garbage bytes on the hub link are counted in /diagnostics, and no intact
+   frame is lost (the dropped-frame count is exactly the corrupted frames);
+3. the hub unplugged mid-grasp: the goal ends ABORTED sensor_stale and the motors stop; the hub
+   comes back, the driver reconnects, and the next Grasp succeeds;
+4. a servo overload mid-grasp: the goal ends ABORTED naming the motor and the bit, and that motor's
+   torque is off in the servo; once cleared, the next Grasp succeeds;
+5. a servo off the bus mid-grasp: the goal is aborted (sensor_stale or motor_fault, whichever safety
+   net fires first), the other servos stop, and once it answers again the next Grasp succeeds;
+6. the paper's scenarios, each from its own world (the emulator's `world` command poses the hand as
+   prisma-sim's scenario starts): pinch and lateral grasps, horizontal, vertical, disturbance and
+   combined manipulation, each ending for the paper's reason.
+Faults go in through `prisma-hand-fault`, the emulator's own CLI.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import unittest
+from pathlib import Path
+
+import pytest
+from ros_harness import (
+    RosHarness,
+    assert_clean_shutdown,
+    diagnostic_values,
+    hand_fault,
+    include_launch,
+    require_ros,
+    stamp_ns,
+)
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
+from prisma_msgs.msg import TaxelArray  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from prisma_bringup.hand_session import HAND_SCENARIOS  # noqa: E402
+from prisma_bringup.sim_runner import EXPECTED_REASONS  # noqa: E402
+
+# the same path in both imports of this module (launch_testing imports it twice)
+EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
+SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
+STATUS = {SUCCEEDED: "SUCCEEDED", ABORTED: "ABORTED", 5: "CANCELED"}
+# "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm)
+STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
+SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    EMULATOR_DIR.mkdir(exist_ok=True)
+    return launch.LaunchDescription([
+        include_launch("hand.launch.py", hardware="emulated", emulator_dir=str(EMULATOR_DIR)),
+        launch_testing.actions.ReadyToTest()])
+
+
+def fault(*args: str) -> str:
+    return hand_fault(EMULATOR_DIR, *args)
+
+
+def emulator_status() -> dict:
+    return json.loads(fault("status"))
+
+
+def stopped(msg: JointState) -> bool:
+    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
+
+
+def outcome(result) -> tuple[str, str]:
+    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
+    return STATUS.get(result.status, str(result.status)), reason
+
+
+class TestHandEmulated(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        ros = cls.ros = RosHarness()
+        try:
+            ros.capture_logs()
+            cls.joints = ros.collect(JointState, "/joint_states")
+            cls.taxels = ros.collect(TaxelArray, "/prisma/thumb/taxels")
+            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
+            cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
+        except BaseException:
+            ros.shutdown()
+            raise
+
+    @classmethod
+    def tearDownClass(cls):
+        for client in (cls.grasp, cls.manipulate):
+            client.destroy()
+        cls.ros.shutdown()
+
+    def diagnostic(self, name_end: str, since_ns: int = 0) -> dict[str, str] | None:
+        return diagnostic_values(self.diagnostics, name_end, since_ns)
+
+    def run_goal(self, goal, timeout_sec: float = 40.0):
+        client = self.grasp if isinstance(goal, Grasp.Goal) else self.manipulate
+        handle = self.ros.send_until_accepted(client, goal, timeout_sec=30.0)
+        return self.ros.result(handle, timeout_sec=timeout_sec)
+
+    def start_slow_grasp(self):
+        """A grasp that closes at 10 rpm toward 3 N: still running when the fault comes."""
+        ros = self.ros
+        fault("world", "grasp")
+        handle = ros.send_until_accepted(self.grasp, SLOW_PINCH, timeout_sec=30.0)
+        result = handle.get_result_async()
+        accepted = len(self.joints)
+
+        def closing() -> bool:
+            recent = self.joints[accepted:][-5:]
+            return len(recent) == 5 and all(0.9 < m.velocity[list(m.name).index("fingers")] < 1.2 for m in recent)
+
+        ros.spin_until(lambda: result.done() or closing(), 15.0)
+        self.assertFalse(result.done(), f"the grasp ended before the fault: {result.result()}")
+        return result
+
+    def test_1_drivers_on_the_emulated_devices(self):
+        ros = self.ros
+        self.assertTrue(ros.spin_until(lambda: self.diagnostic("tactile_driver: hub") is not None
+                                       and self.diagnostic("motor_driver: bus") is not None, 60.0),
+                        "no /diagnostics from both drivers")
+        hub, bus = self.diagnostic("tactile_driver: hub"), self.diagnostic("motor_driver: bus")
+        self.assertEqual(hub["port"], str(EMULATOR_DIR / "hub"))
+        self.assertEqual(bus["port"], str(EMULATOR_DIR / "servos"))
+        before = emulator_status()
+        self.assertEqual(before["world"], "hand")
+        self.assertTrue(ros.spin_until(lambda: self.grasp.server_is_ready() and self.manipulate.server_is_ready(),
+                                       60.0), "no /prisma/grasp and /prisma/manipulate servers")
+
+        result = self.run_goal(Grasp.Goal(grasp="pinch"))
+        self.assertEqual(outcome(result), ("SUCCEEDED", "force_reached"))
+        result = self.run_goal(Manipulate.Goal(motion="horizontal"))
+        self.assertEqual(outcome(result), ("SUCCEEDED", "edge_lost"))
+
+        after = emulator_status()
+        self.assertGreater(after["hub"]["frames_sent"], before["hub"]["frames_sent"])
+        self.assertEqual(after["hub"]["frames_unread"], 0, "the tactile driver fell behind the hub")
+        self.assertGreater(after["forces_n"]["thumb"], 0.5, "the ball is not held after the pinch")
+        hub = self.diagnostic("tactile_driver: hub")
+        self.assertGreater(int(hub["frames"]), 100)
+
+    def test_2_crc_errors_and_garbage_counted_no_intact_frame_lost(self):
+        ros = self.ros
+        self.assertTrue(ros.spin_until(lambda: self.diagnostic("tactile_driver: hub") is not None, 30.0))
+        start_ns = ros.now_ns()
+        self.assertTrue(ros.spin_until(lambda: self.diagnostic("tactile_driver: hub", start_ns) is not None, 5.0))
+        before = self.diagnostic("tactile_driver: hub")
+        sent_before = emulator_status()["hub"]
+        fault("hub-crc", "--frames", "5")
+        fault("hub-garbage", "--bytes", "300")
+        ros.spin_for(1.0)
+        sent_after = emulator_status()["hub"]
+        self.assertEqual(sent_after["frames_corrupted"] - sent_before["frames_corrupted"], 5)
+        self.assertEqual(sent_after["garbage_bytes"] - sent_before["garbage_bytes"], 300)
+        mark_ns = ros.now_ns()
+        self.assertTrue(ros.spin_until(lambda: self.diagnostic("tactile_driver: hub", mark_ns) is not None, 5.0))
+        after = self.diagnostic("tactile_driver: hub")
+        delta = {k: int(after[k]) - int(before[k]) for k in ("crc_errors", "missed_frames", "garbage_bytes")}
+        print(f"hub link after 5 corrupted frames and 300 garbage bytes: {delta}")
+        self.assertEqual(delta["crc_errors"], 5)
+        self.assertEqual(delta["missed_frames"], 5, "an intact frame was lost (or a corrupted one passed)")
+        # the garbage, and each corrupted frame but the byte its sync was found at... all skipped
+        self.assertGreaterEqual(delta["garbage_bytes"], 300)
+
+    def test_3_hub_unplugged_mid_grasp(self):
+        ros = self.ros
+        result = self.start_slow_grasp()
+        received_before = len(self.joints)
+        fault("hub-unplug", "--seconds", "1.5")
+        self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on without its sensors")
+        ros.spin_for(0.5)
+        self.assertEqual((result.result().status, result.result().result.reason), (ABORTED, "sensor_stale"))
+        self.assertTrue(stopped(self.joints[-1]), f"still moving: {list(self.joints[-1].velocity)}")
+        self.assertFalse(all(stopped(m) for m in self.joints[received_before:]), "never moving after the unplug?")
+        self.assertTrue(ros.wait_for_log(name="tactile_driver", contains=f"serial port {EMULATOR_DIR / 'hub'} lost"))
+
+        plugged_ns = ros.now_ns() + int(1.0e9)
+        self.assertTrue(ros.spin_until(lambda: self.taxels and stamp_ns(self.taxels[-1]) > plugged_ns, 15.0),
+                        "no /prisma/thumb/taxels after the hub came back")
+        self.assertTrue(ros.spin_until(lambda: int((self.diagnostic("tactile_driver: hub") or {})
+                                                   .get("reconnects", 0)) >= 1, 5.0), "/diagnostics shows no reconnect")
+        self.assertEqual(emulator_status()["hub"]["unplugs"], 1)
+        fault("world", "grasp")
+        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+
+    def test_4_servo_overload_mid_grasp(self):
+        ros = self.ros
+        result = self.start_slow_grasp()
+        fault("servo-error", "--motor", "fingers", "--bit", "overload")
+        self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with an overloaded servo")
+        self.assertEqual(outcome(result.result()), ("ABORTED", "motor_fault"))
+        fault_reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
+        self.assertTrue(ros.wait_for_log(name="manipulation", contains=f"grasp goal ended: motor_fault ({fault_reason}"))
+        self.assertTrue(ros.spin_until(lambda: not emulator_status()["servos"]["fingers"]["torque_on"], 2.0),
+                        "the overloaded servo's torque is still on")
+        fault("servo-clear")
+        fault("world", "grasp")
+        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+
+    def test_5_servo_off_the_bus_mid_grasp(self):
+        """A servo that stops answering: the goal is aborted, by whichever safety net fires first
+        (manipulation's watchdog when /joint_states stall while the driver retries: sensor_stale;
+        the driver's failed transaction: motor_fault communication), and the servos still on the
+        bus stop within 0.5 s. Once the servo answers again the driver has the bus back (reopened
+        after a failure) and the next Grasp succeeds."""
+        ros = self.ros
+        result = self.start_slow_grasp()
+        fault("servo-silent", "--motor", "thumb_flexion", "--seconds", "1.0")
+        self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with a servo off the bus")
+        status, reason = outcome(result.result())
+        self.assertIn((status, reason), {("ABORTED", "sensor_stale"), ("ABORTED", "motor_fault")})
+        ros.spin_for(0.5)
+        fingers = emulator_status()["servos"]["fingers"]
+        self.assertTrue(fingers["velocity_rpm"] == 0 or not fingers["torque_on"], f"fingers still driven: {fingers}")
+        ros.spin_for(1.0)  # the servo is back
+        fault("world", "grasp")
+        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+
+    def test_6_paper_scenarios(self):
+        ends, rotations, forces = {}, {}, {}
+        for name, spec in HAND_SCENARIOS.items():
+            fault("world", spec.world)
+            goal = (Grasp.Goal if spec.action == "grasp" else Manipulate.Goal)(**spec.goal)
+            start = emulator_status()
+            ends[name] = outcome(self.run_goal(goal))
+            end = emulator_status()
+            rotations[name] = end["servos"]["thumb_rotation"]["position_rad"] - start["servos"]["thumb_rotation"]["position_rad"]
+            forces[name] = end["forces_n"]
+            print(f"{name}: {ends[name]}, thumb rotation {rotations[name]:+.3f} rad, forces {forces[name]}")
+        # the holds restore the contact side by rotating the thumb (the push came 0.5 s into the
+        # world), and the combined one the thumb's 1 N
+        self.assertGreater(rotations["disturbance"], 0.2)
+        self.assertGreater(rotations["combined"], 0.2)
+        self.assertAlmostEqual(forces["combined"]["thumb"], 1.0, delta=0.15)
+        # a hold runs until its time is up: that is its success
+        self.assertEqual(ends, {name: ("SUCCEEDED", EXPECTED_REASONS[name]) for name in HAND_SCENARIOS})
+
+
+@launch_testing.post_shutdown_test()
+class TestShutdown(unittest.TestCase):
+    def test_clean_exit(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)
+        leftovers = sorted(p.name for p in EMULATOR_DIR.iterdir())
+        self.assertEqual(leftovers, [], "the emulator left devices behind")
+        EMULATOR_DIR.rmdir()

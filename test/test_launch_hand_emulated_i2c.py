@@ -1,0 +1,129 @@
+"""launch_testing: `hand.launch.py hardware:=emulated tactile_backend:=i2c`, the tactile driver on the
+emulated TCA9548A + MAX11617 bus.
+
+tactile_driver's I2C backend runs its smbus2 transactions (mux channel select, ADC setup and
+configuration, 18-byte scan read) against prisma-hand-emulator's bus over its socket, the same pads
+that drive the hub's serial frames; motor_driver is on the servo emulator as in the serial test.
+
+1. a pinch Grasp SUCCEEDED force_reached with the taxels read over I2C;
+2. the index pad's ADC stops acknowledging: its taxels stop while the other fingers' go on, and
+   /diagnostics names the finger's mux channel and the NACK; cleared, the index taxels come back;
+3. glitched reads (all-zero bytes, a high nibble other than 1111) are rejected and counted as bad
+   reads, one per glitch.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import unittest
+from pathlib import Path
+
+import pytest
+from ros_harness import (
+    RosHarness,
+    assert_clean_shutdown,
+    diagnostic_values,
+    hand_fault,
+    include_launch,
+    require_ros,
+    stamp_ns,
+)
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from prisma_msgs.action import Grasp  # noqa: E402
+from prisma_msgs.msg import TaxelArray  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+
+# the same path in both imports of this module (launch_testing imports it twice)
+EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_i2c_{os.getpid()}"
+SUCCEEDED = 4  # action_msgs/GoalStatus
+HUB = "tactile_driver: hub"
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    EMULATOR_DIR.mkdir(exist_ok=True)
+    return launch.LaunchDescription([
+        include_launch("hand.launch.py", hardware="emulated", tactile_backend="i2c", emulator_dir=str(EMULATOR_DIR)),
+        launch_testing.actions.ReadyToTest()])
+
+
+class TestHandEmulatedI2C(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        ros = cls.ros = RosHarness()
+        try:
+            ros.capture_logs()
+            cls.taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in ("thumb", "index")}
+            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
+        except BaseException:
+            ros.shutdown()
+            raise
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.grasp.destroy()
+        cls.ros.shutdown()
+
+    def fresh_hub_diagnostic(self) -> dict[str, str]:
+        """The hub's values from a /diagnostics message published from now on."""
+        since = self.ros.now_ns()
+        self.assertTrue(self.ros.spin_until(lambda: diagnostic_values(self.diagnostics, HUB, since), 5.0))
+        return diagnostic_values(self.diagnostics, HUB, since)
+
+    def test_1_pinch_grasp_over_i2c(self):
+        ros = self.ros
+        self.assertTrue(ros.spin_until(self.grasp.server_is_ready, 60.0), "no /prisma/grasp server")
+        handle = ros.send_until_accepted(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
+        result = ros.result(handle, timeout_sec=30.0)
+        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual(self.fresh_hub_diagnostic()["bus"], str(EMULATOR_DIR / "i2c.sock"))
+        status = json_status()
+        self.assertGreater(status["i2c"]["transfers"], 1000)
+
+    def test_2_index_adc_not_acknowledging(self):
+        ros = self.ros
+        hand_fault(EMULATOR_DIR, "i2c-nack", "--finger", "index")
+        failed_from = ros.now_ns()
+        ros.spin_for(1.0)
+        index_after = [m for m in self.taxels["index"] if stamp_ns(m) > failed_from + 100_000_000]
+        thumb_after = [m for m in self.taxels["thumb"] if stamp_ns(m) > failed_from + 100_000_000]
+        self.assertEqual(index_after, [], "index taxels went on while its ADC did not answer")
+        self.assertGreater(len(thumb_after), 50, "the other fingers stopped too")
+        hub = self.fresh_hub_diagnostic()
+        self.assertIn("mux channel 1", hub["index_last_error"])
+        self.assertIn("no ACK from 0x35", hub["index_last_error"])
+        self.assertGreater(int(hub["index_failed_scans"]), 50)
+
+        hand_fault(EMULATOR_DIR, "i2c-clear")
+        cleared = ros.now_ns()
+        self.assertTrue(ros.spin_until(lambda: stamp_ns(self.taxels["index"][-1]) > cleared, 5.0),
+                        "no index taxels after the ADC answered again")
+
+    def test_3_glitched_reads_counted_as_bad_reads(self):
+        before = int(self.fresh_hub_diagnostic()["index_bad_reads"])
+        hand_fault(EMULATOR_DIR, "i2c-glitch", "--finger", "index", "--count", "3")
+        self.ros.spin_for(0.5)
+        after = int(self.fresh_hub_diagnostic()["index_bad_reads"])
+        self.assertEqual(after - before, 3)
+
+
+def json_status() -> dict:
+    import json
+
+    return json.loads(hand_fault(EMULATOR_DIR, "status"))
+
+
+@launch_testing.post_shutdown_test()
+class TestShutdown(unittest.TestCase):
+    def test_clean_exit(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)
+        self.assertEqual(sorted(p.name for p in EMULATOR_DIR.iterdir()), [], "the emulator left devices behind")
+        EMULATOR_DIR.rmdir()
