@@ -153,7 +153,8 @@ class TestHandEmulated(unittest.TestCase):
 
         after = emulator_status()
         self.assertGreater(after["hub"]["frames_sent"], before["hub"]["frames_sent"])
-        self.assertEqual(after["hub"]["frames_unread"], 0, "the tactile driver fell behind the hub")
+        self.assertEqual(after["hub"]["frames_unread"], before["hub"]["frames_unread"],
+                         "the tactile driver fell behind the hub during the goals")
         self.assertGreater(after["forces_n"]["thumb"], 0.5, "the ball is not held after the pinch")
         hub = self.diagnostic("tactile_driver: hub")
         self.assertGreater(int(hub["frames"]), 100)
