@@ -209,3 +209,19 @@ def test_power_and_lateral_presets_close_on_their_objects(obj, preset):
         assert np.all(tr.force("index") == 0.0)
     i_thumb = tr.index_of(c.phase_end_ns["close_thumb"])
     assert tr.force("thumb")[i_thumb] >= 1.0 and tr.force("thumb")[i_thumb:].max() <= 1.1
+
+
+@pytest.mark.parametrize("name", ["disturbance", "combined"])
+def test_index_force_true_and_estimated_agree_on_the_pad_and_are_zero_off_it(name):
+    """The push slides the ball off the index pad: from then on the pad carries no force, in the
+    world (the finger still squeezes the ball beside the pad) as in the estimate from its taxels."""
+    from prisma_force_estimator.inference import ForceEstimator
+
+    estimator = ForceEstimator.from_bundle(BUNDLE)
+    trace = build(name, force_fn=estimator_force_fn(estimator)).run()
+    true, used = trace.force("index", "true"), trace.force("index", "used")
+    on_pad = ~np.isnan(trace.array("contact_xy")[:, 1, 0])
+    assert 50 < on_pad.sum() < len(on_pad) - 50  # on the pad before the push, off it after
+    assert np.abs(used - true)[on_pad].max() < 0.15  # N: the estimator's error on this pad
+    assert (true[~on_pad] == 0.0).all()
+    assert np.abs(used[~on_pad]).max() < 0.05  # the estimate of an unloaded pad

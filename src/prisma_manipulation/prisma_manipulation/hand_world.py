@@ -111,12 +111,20 @@ class Disturbance:
 @dataclass
 class WorldState:
     stamp_ns: int
-    forces: dict[str, float]  # normal force per pad, N
+    # normal force each finger presses the object with, N (on its sensor pad or, once the object
+    # has slipped off the pad, on the finger beside it): the grasp balance and the tendon loads
+    finger_forces: dict[str, float]
     contacts: dict[str, PadContact | None]
     object_z_mm: float  # object displacement along the grasp axis (toward the thumb)
     object_xy_mm: tuple[float, float]  # object tangential position (hand frame)
     fixture_n_per_mm: float
     pad_positions_mm: dict[str, float] = field(default_factory=dict)  # actual pad travel along z
+
+    @property
+    def forces(self) -> dict[str, float]:
+        """Normal force on each sensor pad, N: the finger's force while the object touches the pad,
+        0 once it has slipped off (what the pad can measure)."""
+        return {f: force if self.contacts.get(f) is not None else 0.0 for f, force in self.finger_forces.items()}
 
 
 class HandWorld:
@@ -173,8 +181,9 @@ class HandWorld:
         state = self._solve(stamp_ns)
         tangents = self._tangents(state)
         partner = self.params.partner
-        pinched_before = self.state.forces["thumb"] > 0 and self.state.forces.get(partner, 0.0) > 0
-        pinched_now = state.forces["thumb"] > 0 and state.forces.get(partner, 0.0) > 0
+        before, now = self.state.finger_forces, state.finger_forces
+        pinched_before = before["thumb"] > 0 and before.get(partner, 0.0) > 0
+        pinched_now = now["thumb"] > 0 and now.get(partner, 0.0) > 0
         if pinched_before and pinched_now and self._pad_tangent:
             # rolling without slip between thumb and partner: the object moves by the mean motion
             (tx0, ty0), (px0, py0) = self._pad_tangent["thumb"], self._pad_tangent[partner]
@@ -196,8 +205,8 @@ class HandWorld:
 
     def motor_loads(self) -> dict[str, float]:
         p = self.params
-        fingers = sum(self.state.forces[f] for f in FINGER_PADS)
-        thumb = self.state.forces["thumb"]
+        fingers = sum(self.state.finger_forces[f] for f in FINGER_PADS)
+        thumb = self.state.finger_forces["thumb"]
         return {"fingers": fingers * p.load_nm_per_n, "thumb_flexion": thumb * p.load_nm_per_n,
                 "thumb_rotation": thumb * p.load_nm_per_n * p.rotation_load_fraction}
 
@@ -216,7 +225,7 @@ class HandWorld:
     def _update_fixture(self, stamp_ns: int) -> None:
         o = self.obj
         if self._released_ns is None and o.release_force_n is not None:
-            f = self.state.forces
+            f = self.state.finger_forces
             if f["thumb"] >= o.release_force_n and f.get(self.params.partner, 0.0) >= o.release_force_n:
                 if self._held_since_ns is None:
                     self._held_since_ns = stamp_ns
