@@ -15,9 +15,11 @@ import time
 import numpy as np
 from run import Benchmark
 
-from prisma_manipulation.contact_monitor import ContactMonitor
-from prisma_manipulation.controllers import ControlInput, JointSample
-from prisma_manipulation.scenarios import DEFAULT_K, build
+from prisma_manipulation.contact_monitor import DEFAULT_K, ContactMonitor
+from prisma_manipulation.controllers import ControlInput, ControlLimits, JointSample
+from prisma_manipulation.motion_controllers import HoldController
+from prisma_manipulation.motor_bus import default_motors
+from prisma_manipulation.scenarios import build
 from prisma_tactile_driver.taxels import FINGERS
 
 MIN_SECONDS = 1.0
@@ -43,7 +45,7 @@ def _measure_control_step(bench: Benchmark) -> float:
     ]
 
     def fresh():
-        c = build("disturbance").controller
+        c = HoldController(ControlLimits(default_motors()), 20.0, timeout_s=3.0)  # the disturbance goal's
         c.start(samples[0][3])
         return c
 

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prisma_manipulation.closed_loop import estimator_force_fn
 from prisma_manipulation.contact_monitor import first_lost_index
 from prisma_manipulation.motor_bus import MOTOR_NAMES
 from prisma_manipulation.scenarios import DEFAULT_K, build
@@ -156,10 +155,11 @@ def test_pinch_grasp_at_60_rpm_100_hz_with_the_estimators_forces():
     from prisma_force_estimator.inference import ForceEstimator
 
     estimator = ForceEstimator.from_bundle(BUNDLE)
-    sc = build("grasp", force_fn=estimator_force_fn(estimator))
-    assert sc.loop.period_ns == 10_000_000 and sc.controller.speed_rpm == 60.0
+    sc = build("grasp", estimator=estimator)
+    assert sc.loop.period_ns == 10_000_000 and sc.request.speed_rpm == 60.0
     tr = sc.run()
     c = sc.controller
+    assert c.speed_rpm == 60.0
     assert c.reason == "force_reached" and c.success
     fingers_end, thumb_end = _check_grasp(tr, c, "used")
     # what the pads really carry: close to the targets as well (estimator error included)
@@ -187,17 +187,13 @@ def test_combined_restores_force_and_orientation_after_a_slip():
 @pytest.mark.parametrize("obj, preset", [("power_ball", "power"), ("lateral_card", "lateral")])
 def test_power_and_lateral_presets_close_on_their_objects(obj, preset):
     from prisma_manipulation.closed_loop import ClosedLoop
-    from prisma_manipulation.contact_monitor import ContactMonitor
-    from prisma_manipulation.controllers import ControlLimits
-    from prisma_manipulation.grasp_controller import GraspController
     from prisma_manipulation.hand_world import HandWorld
-    from prisma_manipulation.motor_bus import default_motors
-    from prisma_manipulation.sim_motors import SimMotorBus
+    from prisma_manipulation.manipulation_core import GraspRequest
 
     world = HandWorld(obj=obj)
-    loop = ClosedLoop(world, SimMotorBus(default_motors()), ContactMonitor(DEFAULT_K))
-    c = GraspController(ControlLimits(default_motors()), preset)
-    tr = loop.run(c, 10.0, settle_s=0.3)
+    loop = ClosedLoop(world)
+    tr = loop.run(GraspRequest(preset), 10.0, settle_s=0.3)
+    c = loop.controller
     assert c.reason == "force_reached"
     i_fingers = tr.index_of(c.phase_end_ns["close_fingers"])
     if preset == "power":
@@ -218,7 +214,7 @@ def test_index_force_true_and_estimated_agree_on_the_pad_and_are_zero_off_it(nam
     from prisma_force_estimator.inference import ForceEstimator
 
     estimator = ForceEstimator.from_bundle(BUNDLE)
-    trace = build(name, force_fn=estimator_force_fn(estimator)).run()
+    trace = build(name, estimator=estimator).run()
     true, used = trace.force("index", "true"), trace.force("index", "used")
     on_pad = ~np.isnan(trace.array("contact_xy")[:, 1, 0])
     assert 50 < on_pad.sum() < len(on_pad) - 50  # on the pad before the push, off it after

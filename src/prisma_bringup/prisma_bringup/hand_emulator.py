@@ -389,7 +389,7 @@ class EmulatedHand:
         if not all(math.isfinite(v) for v in values):
             raise FaultError(f"push {values}: every displacement must be a finite number of mm")
         with self.lock:
-            start_s = (self.clock_ns() - self._world_start_ns) * 1e-9
+            start_s = self.world.elapsed_s(self.clock_ns() - self._world_start_ns)
             self.world.add_disturbance(Disturbance(start_s, duration_s, dx_mm, dy_mm, dwidth_mm))
         return f"push dx {dx_mm:g} mm, dy {dy_mm:g} mm, width {dwidth_mm:+g} mm over {duration_s:g} s"
 

@@ -157,10 +157,10 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
     root = options.out if root is None else root
     spec = HAND_SCENARIOS[name]
     started = time.perf_counter()
-    scenario = spec.make()
+    scenario = spec.make(estimator)
     bag = root / "bags" / name
     with BagWriter(bag) as writer:
-        recorder = HandRecorder(scenario, writer, estimator, spec.action)
+        recorder = HandRecorder(scenario, writer, spec.action)
         trace = scenario.run(progress=lambda line: progress(f"[{name}] {line}"))
         recording = recorder.finish()
     summary = summarise(scenario, trace)

@@ -1,39 +1,50 @@
-"""ROS-free closed loop: sim motors -> hand/world -> pad models -> contact monitor + forces ->
-controller -> sim motors, one sample per period with explicit stamps.
+"""ROS-free closed loop: the hand's node cores on simulated hardware, one scan per period.
 
-Per sample at t_k: read the motors at t_k, move the world to those positions, sample every pad
-(PadModel counts -> volts), evaluate Algorithm 1 for every finger, compute the normal forces with
-`force_fn(voltages[5, 9]) -> N[5]` (the force estimator) or take the world's ground truth when
-`force_fn` is None, step the controller, and apply its command at t_k. Everything is recorded in a
-`Trace` so tests can recompute stop conditions independently of the controller.
+The same decision code as the launched graph, in the order the graph delivers its messages, with
+explicit stamps. Per scan at t_k:
+1. the motor driver's core (`MotorDriverCore` on the sim motors) ticks: the joint sample, the running
+   MoveMotors goal's feedback, and its result when it ended (timeout, joint limit, fault), which goes
+   to the manipulation core as the node's MoveMotors client hands it over;
+2. the world moves to the motor positions and loads the motors;
+3. the manipulation core (`ManipulationCore`, the manipulation node's) takes the joint sample;
+4. the tactile driver's core (`TactileHub`) reads the pads' counts (one `PadModel` per finger) into
+   taxel frames, and the manipulation core takes each (Algorithm 1, a controller step when due);
+5. the force estimator's core (`WrenchPipeline`) turns the frames into wrenches when an estimator is
+   given, and the manipulation core takes each normal force; without one it takes the world's
+   force on each pad (ground truth).
+The manipulation core's decisions are carried out as the node does: SendMove starts a MoveMotors
+velocity goal on the motor driver's core (preempting the last), StopMotors cancels it; Feedback and
+Finished end up in the `Scan` each period hands to `observer` (the bag recorder) and in the `Trace`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from prisma_tactile_driver.backend import HubReading
+from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.pad_model import PadModel, PadParams
-from prisma_tactile_driver.taxels import FINGERS, counts_to_voltages
+from prisma_tactile_driver.taxels import FINGERS, TaxelFrame
 
-from .contact_monitor import ContactMonitor
-from .controllers import ControlInput, Controller, JointSample
+from .contact_monitor import ContactEvaluation
+from .controllers import Controller, JointSample
 from .hand_world import HandWorld
-from .motor_bus import MOTOR_NAMES
+from .manipulation_core import Finished, GraspRequest, ManipulateRequest, ManipulationCore, SendMove, StopMotors
+from .motor_bus import MOTOR_NAMES, MotorState
+from .motor_driver_core import MotorDriverCore
+from .motor_goals import MoveFeedback, MoveResult
+from .node_config import ManipulationConfig, MotorDriverConfig
+from .ros_conversions import velocity_goal
 from .sim_motors import SimMotorBus
 
-ForceFn = Callable[[np.ndarray], np.ndarray]
+if TYPE_CHECKING:
+    from prisma_force_estimator.inference import ForceEstimator
+    from prisma_force_estimator.pipeline import WrenchSample
 
-
-def estimator_force_fn(estimator, axis: str = "fz") -> ForceFn:
-    """Normal force per finger from a prisma_force_estimator ForceEstimator (+Fz presses the pad)."""
-    column = list(estimator.axes).index(axis)
-
-    def forces(voltages: np.ndarray) -> np.ndarray:
-        return np.asarray(estimator.estimate(voltages), dtype=np.float64)[:, column]
-
-    return forces
+NS = 1_000_000_000
+FRAME_ID_FORMAT = "prisma_{finger}_pad"  # tactile_driver's and force_estimator's default frame ids
 
 
 @dataclass
@@ -43,8 +54,8 @@ class Trace:
     voltages: list[np.ndarray] = field(default_factory=list)  # [5, 9] per sample
     thresholds: list[np.ndarray] = field(default_factory=list)  # [5]
     lost_edges: list[dict[str, tuple[str, ...]]] = field(default_factory=list)
-    forces_true: list[np.ndarray] = field(default_factory=list)  # [5]
-    forces_used: list[np.ndarray] = field(default_factory=list)  # [5] what the controller saw
+    forces_true: list[np.ndarray] = field(default_factory=list)  # [5] on each pad
+    forces_used: list[np.ndarray] = field(default_factory=list)  # [5] what the manipulation core got
     positions: list[np.ndarray] = field(default_factory=list)  # [3] MOTOR_NAMES order
     commands: list[np.ndarray] = field(default_factory=list)  # [3] rpm in force after this sample
     contact_xy: list[np.ndarray] = field(default_factory=list)  # [5, 2] (nan = no contact)
@@ -67,79 +78,193 @@ class Trace:
         return self.stamps_ns.index(stamp_ns)
 
 
+@dataclass
+class Scan:
+    """Everything the graph's nodes received and decided in one period (for the bag recorder)."""
+
+    stamp_ns: int
+    states: dict[str, MotorState]
+    frames: list[TaxelFrame]
+    evaluations: dict[str, ContactEvaluation]
+    wrenches: dict[str, "WrenchSample"]
+    forces: dict[str, float] = field(default_factory=dict)  # the normal force handed to the core per finger
+    move_feedback: MoveFeedback | None = None  # the running MoveMotors goal's, this tick
+    move_result: MoveResult | None = None  # the MoveMotors goal that ended by itself this tick
+    goal_started: bool = False  # the goal was sent (and accepted) at this scan, before `actions`
+    actions: list = field(default_factory=list)  # the manipulation core's decisions, in order
+
+
+class _PadsBackend:
+    """The tactile hub's backend on the loop's pads: one reading per scan, the counts of that scan."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, np.ndarray] = {}
+        self.scans = 0
+
+    def read(self, stamp_ns: int) -> list[HubReading]:
+        self.scans += 1
+        return [HubReading(self.scans - 1, dict(self.counts))]
+
+    def counters(self) -> dict[str, int]:
+        return {"scans": self.scans}
+
+    def close(self) -> None:
+        pass
+
+
 class ClosedLoop:
     def __init__(
         self,
         world: HandWorld,
-        bus: SimMotorBus,
-        monitor: ContactMonitor | None = None,
-        force_fn: ForceFn | None = None,
+        estimator: "ForceEstimator | None" = None,
+        config: ManipulationConfig | None = None,
         rate_hz: float = 100.0,
         pad_params: PadParams | None = None,
         seed: int = 0,
+        observer: Callable[[Scan], Any] | None = None,
     ) -> None:
         self.world = world
-        self.bus = bus
-        self.monitor = monitor or ContactMonitor()
-        self.force_fn = force_fn
         self.period_ns = int(round(1e9 / rate_hz))
+        self.observer = observer
         self.pads = {f: PadModel(pad_params, seed=seed + i) for i, f in enumerate(FINGERS)}
+        self.core = ManipulationCore(config or ManipulationConfig())
+        motor_config = MotorDriverConfig(backend="sim")
+        # the motors' clock starts at the first scan, whatever its stamp
+        bus = SimMotorBus(motor_config.motors(), initial_positions=world.positions, start_ns=None)
+        self.motor = MotorDriverCore(motor_config, bus)
+        self.motor.connect(0)
+        self._pads_backend = _PadsBackend()
+        self.hub = TactileHub(self._pads_backend, FINGERS, name="tactile_driver", hardware_id="sim/hand_world")
+        self.estimator = estimator
+        self.pipeline = None
+        if estimator is not None:
+            from prisma_force_estimator.node_config import EstimatorConfig
+            from prisma_force_estimator.pipeline import WrenchPipeline
 
-    def sample(self, stamp_ns: int):
-        """One sensor sample of the whole hand at stamp_ns (advances motors and world)."""
-        states = self.bus.read_state(stamp_ns)
-        positions = {n: s.position_rad for n, s in states.items()}
-        joints = JointSample(stamp_ns, positions, {n: s.velocity_rpm for n, s in states.items()},
-                             {n: s.current_ma for n, s in states.items()})
-        self.world.update_joints(positions, stamp_ns)
+            batch_window_ns = int(round(EstimatorConfig().batch_window * NS))
+            self.pipeline = WrenchPipeline({f: estimator for f in FINGERS}, FRAME_ID_FORMAT, batch_window_ns)
+        self.controller: Controller | None = None  # the goal's controller, kept after it ends
+        self.finished: Finished | None = None
+
+    @property
+    def bus(self) -> SimMotorBus:
+        return self.motor.bus
+
+    # ---- one scan --------------------------------------------------------------------------
+    def scan(self, stamp_ns: int) -> tuple[Scan, np.ndarray, np.ndarray]:
+        """One period at stamp_ns: (the scan, the pads' voltages [5, 9], the normal forces the
+        manipulation core got [5]). The decisions are carried out before it returns."""
+        tick = self.motor.tick(stamp_ns)
+        states = tick.states or {}
+        joints = JointSample(stamp_ns, {n: s.position_rad for n, s in states.items()},
+                             {n: s.velocity_rpm for n, s in states.items()}, {n: s.current_ma for n, s in states.items()})
+        scan = Scan(stamp_ns, states, [], {}, {}, move_feedback=tick.feedback, move_result=tick.result)
+        if tick.result is not None:
+            self._carry_out(self.core.on_move_result(tick.result.reason, stamp_ns), scan)
+        self.world.update_joints(joints.positions, stamp_ns)
         self.bus.set_loads(self.world.motor_loads())
-        volts = np.stack([counts_to_voltages(self.pads[f].sample(self.world.contact(f))) for f in FINGERS])
-        evaluations = {f: self.monitor.evaluate(f, stamp_ns, volts[i]) for i, f in enumerate(FINGERS)}
-        truth = np.array([self.world.state.forces[f] for f in FINGERS])
-        used = truth if self.force_fn is None else np.asarray(self.force_fn(volts), dtype=np.float64)
-        return joints, volts, evaluations, truth, used
+        self._carry_out(self.core.on_joints(joints, stamp_ns), scan)
 
-    def run(self, controller: Controller, duration_s: float, start_ns: int = 0, settle_s: float = 0.0,
-            progress: Callable[[str], None] | None = None) -> Trace:
-        """Run until the controller is done (then `settle_s` more with the motors stopped) or
-        duration_s has passed."""
+        self._pads_backend.counts = {f: self.pads[f].sample(self.world.contact(f)) for f in FINGERS}
+        scan.frames = self.hub.poll(stamp_ns)
+        for frame in scan.frames:
+            evaluation, actions = self.core.on_taxels(frame.finger, frame.stamp_ns, frame.voltages, stamp_ns)
+            scan.evaluations[frame.finger] = evaluation
+            self._carry_out(actions, scan)
+        by_finger = {frame.finger: frame for frame in scan.frames}
+        volts = np.stack([np.asarray(by_finger[f].voltages, dtype=np.float64) for f in FINGERS])
+
+        used = np.full(len(FINGERS), np.nan)
+        if self.pipeline is None:
+            truth = self.world.forces()
+            forces = {(f.finger, f.stamp_ns): truth[f.finger] for f in scan.frames}
+        else:
+            from prisma_force_estimator.pipeline import TaxelSample
+
+            forces = {}
+            for frame in scan.frames:
+                sample = TaxelSample(frame.finger, frame.stamp_ns, frame.voltages, FRAME_ID_FORMAT.format(finger=frame.finger))
+                for finger, wrench in self.pipeline.add(sample):
+                    scan.wrenches[finger] = wrench
+                    forces[(finger, wrench.stamp_ns)] = float(wrench.wrench[2])  # +Fz presses the pad
+        for (finger, sample_ns), force in forces.items():
+            used[FINGERS.index(finger)] = force
+            scan.forces[finger] = force
+            self._carry_out(self.core.on_wrench(finger, sample_ns, force, stamp_ns), scan)
+        return scan, volts, used
+
+    def _carry_out(self, actions: list, scan: Scan) -> None:
+        for action in actions:
+            if isinstance(action, SendMove):
+                self.motor.start(velocity_goal(action.velocities_rpm, action.timeout_s), scan.stamp_ns)
+            elif isinstance(action, StopMotors):
+                self.motor.cancel()
+            elif isinstance(action, Finished):
+                self.finished = action
+            scan.actions.append(action)
+
+    # ---- a goal ----------------------------------------------------------------------------
+    def start(self, request: GraspRequest | ManipulateRequest, scan: Scan) -> None:
+        """Send the goal at the scan's stamp as a client would: refused (RuntimeError naming why)
+        where the manipulation node would refuse it."""
+        core, t = self.core, scan.stamp_ns
+        grasp = isinstance(request, GraspRequest)
+        reason = (core.accept_grasp if grasp else core.accept_manipulate)(request, True, t)
+        if reason is not None:
+            raise RuntimeError(f"the manipulation node would reject the goal at {t * 1e-9:.2f} s: {reason}")
+        scan.goal_started = True
+        self._carry_out((core.start_grasp if grasp else core.start_manipulate)(request, t), scan)
+        self.controller = core.controller
+
+    def run(self, request: GraspRequest | ManipulateRequest, duration_s: float, start_ns: int = 0,
+            settle_s: float = 0.0, progress: Callable[[str], None] | None = None) -> Trace:
+        """Scan once, send the goal, and scan on until it has finished (then `settle_s` more) or
+        `duration_s` has passed."""
         trace = Trace(self.period_ns)
         n_max = int(round(duration_s * 1e9 / self.period_ns))
         settle_left = int(round(settle_s * 1e9 / self.period_ns))
-        joints0 = self.sample(start_ns)[0]
-        out = controller.start(joints0)
-        if out.command is not None:
-            self.bus.set_velocities(out.command.velocities_rpm)
+        self.finished = None
+        scan, _, _ = self.scan(start_ns)
+        self.start(request, scan)
+        self._observe(scan)
+        controller = self.controller
         phase = controller.phase
         for k in range(1, n_max + 1):
             t = start_ns + k * self.period_ns
-            joints, volts, evaluations, truth, used = self.sample(t)
-            if not controller.done:
-                out = controller.step(ControlInput(t, evaluations, dict(zip(FINGERS, used.tolist())), joints))
-                if out.command is not None:
-                    self.bus.set_velocities(out.command.velocities_rpm)
-                if controller.done and trace.done_index is None:
-                    trace.done_index = len(trace.stamps_ns)
-                if progress and controller.phase != phase:
-                    progress(f"t={t * 1e-9:.2f}s phase {phase} -> {controller.phase}")
-                phase = controller.phase
-            else:
+            was_done = self.finished is not None
+            scan, volts, used = self.scan(t)
+            self._observe(scan)
+            if was_done:
                 settle_left -= 1
-            trace.stamps_ns.append(t)
-            trace.voltages.append(volts)
-            trace.thresholds.append(np.array([evaluations[f].threshold for f in FINGERS]))
-            trace.lost_edges.append({f: evaluations[f].lost_edges for f in FINGERS})
-            trace.forces_true.append(truth)
-            trace.forces_used.append(used)
-            trace.positions.append(np.array([joints.positions[m] for m in MOTOR_NAMES]))
-            trace.commands.append(np.array([controller.command.velocities_rpm[m] for m in MOTOR_NAMES]))
-            xy = np.full((len(FINGERS), 2), np.nan)
-            for i, f in enumerate(FINGERS):
-                c = self.world.contact(f)
-                if c is not None:
-                    xy[i] = (c.x_mm, c.y_mm)
-            trace.contact_xy.append(xy)
-            trace.phases.append(controller.phase)
-            if controller.done and settle_left <= 0:
+            elif self.finished is not None:
+                trace.done_index = len(trace.stamps_ns)
+            if progress and controller.phase != phase:
+                progress(f"t={t * 1e-9:.2f}s phase {phase} -> {controller.phase}")
+            phase = controller.phase
+            self._record(trace, scan, volts, used)
+            if self.finished is not None and settle_left <= 0:
                 break
         return trace
+
+    def _observe(self, scan: Scan) -> None:
+        if self.observer is not None:
+            self.observer(scan)
+
+    def _record(self, trace: Trace, scan: Scan, volts: np.ndarray, used: np.ndarray) -> None:
+        controller = self.controller
+        trace.stamps_ns.append(scan.stamp_ns)
+        trace.voltages.append(volts)
+        trace.thresholds.append(np.array([scan.evaluations[f].threshold for f in FINGERS]))
+        trace.lost_edges.append({f: scan.evaluations[f].lost_edges for f in FINGERS})
+        truth = self.world.forces()
+        trace.forces_true.append(np.array([truth[f] for f in FINGERS]))
+        trace.forces_used.append(used)
+        trace.positions.append(np.array([scan.states[m].position_rad for m in MOTOR_NAMES]))
+        trace.commands.append(np.array([controller.command.velocities_rpm[m] for m in MOTOR_NAMES]))
+        xy = np.full((len(FINGERS), 2), np.nan)
+        for i, f in enumerate(FINGERS):
+            c = self.world.contact(f)
+            if c is not None:
+                xy[i] = (c.x_mm, c.y_mm)
+        trace.contact_xy.append(xy)
+        trace.phases.append(controller.phase)

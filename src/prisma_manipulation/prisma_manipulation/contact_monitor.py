@@ -47,8 +47,11 @@ class ContactEvaluation:
         return int(self.safe[list(EDGES[edge])].sum())
 
 
+DEFAULT_K = 0.8  # the manipulation node's k and every paper scenario's (the hold needs K > 0.6)
+
+
 class ContactMonitor:
-    def __init__(self, k: float = 0.8, min_mean_voltage: float = 0.0) -> None:
+    def __init__(self, k: float = DEFAULT_K, min_mean_voltage: float = 0.0) -> None:
         self.k = check_k(k)
         if not math.isfinite(min_mean_voltage) or min_mean_voltage < 0:
             raise ValueError(f"min_mean_voltage {min_mean_voltage} must be >= 0")

@@ -136,6 +136,7 @@ class HandWorld:
         self.k = self.params.series_stiffness(self.obj)
         self.positions = {name: 0.0 for name in MOTOR_NAMES}
         self._stamp_ns: int | None = None
+        self._origin_ns: int | None = None  # the first stamp moved to: disturbance times count from it
         self._applied = [0.0] * len(self.disturbances)
         self._width_mm = 0.0
         self._bx, self._by = 0.0, 0.0
@@ -162,14 +163,22 @@ class HandWorld:
         self.state = state
         self._pad_tangent = self._tangents(state)
 
+    def elapsed_s(self, stamp_ns: int) -> float:
+        """Seconds from the world's first stamp to stamp_ns: the time a Disturbance's start_s counts."""
+        return 0.0 if self._origin_ns is None else (stamp_ns - self._origin_ns) * 1e-9
+
     def update_joints(self, positions: Mapping[str, float], stamp_ns: int) -> WorldState:
         """Move to new motor positions at stamp_ns; unknown names are ignored."""
         self.positions.update({k: float(v) for k, v in positions.items() if k in self.positions})
         return self.advance(stamp_ns)
 
     def advance(self, stamp_ns: int) -> WorldState:
-        """Apply disturbances and the support release up to stamp_ns and re-solve the contacts."""
-        t_s = stamp_ns * 1e-9
+        """Apply disturbances and the support release up to stamp_ns and re-solve the contacts.
+        Disturbance times count from the first stamp the world is moved to (a clock need not start
+        at 0)."""
+        if self._origin_ns is None:
+            self._origin_ns = stamp_ns
+        t_s = (stamp_ns - self._origin_ns) * 1e-9
         for i, d in enumerate(self.disturbances):
             f = d.fraction(t_s)
             delta, self._applied[i] = f - self._applied[i], f

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.taxels import FINGERS
 
-from .contact_monitor import K_RANGE
+from .contact_monitor import DEFAULT_K, K_RANGE
 from .motor_bus import (
     DEFAULT_IDS,
     DEFAULT_MAX_POSITIONS,
@@ -21,7 +21,6 @@ from .motor_bus import (
     MotorConfig,
     MotorMap,
 )
-from .scenarios import DEFAULT_K
 
 
 def _bad(name: str, value, why: str) -> ParameterError:

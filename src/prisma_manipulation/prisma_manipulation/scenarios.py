@@ -1,47 +1,84 @@
 """The paper's scenarios (docs/manipulation.md) as ready closed loops (tests, bench, plots and the CLI).
 
-- horizontal: object pinched between thumb and index at 1 N; HorizontalController at 20 rpm.
-- vertical: same start; VerticalController at 10 rpm.
+Each is a world to start from and the goal a client sends the manipulation node, run through the
+node's own cores (`closed_loop.ClosedLoop`); every setting not in the goal is the node's default
+configuration (`ManipulationConfig`).
+- horizontal: object pinched between thumb and index at 1 N; Manipulate horizontal at 20 rpm.
+- vertical: same start; Manipulate vertical at 10 rpm.
 - disturbance: same start; at 0.5 s an external push slips the object 4 mm toward the thumb pad's
-  right side; HoldController at 20 rpm restores the left side.
-- grasp: hand open, a foam ball presented on a stand; GraspController (pinch, 60 rpm, 0.8 N / 1.0 N).
-- lateral: a card against the side of the index; the fingers close to the lateral fist by position,
-  then the thumb flexes to 1 N (GraspController lateral preset).
-- combined: pinch held with use_force; the object slips to a narrower section (grasp force drops)
-  and is pushed sideways; the thumb restores 1 N while rotation restores the contact side.
+  right side; Manipulate hold at 20 rpm restores the left side.
+- grasp: hand open, a foam ball presented on a stand; Grasp pinch (60 rpm, 0.8 N / 1.0 N).
+- lateral: a card against the side of the index; Grasp lateral: the fingers close to the lateral
+  fist by position, then the thumb flexes to 1 N.
+- combined: pinch held, Manipulate hold with use_force; the object slips to a narrower section
+  (grasp force drops) and is pushed sideways; the thumb restores 1 N while rotation restores the
+  contact side.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from .closed_loop import ClosedLoop, ForceFn, Trace
-from .contact_monitor import ContactMonitor
-from .controllers import ControlLimits, Controller
-from .grasp_controller import GraspController
+from .closed_loop import ClosedLoop, Trace
+from .contact_monitor import DEFAULT_K
+from .controllers import Controller
 from .hand_world import OBJECTS, Disturbance, HandWorld, released
-from .motion_controllers import ForceKeeper, HoldController, HorizontalController, VerticalController
-from .motor_bus import default_motors
-from .sim_motors import SimMotorBus
+from .manipulation_core import GraspRequest, ManipulateRequest
 
-DEFAULT_K = 0.8  # K of every scenario (the hold needs K > 0.6)
+if TYPE_CHECKING:
+    from prisma_force_estimator.inference import ForceEstimator
+
+SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "lateral", "combined")
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    request: GraspRequest | ManipulateRequest
+    duration_s: float
+    settle_s: float  # run on this long after the goal has finished
+
+
+def _specs(k: float, speed_rpm: float | None) -> dict[str, ScenarioSpec]:
+    def manipulate(motion: str, speed: float, timeout_s: float, use_force: bool = False) -> ManipulateRequest:
+        return ManipulateRequest(motion, speed_rpm or speed, k, use_force, timeout_s)
+
+    def grasp(kind: str) -> GraspRequest:
+        return GraspRequest(kind, 0.8, 1.0, speed_rpm or 60.0, 10.0)
+
+    return {
+        "horizontal": ScenarioSpec(manipulate("horizontal", 20.0, 10.0), 10.0, 0.3),
+        "vertical": ScenarioSpec(manipulate("vertical", 10.0, 15.0), 15.0, 0.3),
+        "disturbance": ScenarioSpec(manipulate("hold", 20.0, 3.0), 4.0, 0.0),
+        "grasp": ScenarioSpec(grasp("pinch"), 10.0, 0.5),
+        "lateral": ScenarioSpec(grasp("lateral"), 10.0, 0.5),
+        "combined": ScenarioSpec(manipulate("hold", 20.0, 3.0, use_force=True), 4.0, 0.0),
+    }
+
+
+def scenario_request(name: str, k: float = DEFAULT_K, speed_rpm: float | None = None) -> GraspRequest | ManipulateRequest:
+    """The goal the scenario sends."""
+    if name not in SCENARIO_NAMES:
+        raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
+    return _specs(k, speed_rpm)[name].request
 
 
 @dataclass
 class Scenario:
     name: str
     loop: ClosedLoop
-    controller: Controller
+    request: GraspRequest | ManipulateRequest
     duration_s: float
     settle_s: float = 0.3
 
     def run(self, progress: Callable[[str], None] | None = None) -> Trace:
-        return self.loop.run(self.controller, self.duration_s, settle_s=self.settle_s, progress=progress)
+        return self.loop.run(self.request, self.duration_s, settle_s=self.settle_s, progress=progress)
 
-
-def _loop(world: HandWorld, k: float, force_fn: ForceFn | None, seed: int, rate_hz: float) -> ClosedLoop:
-    bus = SimMotorBus(default_motors(), initial_positions=world.positions)
-    return ClosedLoop(world, bus, ContactMonitor(k), force_fn, rate_hz=rate_hz, seed=seed)
+    @property
+    def controller(self) -> Controller:
+        """The controller the manipulation core ran the goal with (after `run`)."""
+        if self.loop.controller is None:
+            raise RuntimeError(f"scenario {self.name} has not run yet: its controller starts with the goal")
+        return self.loop.controller
 
 
 def pinched_world(force_n: float = 1.0, disturbances=()) -> HandWorld:
@@ -68,25 +105,11 @@ def scenario_world(name: str) -> HandWorld:
     raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
 
 
-def build(name: str, force_fn: ForceFn | None = None, k: float = DEFAULT_K, seed: int = 0,
-          rate_hz: float = 100.0, speed_rpm: float | None = None) -> Scenario:
-    limits = ControlLimits(default_motors())
+def build(name: str, estimator: "ForceEstimator | None" = None, k: float = DEFAULT_K, seed: int = 0,
+          rate_hz: float = 100.0, speed_rpm: float | None = None, observer=None) -> Scenario:
+    """The scenario's closed loop: with `estimator` the force estimator's core turns taxels into
+    the forces the manipulation core steers by, without it the world's pad forces do."""
     world = scenario_world(name)
-    loop = _loop(world, k, force_fn, seed, rate_hz)
-    if name == "horizontal":
-        return Scenario(name, loop, HorizontalController(limits, speed_rpm or 20.0), 10.0)
-    if name == "vertical":
-        return Scenario(name, loop, VerticalController(limits, speed_rpm or 10.0), 15.0)
-    if name == "disturbance":
-        return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0), 4.0, 0.0)
-    if name == "grasp":
-        return Scenario(name, loop, GraspController(limits, "pinch", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
-    if name == "lateral":
-        return Scenario(name, loop, GraspController(limits, "lateral", 0.8, 1.0, speed_rpm or 60.0), 10.0, 0.5)
-    assert name == "combined"  # scenario_world refused every other name
-    keeper = ForceKeeper(target_n=1.0, band_n=0.15, speed_rpm=20.0)
-    return Scenario(name, loop, HoldController(limits, speed_rpm or 20.0, timeout_s=3.0, force_keeper=keeper),
-                    4.0, 0.0)
-
-
-SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "lateral", "combined")
+    spec = _specs(k, speed_rpm)[name]
+    loop = ClosedLoop(world, estimator, rate_hz=rate_hz, seed=seed, observer=observer)
+    return Scenario(name, loop, spec.request, spec.duration_s, spec.settle_s)

@@ -19,10 +19,10 @@ from prisma_tactile_driver.atomic import atomic_output
 from prisma_tactile_driver.cli_args import ArgumentParser, check_bundle_dir, command, output_dir
 from prisma_tactile_driver.taxels import EDGES
 
-from .closed_loop import Trace, estimator_force_fn
-from .contact_monitor import first_lost_index
+from .closed_loop import Trace
 from .motor_bus import MOTOR_NAMES
-from .scenarios import DEFAULT_K, SCENARIO_NAMES, Scenario, build
+from .contact_monitor import DEFAULT_K, first_lost_index
+from .scenarios import SCENARIO_NAMES, Scenario, build
 
 SETTLE_SAMPLES = 10  # 100 ms at 100 Hz: ten velocity-loop time constants
 EDGE_COLOURS = {"right": "tab:red", "left": "tab:blue", "top": "tab:green", "bottom": "tab:orange"}
@@ -120,17 +120,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", action="append", choices=SCENARIO_NAMES)
     parser.add_argument("--bundle", type=Path, help="force-estimator bundle: controllers use its Fz")
     args = parser.parse_args(argv)
-    force_fn = None
+    estimator = None
     if args.bundle:
         check_bundle_dir(args.bundle)
         from prisma_force_estimator.bundle import resolve_bundle_path
         from prisma_force_estimator.inference import ForceEstimator
 
-        force_fn = estimator_force_fn(ForceEstimator.from_bundle(resolve_bundle_path(args.bundle)))
+        estimator = ForceEstimator.from_bundle(resolve_bundle_path(args.bundle))
     summaries = []
     for name in args.only or SCENARIO_NAMES:
         print(f"[{name}] running")
-        sc = build(name, force_fn=force_fn)
+        sc = build(name, estimator=estimator)
         trace = sc.run(progress=lambda line, n=name: print(f"[{n}] {line}"))
         summary = summarise(sc, trace)
         summaries.append(summary)
