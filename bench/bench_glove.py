@@ -16,7 +16,6 @@ import numpy as np
 import torch
 
 from run import Benchmark
-
 from stag_glove.bundle import Bundle, BundleError, load_bundle
 from stag_glove.layout import load_layout
 from stag_glove.models import TouchNet

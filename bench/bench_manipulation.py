@@ -13,12 +13,12 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from run import Benchmark
 
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.controllers import ControlInput, JointSample
 from prisma_manipulation.scenarios import DEFAULT_K, build
 from prisma_tactile_driver.taxels import FINGERS
+from run import Benchmark
 
 MIN_SECONDS = 1.0
 

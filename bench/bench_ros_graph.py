@@ -28,9 +28,8 @@ import math
 import tempfile
 from pathlib import Path
 
-from run import Benchmark
-
 import ros_graph
+from run import Benchmark
 
 HAND_NODES = ros_graph.HAND_NODES
 SWEEP_RATES = [100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0]

@@ -193,9 +193,8 @@ class RosHarness:
     def set_time(self, stamp_ns: int, settle: bool = False) -> None:
         """Publish /clock = stamp_ns and wait until every sim-time node's clock reads it (then,
         with `settle`, until the callbacks of that instant are all done)."""
-        from rosgraph_msgs.msg import Clock
-
         from builtin_interfaces.msg import Time
+        from rosgraph_msgs.msg import Clock
 
         if self._clock_pub is None:
             from rclpy.qos import QoSProfile

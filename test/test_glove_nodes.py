@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import NodeProcess, RosHarness, require_ros, stamp_ns
 
 require_ros()

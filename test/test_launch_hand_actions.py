@@ -29,6 +29,7 @@ import unittest
 
 import numpy as np
 import pytest
+
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,

@@ -20,8 +20,8 @@ from prisma_manipulation.controllers import (
 from prisma_manipulation.grasp_controller import GraspController
 from prisma_manipulation.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource, released
 from prisma_manipulation.motion_controllers import ForceKeeper, HoldController, HorizontalController
-from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
 from prisma_manipulation.motor_bus import default_motors
+from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
 from prisma_manipulation.sim_motors import SimMotorBus
 from prisma_tactile_driver.contact_source import ContactSource
 

@@ -46,8 +46,8 @@ from prisma_manipulation.ros_conversions import (
     robot_types,
 )
 from prisma_manipulation.sample_alignment import SampleAligner
-from prisma_tactile_driver.ros_conversions import make_header
 from prisma_manipulation.watchdog import SensorWatchdog
+from prisma_tactile_driver.ros_conversions import make_header
 
 REPO = Path(__file__).resolve().parents[1]
 MS = 1_000_000
@@ -342,8 +342,7 @@ class FlakyBus:
     """Opens only after `failures` attempts; can lose the link."""
 
     def __init__(self, failures):
-        from prisma_manipulation.motor_bus import default_motors
-        from prisma_manipulation.motor_bus import BusStats
+        from prisma_manipulation.motor_bus import BusStats, default_motors
 
         self.motors, self.stats, self.failures, self.attempts, self.down = default_motors(), BusStats(), failures, [], False
 

@@ -32,6 +32,7 @@ from typing import Iterator
 
 import pytest
 import yaml
+
 from ros_harness import ROS_AVAILABLE, require_ros
 
 ROOT = Path(__file__).resolve().parents[1]

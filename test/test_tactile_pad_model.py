@@ -4,8 +4,7 @@ import pytest
 
 from prisma_tactile_driver.contact_source import ContactSource, ScriptedContactSource
 from prisma_tactile_driver.pad_model import PadContact, PadModel, PadParams
-from prisma_tactile_driver.taxels import (EDGES, FINGERS, TareBuffer, TaxelFrame, counts_to_voltages,
-                                          voltages_to_counts)
+from prisma_tactile_driver.taxels import EDGES, FINGERS, TareBuffer, TaxelFrame, counts_to_voltages, voltages_to_counts
 
 
 def algorithm1(volts: np.ndarray, k: float) -> tuple[np.ndarray, list[str]]:

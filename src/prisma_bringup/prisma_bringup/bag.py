@@ -10,9 +10,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
-from prisma_tactile_driver.atomic import atomic_output
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
+
+from prisma_tactile_driver.atomic import atomic_output
 
 from .typestore import get_typestore, message_definition
 

@@ -16,8 +16,8 @@ from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.sample_streams import stream_publisher
 
 from .motor_bus import BusError

@@ -20,7 +20,6 @@ import time
 import tty
 from pathlib import Path
 
-
 PTS_DIR = "/dev/pts/"
 
 

@@ -7,18 +7,19 @@ the same samples once per poll on /prisma/hand/taxels (for the nodes that take a
 from __future__ import annotations
 
 import functools
+
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from .node_process import run_node
-from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
+from .node_process import run_node
 from .ros_conversions import diagnostics_to_msg, hand_taxels_to_msg, ns_from_stamp, taxel_frame_to_msg
+from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 
 class TactileDriverNode(Node):

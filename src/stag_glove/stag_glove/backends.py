@@ -10,6 +10,7 @@ from typing import Callable, Iterator, Protocol
 
 import numpy as np
 import serial
+
 from prisma_tactile_driver.backend import describe_os_error
 
 from .dataset import load_dataset

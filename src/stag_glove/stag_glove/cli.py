@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
+
 from prisma_tactile_driver.atomic import atomic_output
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,

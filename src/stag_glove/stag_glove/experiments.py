@@ -14,9 +14,20 @@ from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset
 from .models import TouchNet, WeightNet, init_combination_from_single
 from .processing import normalise
 from .selection import check_selection, cluster_ids, cluster_tuples, random_tuples
-from .training import (ClassifierEval, LinearBaseline, Progress, TrainConfig, _eval_from_probs, head_proba,
-                       evaluate_classifier, predict_grams, train_classifier, train_head, train_weight,
-                       trunk_features)
+from .training import (
+    ClassifierEval,
+    LinearBaseline,
+    Progress,
+    TrainConfig,
+    _eval_from_probs,
+    evaluate_classifier,
+    head_proba,
+    predict_grams,
+    train_classifier,
+    train_head,
+    train_weight,
+    trunk_features,
+)
 
 MODES = ("head", "finetune", "scratch")
 

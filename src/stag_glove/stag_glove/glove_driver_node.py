@@ -7,6 +7,7 @@ rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
 from __future__ import annotations
 
 import functools
+
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import GloveFrame
 from rclpy.node import Node

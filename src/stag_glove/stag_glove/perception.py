@@ -19,7 +19,6 @@ from .processing import ProcessedFrame
 from .ros_conversions import Estimate, WeightResult
 from .selection import check_selection, select_from_buffer
 
-
 _thread_limit = None
 
 
