@@ -70,7 +70,7 @@ def _classify_rate() -> float:
     limit_threads(1)
     perception = GlovePerception(_object_bundle(), config=PerceptionConfig(selection="cluster", buffer_size=64))
     for pressure in _frames(200, seed=1)[-64:]:
-        perception.buffer.append((np.clip((pressure.astype(np.float32) - 500) / 150, 0, 1)))
+        perception.buffer.append(np.clip((pressure.astype(np.float32) - 500) / 150, 0, 1))
     for _ in range(5):
         perception.classify_object()
     n = 150

@@ -370,7 +370,7 @@ class Control:
 
 
 # ---- the probe ----------------------------------------------------------------------------------
-def start_probe(topics: list[str], bag: Path, logdir: Path, control: "Control") -> Proc:
+def start_probe(topics: list[str], bag: Path, logdir: Path, control: Control) -> Proc:
     qos = bag.parent / f"{bag.name}_qos.yaml"
     # a deep keep-last queue, so the probe never loses what the graph published
     qos.write_text("".join(f"{t}:\n  history: keep_last\n  depth: 1000\n  reliability: reliable\n"

@@ -452,7 +452,7 @@ class NodeProcess:
             self.proc.wait()
         self._reader.join(timeout=5.0)
 
-    def __enter__(self) -> "NodeProcess":
+    def __enter__(self) -> NodeProcess:
         return self
 
     def __exit__(self, *exc: object) -> None:

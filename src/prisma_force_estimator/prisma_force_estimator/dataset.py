@@ -40,7 +40,7 @@ class ForceDataset:
     def __len__(self) -> int:
         return int(self.voltages.shape[0])
 
-    def subset(self, index: np.ndarray) -> "ForceDataset":
+    def subset(self, index: np.ndarray) -> ForceDataset:
         return ForceDataset(self.voltages[index], self.wrench[index], self.stamp_ns[index],
                             self.block[index], self.source)
 
@@ -49,7 +49,7 @@ class ForceDataset:
         return self.wrench[:, [WRENCH_AXES.index(a) for a in axes]]
 
     @classmethod
-    def from_calibration_set(cls, calibration, source: str = "synthetic") -> "ForceDataset":
+    def from_calibration_set(cls, calibration, source: str = "synthetic") -> ForceDataset:
         """From a prisma_tactile_driver.calibration.CalibrationSet (trajectory ids become blocks)."""
         return cls(calibration.voltages, calibration.wrench, calibration.stamp_ns,
                    calibration.trajectory, source)

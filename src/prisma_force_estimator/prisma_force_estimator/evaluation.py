@@ -5,9 +5,9 @@ default training set does not use, so every number here is on data no model has 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 

@@ -1,8 +1,8 @@
 """A stamped wrench estimate, the core data the converters turn into WrenchStamped."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

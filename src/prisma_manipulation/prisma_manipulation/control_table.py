@@ -127,7 +127,7 @@ class PresentState:
     position_ticks: int
 
     @classmethod
-    def from_bytes(cls, block: bytes | list[int]) -> "PresentState":
+    def from_bytes(cls, block: bytes | list[int]) -> PresentState:
         b = bytes(block)
         if len(b) != STATE_LENGTH:
             raise ValueError(f"present-state block must be {STATE_LENGTH} bytes, got {len(b)}")

@@ -10,7 +10,7 @@ input flush) raises BusError at once, naming the port and the OS reason.
 from __future__ import annotations
 
 import termios
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import dynamixel_sdk as sdk
 import serial

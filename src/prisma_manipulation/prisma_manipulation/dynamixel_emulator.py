@@ -22,8 +22,8 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from . import control_table as ct
 from .dynamixel_packets import (
@@ -167,7 +167,7 @@ class DynamixelEmulator:
         self._thread = threading.Thread(target=self._serve, name="dynamixel-emulator", daemon=True)
 
     # ---- lifecycle -------------------------------------------------------------------------
-    def start(self) -> "DynamixelEmulator":
+    def start(self) -> DynamixelEmulator:
         self._thread.start()
         return self
 
@@ -185,7 +185,7 @@ class DynamixelEmulator:
                 pass
         self._master = self._slave = -1
 
-    def __enter__(self) -> "DynamixelEmulator":
+    def __enter__(self) -> DynamixelEmulator:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -205,7 +205,7 @@ class DynamixelEmulator:
         with self._lock:
             self.servos[servo_id].silent = silent
 
-    def present(self) -> dict[int, "ServoPresent"]:
+    def present(self) -> dict[int, ServoPresent]:
         """What each servo is doing, integrated to now."""
         with self._lock:
             self._integrate()

@@ -8,8 +8,8 @@ passes a later stamp_ns to `advance`/`read_state`, so runs are deterministic.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
 from .motor_bus import BusStats, MotorConfig, MotorState, check_velocity

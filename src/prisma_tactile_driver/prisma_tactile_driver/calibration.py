@@ -15,9 +15,9 @@ Deterministic: a seed fixes the trajectories and the sensor noise.
 from __future__ import annotations
 
 import zipfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -60,7 +60,7 @@ class CalibrationSet:
     def __len__(self) -> int:
         return len(self.voltages)
 
-    def subset(self, index) -> "CalibrationSet":
+    def subset(self, index) -> CalibrationSet:
         return CalibrationSet(self.voltages[index], self.wrench[index], self.stamp_ns[index],
                               self.trajectory[index], self.kind[index],
                               None if self.contact_mm is None else self.contact_mm[index])
@@ -75,7 +75,7 @@ class CalibrationSet:
             np.savez_compressed(f, **arrays)  # a file object keeps numpy from appending .npz to the name
 
     @classmethod
-    def load(cls, path: str | Path) -> "CalibrationSet":
+    def load(cls, path: str | Path) -> CalibrationSet:
         """A set written by save(); ValueError naming the file if it is anything else."""
         not_a_set = f"{path} is not a calibration set (an .npz written by prisma-tactile-calset)"
         try:

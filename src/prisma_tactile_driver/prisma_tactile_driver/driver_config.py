@@ -61,7 +61,7 @@ class DriverConfig:
     sim_seed: int = 0
 
     @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> "DriverConfig":
+    def from_parameters(cls, values: dict[str, Any]) -> DriverConfig:
         known = {f.name for f in fields(cls)}
         # rclpy hands integer/double arrays over as array.array: store plain lists
         config = cls(**{k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
@@ -71,7 +71,7 @@ class DriverConfig:
     def as_parameters(self) -> dict[str, Any]:
         return asdict(self)
 
-    def validate(self) -> "DriverConfig":
+    def validate(self) -> DriverConfig:
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
         check_fingers(self.fingers)

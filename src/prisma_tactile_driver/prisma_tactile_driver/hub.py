@@ -8,8 +8,8 @@ Link errors (the port and the OS reason) go to /diagnostics and, once per change
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 

@@ -11,8 +11,9 @@ is too old, while the other fingers keep going. Frames are stamped with the host
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

@@ -20,8 +20,9 @@ import ctypes
 import errno
 import itertools
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import smbus2

@@ -265,7 +265,7 @@ class I2CSocketServer:
         self._accept_thread: threading.Thread | None = None
         self._clients: dict[socket.socket, threading.Thread] = {}
 
-    def start(self) -> "I2CSocketServer":
+    def start(self) -> I2CSocketServer:
         with self._state:
             if self._closed or self._listener is not None:
                 raise RuntimeError(f"I2C socket server {self.path} was already started; a server serves once: "
@@ -353,7 +353,7 @@ class I2CSocketServer:
             if thread is not threading.current_thread():
                 thread.join(timeout=2.0)
 
-    def __enter__(self) -> "I2CSocketServer":
+    def __enter__(self) -> I2CSocketServer:
         return self if self._listener is not None else self.start()
 
     def __exit__(self, *exc: Any) -> None:

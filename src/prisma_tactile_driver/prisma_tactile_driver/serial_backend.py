@@ -10,8 +10,8 @@ Why the link is down (the port and the OS reason) is kept in `last_error` and `l
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import serial
 

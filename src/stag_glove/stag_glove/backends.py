@@ -4,9 +4,10 @@ clock itself, so the node's timer (and use_sim_time) sets the pace.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Protocol
+from typing import Protocol
 
 import numpy as np
 import serial

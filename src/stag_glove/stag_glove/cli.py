@@ -13,8 +13,9 @@ import json
 import shlex
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -105,7 +106,7 @@ def _synthetic(kind: str, seed: int) -> tuple[GloveDataset, str]:
 
 
 def _data(args, kind: str,
-          check: Callable[["GloveDataset", str], None] | None = None) -> tuple["GloveDataset", str]:
+          check: Callable[[GloveDataset, str], None] | None = None) -> tuple[GloveDataset, str]:
     """The dataset, with the thread limit applied before any heavy work (the synthetic glove's
     generation included). A file is read, and `check` finds it fit for the command (UserError
     otherwise), before torch is imported."""
@@ -125,10 +126,10 @@ def _data(args, kind: str,
     return _synthetic(kind, args.synthetic_seed)
 
 
-def _splits_check(balanced: bool) -> Callable[["GloveDataset", str], None]:
+def _splits_check(balanced: bool) -> Callable[[GloveDataset, str], None]:
     """The held-out-session experiments need valid (and, for anchors, balanced) frames in both splits."""
 
-    def check(ds: "GloveDataset", source: str) -> None:
+    def check(ds: GloveDataset, source: str) -> None:
         from .dataset import SPLIT_TEST, SPLIT_TRAIN
 
         anchor = ds.is_balanced if balanced else np.ones(len(ds), bool)
@@ -140,7 +141,7 @@ def _splits_check(balanced: bool) -> Callable[["GloveDataset", str], None]:
     return check
 
 
-def _weights_check(ds: "GloveDataset", source: str) -> None:
+def _weights_check(ds: GloveDataset, source: str) -> None:
     if ds.weights_g is None:
         raise UserError(f"--dataset {source}: no per-object weights ('weights' field); give the STAG weights set")
     if len(np.unique(ds.object_id)) < 2:
@@ -148,7 +149,7 @@ def _weights_check(ds: "GloveDataset", source: str) -> None:
                         f"leave-one-object-out needs at least 2")
 
 
-def _recording_check(ds: "GloveDataset", source: str) -> None:
+def _recording_check(ds: GloveDataset, source: str) -> None:
     if len(ds) < 2:
         raise UserError(f"--dataset {source}: {len(ds)} frame(s); the correlation needs a recording")
 

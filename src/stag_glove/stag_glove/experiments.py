@@ -46,7 +46,7 @@ class Split:
     test_anchors: np.ndarray
 
     @classmethod
-    def of(cls, ds: GloveDataset, balanced: bool = True) -> "Split":
+    def of(cls, ds: GloveDataset, balanced: bool = True) -> Split:
         train_pool = ds.has_valid_label & (ds.split_id == SPLIT_TRAIN)
         test_pool = ds.has_valid_label & (ds.split_id == SPLIT_TEST)
         anchor = ds.is_balanced if balanced else np.ones(len(ds), bool)

@@ -65,7 +65,7 @@ class GloveDriverConfig(_Parameters):
     stale_timeout: float = 1.0         # s without a frame -> /diagnostics WARN
     diagnostics_period: float = 1.0    # s
 
-    def validate(self) -> "GloveDriverConfig":
+    def validate(self) -> GloveDriverConfig:
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
         if self.backend == "serial" and not self.port:
@@ -115,7 +115,7 @@ class GlovePerceptionConfig(_Parameters):
     threads: int = 1                   # torch/BLAS threads
     frame_id: str = "stag_glove"
 
-    def validate(self) -> "GlovePerceptionConfig":
+    def validate(self) -> GlovePerceptionConfig:
         if self.selection not in SELECTIONS:
             raise ParameterError("selection", self.selection, f"expected one of {'|'.join(SELECTIONS)}")
         _positive(self, "buffer_size", "release_frames", "kmeans_restarts", "threads")

@@ -61,7 +61,7 @@ class EmptyHandCalibration:
 
     @classmethod
     def from_frames(cls, raw_frames: np.ndarray, config: NormalisationConfig = NormalisationConfig()
-                    ) -> "EmptyHandCalibration":
+                    ) -> EmptyHandCalibration:
         """Calibrate from raw counts [N, rows, cols]; shorted frames are left out."""
         raw_frames = np.asarray(raw_frames)
         if raw_frames.ndim != 3 or raw_frames.shape[0] == 0:

@@ -25,8 +25,8 @@ Durations are in frames of the glove's ~7.3 frames/s. The generator is determini
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import Iterator
 
 import numpy as np
 from scipy import ndimage

@@ -7,8 +7,8 @@ in docs/glove.md use fewer epochs and a narrower trunk.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import torch
@@ -264,7 +264,7 @@ class LinearBaseline:
     b: float
 
     @classmethod
-    def fit(cls, pressure_sums: np.ndarray, grams: np.ndarray) -> "LinearBaseline":
+    def fit(cls, pressure_sums: np.ndarray, grams: np.ndarray) -> LinearBaseline:
         a, b = np.polyfit(np.asarray(pressure_sums, float), np.asarray(grams, float), 1)
         return cls(float(a), float(b))
 
