@@ -435,7 +435,8 @@ class NodeProcess:
             self.proc.wait(timeout=timeout_sec)
         except subprocess.TimeoutExpired:
             self.kill()
-            raise TimeoutError(f"{' '.join(self.args)} still ran after {timeout_sec} s; output:\n{self.output}") from None
+            raise TimeoutError(f"{' '.join(self.args)} still ran after {timeout_sec} s; "
+                               f"output:\n{self.output}") from None
         self._reader.join(timeout=5.0)
         return ProcessResult(self.proc.returncode, self.output)
 

@@ -67,7 +67,8 @@ def test_untouched_pad_is_not_a_feasible_contact_with_a_minimum_mean():
 def test_reference_first_loss_matches_the_monitor(volts, k):
     monitor = ContactMonitor(k)
     for edge in ("bottom", "top", "right", "left"):
-        expected = next((i for i, row in enumerate(volts) if edge in monitor.evaluate("thumb", i, row).lost_edges), None)
+        expected = next((i for i, row in enumerate(volts) if edge in monitor.evaluate("thumb", i, row).lost_edges),
+                        None)
         assert first_lost_index(volts, k, edge) == expected
 
 

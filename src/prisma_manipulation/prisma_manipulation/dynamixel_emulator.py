@@ -209,7 +209,8 @@ class DynamixelEmulator:
         """What each servo is doing, integrated to now."""
         with self._lock:
             self._integrate()
-            return {i: ServoPresent(s.position_ticks, ct.units_to_rpm(s.read_int(ct.ADDR_PRESENT_VELOCITY, 4, signed=True)),
+            return {i: ServoPresent(s.position_ticks,
+                                    ct.units_to_rpm(s.read_int(ct.ADDR_PRESENT_VELOCITY, 4, signed=True)),
                                     s.torque_on, s.hardware_error) for i, s in self.servos.items()}
 
     def drop_status(self, servo_id: int, count: int = 1) -> None:
@@ -331,7 +332,8 @@ class DynamixelEmulator:
         if address <= ct.ADDR_PRESENT_CURRENT < address + len(data):
             return ERR_ACCESS  # read-only area
         servo.table[address : address + len(data)] = data
-        if address <= ct.ADDR_GOAL_POSITION < address + len(data) or address <= ct.ADDR_TORQUE_ENABLE < address + len(data):
+        if (address <= ct.ADDR_GOAL_POSITION < address + len(data)
+                or address <= ct.ADDR_TORQUE_ENABLE < address + len(data)):
             servo.integrate(0.0)
         return 0
 

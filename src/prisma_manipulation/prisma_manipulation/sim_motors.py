@@ -149,7 +149,8 @@ class SimMotorBus:
             m = self._motor(name)
             c = m.config
             if not c.min_position_rad <= value <= c.max_position_rad:
-                raise ValueError(f"motor {name}: position {value} rad outside [{c.min_position_rad}, {c.max_position_rad}]")
+                raise ValueError(f"motor {name}: position {value} rad outside "
+                                 f"[{c.min_position_rad}, {c.max_position_rad}]")
             check_velocity(c, profile_rpm)
             if m.mode != "position":
                 self.stats.mode_changes += 1

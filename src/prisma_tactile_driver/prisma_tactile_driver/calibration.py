@@ -133,7 +133,8 @@ def _point(rng: np.random.Generator) -> np.ndarray:
 
 
 def _push(rng: np.random.Generator, dt: float) -> _Track:
-    gap, t_up, t_hold, t_down = rng.uniform(0.1, 0.5), rng.uniform(0.2, 2.0), rng.uniform(0.0, 1.0), rng.uniform(0.2, 2.0)
+    gap, t_up, t_hold, t_down = (rng.uniform(0.1, 0.5), rng.uniform(0.2, 2.0), rng.uniform(0.0, 1.0),
+                                 rng.uniform(0.2, 2.0))
     t = np.arange(0.0, gap + t_up + t_hold + t_down + rng.uniform(0.1, 0.4), dt)
     peak = rng.uniform(0.2, 5.0)
     profile = _ramp_profile(t, gap, t_up, t_hold, t_down)
@@ -182,7 +183,8 @@ def _roll(rng: np.random.Generator, dt: float) -> _Track:
     radius = rng.uniform(2.0, 4.0)
     a0 = rng.uniform(0, 2 * np.pi)
     sweep = rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 1.5) * np.pi
-    gap, t_press, t_roll, t_release = rng.uniform(0.1, 0.5), rng.uniform(0.3, 1.0), rng.uniform(1.0, 3.0), rng.uniform(0.3, 1.0)
+    gap, t_press, t_roll, t_release = (rng.uniform(0.1, 0.5), rng.uniform(0.3, 1.0), rng.uniform(1.0, 3.0),
+                                       rng.uniform(0.3, 1.0))
     t = np.arange(0.0, gap + t_press + t_roll + t_release + 0.2, dt)
     progress = _smooth((t - gap - t_press) / t_roll)
     angle = a0 + sweep * progress

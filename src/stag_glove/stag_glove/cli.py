@@ -260,7 +260,8 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
     if args.confusion_png:
         print(f"wrote {confusion_png(panels, ds.objects, args.confusion_png)}")
     if args.curve_png:
-        title = f"held-out sessions, trunk width {args.width}, {args.epochs} epochs, mode {args.mode}, seeds {args.seeds}"
+        title = (f"held-out sessions, trunk width {args.width}, {args.epochs} epochs, mode {args.mode}, "
+                 f"seeds {args.seeds}")
         print(f"wrote {accuracy_curve_png(summary, args.curve_png, title)}")
     command = _command(argv, "stag-train-classifier")
     elapsed = time.perf_counter() - started
@@ -354,7 +355,8 @@ def train_pose_main(argv: list[str] | None = None) -> int:
     net, ev, _ = pose_experiment(ds, _train_config(args))
     print(f"held-out session: top-1 {100 * ev.top1:.1f}%, top-3 {100 * ev.top3:.1f}%")
     if args.confusion_png:
-        print(f"wrote {confusion_png([(f'hand pose, top-1 {100 * ev.top1:.1f}%', ev.confusion)], ds.objects, args.confusion_png)}")
+        panels = [(f"hand pose, top-1 {100 * ev.top1:.1f}%", ev.confusion)]
+        print(f"wrote {confusion_png(panels, ds.objects, args.confusion_png)}")
     command = _command(argv, "stag-train-pose")
     _write_json(args.out_json, {"command": command, "dataset": source, "top1": ev.top1, "top3": ev.top3,
                                 "labels": ds.objects, "confusion": ev.confusion.tolist(),
@@ -407,7 +409,8 @@ def correlation_main(argv: list[str] | None = None) -> int:
     for name, value in summary.items():
         print(f"  mean CCA of {name:<16} with the other regions: {value:.2f}")
     if args.png:
-        print(f"wrote {correlation_png(maps, (names, cca), args.png, f'object signal after removing the hand pose ({source})')}")
+        title = f"object signal after removing the hand pose ({source})"
+        print(f"wrote {correlation_png(maps, (names, cca), args.png, title)}")
     _write_json(args.out_json, {"command": _command(argv, "stag-glove-correlation"), "dataset": source,
                                 "grasps": segments_total, "frames": len(signal), "region_names": names,
                                 "cca": cca.tolist(), "mean_cca": summary})

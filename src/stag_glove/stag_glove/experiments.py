@@ -114,8 +114,10 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
         test1 = split.test_anchors[:, None]
         _log(progress, f"[seed {seed}] N=1: training the {cfg.width}-wide trunk end to end "
                        f"on {len(split.train_anchors)} frames, testing on {len(test1)} held-out-session frames")
+        # (the evaluation lambdas below run inside train_classifier, within the iteration that defines them)
         hist = train_classifier(single, frames, lambda e: (split.train_anchors[:, None], labels[split.train_anchors]),
-                                cfg, progress, lambda m: evaluate_classifier(m, frames, test1, labels[split.test_anchors]),
+                                cfg, progress,
+                                lambda m: evaluate_classifier(m, frames, test1, labels[split.test_anchors]),  # noqa: B023
                                 label=f"[seed {seed} N=1] ")
         ev = evaluate_classifier(single, frames, test1, labels[split.test_anchors])
         results.histories[(seed, "any", 1)] = hist
@@ -132,13 +134,15 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                 train_rng = np.random.default_rng(20_000 + 97 * seed + n)
 
                 def make(epoch, selection=selection, n=n, rng=train_rng):
-                    return tuples_for(selection, n, split.train_anchors, split.train_pool, rng), labels[split.train_anchors]
+                    return (tuples_for(selection, n, split.train_anchors, split.train_pool, rng),
+                            labels[split.train_anchors])
 
                 net = TouchNet(n_classes, n, cfg.width, cfg.dropout)
                 tag = f"[seed {seed} {selection} N={n}] "
                 if mode == "scratch":
                     hist = train_classifier(net, frames, make, cfg, progress,
-                                            lambda m: evaluate_classifier(m, frames, test_tuples, test_labels), tag)
+                                            lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
+                                            tag)
                     ev = evaluate_classifier(net, frames, test_tuples, test_labels)
                 else:
                     init_combination_from_single(net, single)
@@ -155,7 +159,8 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                     else:
                         ft_cfg = TrainConfig(**{**cfg.__dict__, "epochs": finetune_epochs})
                         hist = train_classifier(net, frames, make, ft_cfg, progress,
-                                                lambda m: evaluate_classifier(m, frames, test_tuples, test_labels), tag)
+                                                lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
+                                                tag)
                         ev = evaluate_classifier(net, frames, test_tuples, test_labels)
                 results.histories[(seed, selection, n)] = hist
                 _record(results, seed, selection, n, ev, mode, cfg, keep_models, net)
@@ -223,8 +228,9 @@ def weight_experiment(ds: GloveDataset, folds: list[int], config: TrainConfig = 
         tag = f"[fold {i + 1}/{len(folds)}: {ds.objects[obj]} {ds.weights_g[obj]:.0f} g] "
         train_idx = torch.from_numpy(np.nonzero(train)[0])
         test_idx = torch.from_numpy(np.nonzero(test)[0])
+        # (the lambda runs inside train_weight, within this iteration)
         train_weight(net, frames[train_idx], grams[train], config, progress, tag,
-                     lambda m: float(np.mean(np.abs(predict_grams(m, frames[test_idx]) - grams[test]))))
+                     lambda m: float(np.mean(np.abs(predict_grams(m, frames[test_idx]) - grams[test]))))  # noqa: B023
         cnn = predict_grams(net, frames[test_idx])
         linear = LinearBaseline.fit(sums[train], grams[train]).predict(sums[test])
         row = {"object": ds.objects[obj], "grams": float(ds.weights_g[obj]),
@@ -249,7 +255,8 @@ def pose_experiment(ds: GloveDataset, config: TrainConfig = TrainConfig(), progr
     net = TouchNet(len(ds.objects), 1, config.width, config.dropout)
     test = split.test_anchors[:, None]
     hist = train_classifier(net, frames, lambda e: (split.train_anchors[:, None], ds.object_id[split.train_anchors]),
-                            config, progress, lambda m: evaluate_classifier(m, frames, test, ds.object_id[split.test_anchors]),
+                            config, progress,
+                            lambda m: evaluate_classifier(m, frames, test, ds.object_id[split.test_anchors]),
                             label="[pose] ")
     return net, evaluate_classifier(net, frames, test, ds.object_id[split.test_anchors]), hist
 

@@ -66,7 +66,8 @@ class PerceptionStats:
 
 def _estimate(probabilities: np.ndarray, labels: list[str], frames_used: int) -> Estimate:
     best = int(np.argmax(probabilities))
-    return Estimate(labels[best], float(probabilities[best]), list(labels), probabilities.astype(np.float32), frames_used)
+    return Estimate(labels[best], float(probabilities[best]), list(labels), probabilities.astype(np.float32),
+                    frames_used)
 
 
 class GlovePerception:

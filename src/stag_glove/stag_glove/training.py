@@ -92,7 +92,8 @@ def predict_proba(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray, bat
     return np.concatenate(out) if out else np.zeros((0, model.n_classes), np.float32)
 
 
-def evaluate_classifier(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray, labels: np.ndarray) -> ClassifierEval:
+def evaluate_classifier(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray,
+                        labels: np.ndarray) -> ClassifierEval:
     return _eval_from_probs(predict_proba(model, frames, tuples), labels, model.n_classes)
 
 
