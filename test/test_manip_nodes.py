@@ -383,7 +383,7 @@ def test_goals_are_rejected_until_every_stream_they_need_is_ready(ros, hand):
 def test_alternating_failing_and_succeeding_goals_keep_the_node_serving(ros, hand):
     """A goal that fails (ABORTED), then one that succeeds, and again: every result delivered."""
     ros.capture_logs()
-    h = hand(pinched_world())
+    hand(pinched_world())
     failing = Manipulate.Goal(motion="vertical", timeout=0.05)  # ends unsuccessfully on its timeout
     succeeding = Manipulate.Goal(motion="hold", timeout=0.1)  # a hold succeeds when its time is up
     outcomes = []

@@ -32,7 +32,7 @@ def limit_threads(threads: int) -> None:
     _thread_limit = threadpool_limits(limits=threads)  # kept referenced: applies to the whole process
 
 
-@dataclass
+@dataclass(frozen=True)
 class PerceptionConfig:
     selection: str = "cluster"
     buffer_size: int = 64
