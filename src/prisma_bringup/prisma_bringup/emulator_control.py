@@ -48,9 +48,11 @@ class ControlServer:
         self._socket = None
 
     def _serve(self) -> None:
+        listener = self._socket  # close() sets _socket to None: keep the one this thread serves
+        assert listener is not None  # the thread starts in start(), once the socket is bound
         while True:
             try:
-                connection, _ = self._socket.accept()
+                connection, _ = listener.accept()
             except OSError:
                 return  # closed
             with connection:

@@ -101,6 +101,9 @@ class SessionGloveBackend:
     def status(self) -> BackendStatus:
         return BackendStatus(True, "simulated glove session", {"frames": str(self.frames_sent)})
 
+    def take_errors(self) -> list[str]:
+        return []  # no link to lose
+
     def close(self) -> None:
         pass
 

@@ -75,7 +75,7 @@ def rad_to_ticks(rad: float) -> int:
     return int(round(rad * TICKS_PER_REV / (2.0 * math.pi)))
 
 
-def ticks_to_rad(ticks: int) -> float:
+def ticks_to_rad(ticks: float) -> float:  # the emulator's continuous positions too
     return ticks * 2.0 * math.pi / TICKS_PER_REV
 
 

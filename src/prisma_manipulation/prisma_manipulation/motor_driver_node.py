@@ -36,7 +36,6 @@ from .ros_conversions import (
 class MotorDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("motor_driver", **kwargs)
-        self.core: MotorDriverCore | None = None
         defaults = MotorDriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid

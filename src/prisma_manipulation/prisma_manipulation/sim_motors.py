@@ -57,7 +57,8 @@ class SimMotorBus:
         self._now_ns = start_ns
 
     @property
-    def now_ns(self) -> int:
+    def now_ns(self) -> int | None:
+        """The simulated time; None until the first read when started with start_ns=None."""
         return self._now_ns
 
     # ---- lifecycle -------------------------------------------------------------------------

@@ -72,7 +72,8 @@ class CalibrationSet:
             arrays["contact_mm"] = self.contact_mm
         # written whole or not at all: staged under a temporary name, renamed when complete
         with atomic_output(path) as staged, open(staged, "wb") as f:
-            np.savez_compressed(f, **arrays)  # a file object keeps numpy from appending .npz to the name
+            # (mypy matches **arrays against savez_compressed's allow_pickle: bool)
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]  # a file object: no .npz appended
 
     @classmethod
     def load(cls, path: str | Path) -> CalibrationSet:
@@ -237,7 +238,7 @@ def generate_calibration_set(n_samples: int = 140_000, seed: int = 0,
     cat = {name: np.concatenate([getattr(tr, name) for tr in tracks])[:n_samples]
            for name in ("x", "y", "fz", "sx", "sy")}
     trajectory = np.repeat(np.arange(len(tracks), dtype=np.int32), lengths)[:n_samples]
-    kind = np.repeat(np.array(kind_of), lengths)[:n_samples]
+    sample_kind = np.repeat(np.array(kind_of), lengths)[:n_samples]
 
     pad = PadModel(params, seed=seed + 1)  # noise stream distinct from the trajectory stream
     counts = pad.sample_sequence(cat["x"], cat["y"], cat["fz"], cat["sx"], cat["sy"])
@@ -247,7 +248,7 @@ def generate_calibration_set(n_samples: int = 140_000, seed: int = 0,
     contact = np.where(loaded[:, None], np.stack([cat["x"], cat["y"]], axis=1), np.nan)
     stamp_ns = np.rint(np.arange(n_samples) * (1e9 / rate_hz)).astype(np.int64)
     return CalibrationSet(counts_to_voltages(counts, pad.params.vref), wrench, stamp_ns,
-                          trajectory, kind, contact)
+                          trajectory, sample_kind, contact)
 
 
 def generate_trajectory(kind: str, n_samples: int, seed: int, rate_hz: float = 100.0,

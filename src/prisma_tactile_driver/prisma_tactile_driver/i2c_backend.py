@@ -71,7 +71,7 @@ class FingerLinkStats:
 class I2CHubBackend:
     def __init__(self, bus: int | str | Any, channels: dict[str, int], *, mux_address: int = 0x70,
                  adc_address: int = 0x35, retries: int = 2,
-                 bus_factory: Callable[[int | str], Any] | None = None) -> None:
+                 bus_factory: Callable[[Any], Any] | None = None) -> None:  # called with `bus`
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
         if not 0x08 <= mux_address <= 0x77:

@@ -278,15 +278,15 @@ class I2CSocketServer:
                 release_unix_socket(self.path, identity)
                 raise
             self._listener, self._identity = listener, identity
-            self._accept_thread = threading.Thread(target=self._accept_loop, name=f"i2c-socket {self.path}",
-                                                   daemon=True)
+            self._accept_thread = threading.Thread(target=self._accept_loop, args=(listener,),
+                                                   name=f"i2c-socket {self.path}", daemon=True)
             self._accept_thread.start()
         return self
 
-    def _accept_loop(self) -> None:
+    def _accept_loop(self, listener: socket.socket) -> None:
         while True:
             try:
-                conn, _ = self._listener.accept()
+                conn, _ = listener.accept()
             except OSError:
                 return  # close() shut the listener down
             with self._state:
@@ -319,8 +319,8 @@ class I2CSocketServer:
             check_messages(messages)  # what i2c-dev refuses (EINVAL) is refused here too
         except FramingError as exc:
             return encode_error(errno.EPROTO, f"{os.strerror(errno.EPROTO)} ({exc})")
-        except OSError as exc:
-            return encode_error(exc.errno, exc.strerror)
+        except OSError as exc:  # check_messages: always EINVAL with its reason
+            return encode_error(exc.errno or errno.EINVAL, exc.strerror or str(exc))
         try:
             with self.lock:
                 reads = self.bus.transfer(messages)

@@ -26,7 +26,6 @@ class TactileDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        self.hub: TactileHub | None = None
         defaults = DriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
@@ -84,6 +83,7 @@ class TactileDriverNode(Node):
         self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.hub.diagnostics(stamp_ns)))
 
     def _on_joints(self, msg: JointState) -> None:
+        assert self._source is not None  # subscribed only with the hand_world contact source
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
                                    ns_from_stamp(msg.header.stamp))
 

@@ -320,6 +320,7 @@ def train_weight_main(argv: list[str] | None = None) -> int:
         from .models import WeightNet
 
         frames = frames_tensor(ds)
+        assert ds.weights_g is not None  # _weights_check
         grams = ds.weights_g[ds.object_id]
         torch.manual_seed(cfg.seed)
         net = WeightNet(cfg.width, cfg.dropout)
@@ -401,8 +402,10 @@ def correlation_main(argv: list[str] | None = None) -> int:
         raise UserError(f"--dataset {source}: {segments_total} grasp(s), {len(signal)} frame(s) of object "
                         f"signal; the correlation needs recordings with grasps")
     print(f"dataset: {source}; {segments_total} grasps found, {len(signal)} frames of object signal")
-    refs = [(name, tuple(int(round(v)) for v in layout.centroid(name)))
-            for name in ("thumb_distal", "index_distal", "middle_proximal", "palm")]
+    refs: list[tuple[str, tuple[int, int]]] = []
+    for name in ("thumb_distal", "index_distal", "middle_proximal", "palm"):
+        row, col = layout.centroid(name)
+        refs.append((name, (int(round(row)), int(round(col)))))
     maps = [(name, pearson_map(signal, mask, ref), ref) for name, ref in refs]
     names, cca = region_cca(signal, layout)
     summary = {n: float(np.nanmean(np.delete(cca[i], i))) for i, n in enumerate(names)}

@@ -148,10 +148,10 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                     init_combination_from_single(net, single)
                     if features is not None:  # the warm start alone (branches averaged), for reference
                         warm = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    if mode == "head" and head_epochs == 0:  # the warm start alone: averaged branches
+                    if features is not None and head_epochs == 0:  # mode "head", the warm start alone
                         hist = []
                         ev = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    elif mode == "head":
+                    elif features is not None:  # mode "head"
                         head_cfg = TrainConfig(**{**cfg.__dict__, "epochs": head_epochs, "noise_std": 0.0})
                         hist = train_head(net, features, make, head_cfg, progress, None, tag)
                         probs = head_proba(net, features, test_tuples)
@@ -192,8 +192,9 @@ def summarise_curve(results: ObjectResults, selections=("random", "cluster")) ->
                 row = {"selection": selection, "n": n, "top1": float(top1.mean()), "top1_std": float(top1.std()),
                        "top3": float(top3.mean()), "seeds": len(rows)}
                 warm = [r.get("warm_top1", r["top1"] if n == 1 else None) for r in rows]
-                if all(w is not None for w in warm):
-                    row["warm_top1"] = float(np.mean(warm))
+                known = [w for w in warm if w is not None]
+                if len(known) == len(warm):
+                    row["warm_top1"] = float(np.mean(known))
                 out.append(row)
     return out
 
@@ -204,6 +205,8 @@ def default_folds(ds: GloveDataset, count: int | None) -> list[int]:
     objects = np.unique(ds.object_id)
     if count is None or count >= len(objects):
         return [int(o) for o in objects]
+    if ds.weights_g is None:
+        raise ValueError("folds spread over the weight range need a dataset with per-object weights")
     by_weight = objects[np.argsort(ds.weights_g[objects])]
     pick = np.round(np.linspace(0, len(by_weight) - 1, count)).astype(int)
     return [int(by_weight[i]) for i in pick]

@@ -3,7 +3,7 @@ repeat), validation that names the bad parameter and value, and the factories th
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, ClassVar
 
 from .backends import BACKENDS, GloveBackend, ReplayGloveBackend, SerialGloveBackend, SimGloveBackend
 from .selection import SELECTIONS
@@ -24,6 +24,14 @@ def _positive(config: Any, *names: str) -> None:
 
 
 class _Parameters:
+    """Base of the parameter dataclasses below."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]  # (each subclass is a dataclass)
+
+    def validate(self) -> Any:
+        """Check the values; raise ParameterError naming the first bad one."""
+        raise NotImplementedError
+
     @classmethod
     def from_parameters(cls, values: dict[str, Any]):
         known = {f.name for f in fields(cls)}

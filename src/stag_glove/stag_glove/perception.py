@@ -116,23 +116,32 @@ class GlovePerception:
             out.weight = self.estimate_weight(frame.pressure)
         return out
 
+    @staticmethod
+    def _loaded(bundle: Bundle | None, kind: str) -> Bundle:
+        if bundle is None:
+            raise RuntimeError(f"no {kind} model was given to GlovePerception")
+        return bundle
+
     @torch.no_grad()
     def classify_object(self) -> Estimate:
+        bundle = self._loaded(self.object_bundle, "object")
         frames = np.stack(self.buffer)
         index = select_from_buffer(frames, self.n_frames, self.config.selection, self._rng,
                                    n_init=self.config.kmeans_restarts)
-        logits = self.object_bundle.model(torch.from_numpy(frames[index][None]))
+        logits = bundle.model(torch.from_numpy(frames[index][None]))
         self.stats.object_decisions += 1
-        return _estimate(torch.softmax(logits[0], 0).numpy(), self.object_bundle.labels, self.n_frames)
+        return _estimate(torch.softmax(logits[0], 0).numpy(), bundle.labels, self.n_frames)
 
     @torch.no_grad()
     def classify_pose(self, pressure: np.ndarray) -> Estimate:
+        bundle = self._loaded(self.pose_bundle, "pose")
         x = torch.from_numpy(np.asarray(pressure, dtype=np.float32)[None, None])
-        return _estimate(torch.softmax(self.pose_bundle.model(x)[0], 0).numpy(), self.pose_bundle.labels, 1)
+        return _estimate(torch.softmax(bundle.model(x)[0], 0).numpy(), bundle.labels, 1)
 
     @torch.no_grad()
     def estimate_weight(self, pressure: np.ndarray) -> WeightResult:
+        bundle = self._loaded(self.weight_bundle, "weight")
         x = torch.from_numpy(np.asarray(pressure, dtype=np.float32)[None, None])
-        grams = float(np.exp(float(self.weight_bundle.model(x)[0])))
+        grams = float(np.exp(float(bundle.model(x)[0])))
         a, b = self._baseline
         return WeightResult(grams, a * float(np.sum(pressure)) + b)
