@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from run import Benchmark
-
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path, save_untrained_bundle
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.networks import MODEL_KINDS
+from run import Benchmark
 
 SCAN_RATE_HZ = 100.0
 SECONDS = 2.0

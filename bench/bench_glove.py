@@ -16,7 +16,6 @@ import numpy as np
 import torch
 
 from run import Benchmark
-
 from stag_glove.bundle import Bundle, BundleError, load_bundle
 from stag_glove.layout import load_layout
 from stag_glove.models import TouchNet
@@ -71,7 +70,7 @@ def _classify_rate() -> float:
     limit_threads(1)
     perception = GlovePerception(_object_bundle(), config=PerceptionConfig(selection="cluster", buffer_size=64))
     for pressure in _frames(200, seed=1)[-64:]:
-        perception.buffer.append((np.clip((pressure.astype(np.float32) - 500) / 150, 0, 1)))
+        perception.buffer.append(np.clip((pressure.astype(np.float32) - 500) / 150, 0, 1))
     for _ in range(5):
         perception.classify_object()
     n = 150

@@ -13,7 +13,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from run import Benchmark
 
 from prisma_manipulation.contact_monitor import DEFAULT_K, ContactMonitor
 from prisma_manipulation.controllers import ControlInput, ControlLimits, JointSample
@@ -21,6 +20,7 @@ from prisma_manipulation.motion_controllers import HoldController
 from prisma_manipulation.motor_bus import default_motors
 from prisma_manipulation.scenarios import build
 from prisma_tactile_driver.taxels import FINGERS
+from run import Benchmark
 
 MIN_SECONDS = 1.0
 

@@ -28,38 +28,37 @@ import math
 import tempfile
 from pathlib import Path
 
-from run import Benchmark
-
 import ros_graph
+from run import Benchmark
 
 HAND_NODES = ros_graph.HAND_NODES
 SWEEP_RATES = [100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 450.0, 500.0]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _out() -> Path:
     return Path(tempfile.mkdtemp(prefix="prisma_ros_bench_"))
 
 
-@functools.lru_cache(maxsize=None)
-def _control() -> "ros_graph.Control":
+@functools.cache
+def _control() -> ros_graph.Control:
     control = ros_graph.Control()
     atexit.register(control.close)
     return control
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _hand() -> dict:
     runs = [ros_graph.run_hand(_control(), kind, _out()) for kind in ("real", "relay")]
     return {"runs": runs, "summary": ros_graph.summarise_hand(runs)}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _sweep() -> list[dict]:
     return ros_graph.sweep(_control(), _out(), SWEEP_RATES, ("real", "relay"), probe_s=12.0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _glove() -> dict:
     return {kind: ros_graph.run_glove(_control(), kind, _out()) for kind in ("real", "relay")}
 

@@ -12,12 +12,11 @@ import time
 
 import numpy as np
 
-from run import Benchmark
-
 from prisma_tactile_driver.contact_source import ScriptedContactSource
 from prisma_tactile_driver.protocol import FrameParser, encode_frame
 from prisma_tactile_driver.sim_backend import SimHubBackend
 from prisma_tactile_driver.taxels import counts_to_voltages
+from run import Benchmark
 
 N_FRAMES = 20_000
 READ_SIZE = 4096

@@ -370,7 +370,7 @@ class Control:
 
 
 # ---- the probe ----------------------------------------------------------------------------------
-def start_probe(topics: list[str], bag: Path, logdir: Path, control: "Control") -> Proc:
+def start_probe(topics: list[str], bag: Path, logdir: Path, control: Control) -> Proc:
     qos = bag.parent / f"{bag.name}_qos.yaml"
     # a deep keep-last queue, so the probe never loses what the graph published
     qos.write_text("".join(f"{t}:\n  history: keep_last\n  depth: 1000\n  reliability: reliable\n"
@@ -1022,7 +1022,8 @@ def markdown(results: dict) -> str:
         for name, row in h["cpu_pct"].items():
             out.append(f"| {name} | {_cell(row.get('real'))} | {_cell(row.get('relay'))} | {_cell(row.get('ratio'))} |")
         out += ["", "### Latency at 100 Hz, 5 fingers (ms; graph: samples stamped during pinch Grasp goals)", "",
-                "| from the taxel stamp to | graph p50 | graph p99 | relay p50 | relay p99 | p99 ratio | samples (graph; relay) |",
+                "| from the taxel stamp to | graph p50 | graph p99 | relay p50 | relay p99 | p99 ratio "
+                "| samples (graph; relay) |",
                 "|---|---|---|---|---|---|---|"]
         names = {"contact_received": "ContactState received at the probe",
                  "wrench_received": "WrenchStamped received at the probe",
@@ -1033,8 +1034,8 @@ def markdown(results: dict) -> str:
         for hop, label in names.items():
             e = h["latency_ms"][hop]
             out.append(f"| {label} | {_cell(e['p50_ms']['real'])} | {_cell(e['p99_ms']['real'])} | "
-                       f"{_cell(e['p50_ms']['relay'])} | {_cell(e['p99_ms']['relay'])} | {_cell(e['p99_ms']['ratio'])} | "
-                       f"{sum(e['n']['real'])}; {sum(e['n']['relay'])} |")
+                       f"{_cell(e['p50_ms']['relay'])} | {_cell(e['p99_ms']['relay'])} | "
+                       f"{_cell(e['p99_ms']['ratio'])} | {sum(e['n']['real'])}; {sum(e['n']['relay'])} |")
         out += ["", f"Grasps per run (succeeded/sent): {', '.join(h['grasps']['real'])}.",
                 f"Other load during the CPU windows (% of one core, all other processes): "
                 f"{h['machine']['others_pct']}; 1-min load average at the window's start and end: "
@@ -1050,19 +1051,23 @@ def markdown(results: dict) -> str:
             if not g or not r:
                 continue
             stale = len(g["stale"]) + g["sensor_stale_aborts"]
-            out.append(f"| {rate:g} | {g['received_hz']:g} | {g['dropped_wrench']} | {g['dropped_contact']} | {stale} | "
-                       f"{g['grasps']} | {r['received_hz']:g} | {r['dropped_wrench']} | {r['dropped_contact']} | "
+            out.append(f"| {rate:g} | {g['received_hz']:g} | {g['dropped_wrench']} | {g['dropped_contact']} | "
+                       f"{stale} | {g['grasps']} | {r['received_hz']:g} | {r['dropped_wrench']} | "
+                       f"{r['dropped_contact']} | "
                        f"{'yes' if g['sustained'] else 'no'}; {'yes' if r['sustained'] else 'no'} |")
         m = results.get("sweep_max_sustained_hz", {})
-        out += ["", f"Highest rate sustained from 100 Hz up: graph {m.get('real', 0):g} Hz, relay {m.get('relay', 0):g} Hz.",
-                ""]
+        out += ["", f"Highest rate sustained from 100 Hz up: graph {m.get('real', 0):g} Hz, "
+                    f"relay {m.get('relay', 0):g} Hz.", ""]
     if results.get("glove"):
         out += ["### Glove at 7.3 frames/s (% of one core)", "", "| process | glove nodes | relay | ratio |",
                 "|---|---|---|---|"]
         for node in GLOVE_NODES:
-            real = _median_spread([g["cpu"]["processes"][node]["cpu_pct"] for g in results["glove"] if g["kind"] == "real"])
-            relay = _median_spread([g["cpu"]["processes"][node]["cpu_pct"] for g in results["glove"] if g["kind"] == "relay"])
-            ratio = (_median_spread([a["cpu"]["processes"][node]["cpu_pct"] / max(1e-9, b["cpu"]["processes"][node]["cpu_pct"])
+            real = _median_spread([g["cpu"]["processes"][node]["cpu_pct"]
+                                   for g in results["glove"] if g["kind"] == "real"])
+            relay = _median_spread([g["cpu"]["processes"][node]["cpu_pct"]
+                                    for g in results["glove"] if g["kind"] == "relay"])
+            ratio = (_median_spread([a["cpu"]["processes"][node]["cpu_pct"]
+                                     / max(1e-9, b["cpu"]["processes"][node]["cpu_pct"])
                                      for a, b in zip([g for g in results["glove"] if g["kind"] == "real"],
                                                      [g for g in results["glove"] if g["kind"] == "relay"])]))
             out.append(f"| {node} | {_cell(real)} | {_cell(relay)} | {_cell(ratio)} |")
@@ -1077,7 +1082,8 @@ def markdown(results: dict) -> str:
         out += ["### Where each node's CPU goes (py-spy, 100 Hz graph with pinch grasps running)", ""]
         for node in HAND_NODES:
             p = results["profile"][node]
-            out += [f"**{node}** ({p['cpu_pct']} % of one core while profiled; {p['working_samples']} working samples)", "",
+            out += [f"**{node}** ({p['cpu_pct']} % of one core while profiled; "
+                    f"{p['working_samples']} working samples)", "",
                     "| category | % of samples | % of one core |", "|---|---|---|"]
             out += [f"| {c['what']} | {c['samples_pct']} | {c['core_pct']} |" for c in p["categories"]]
             out += ["", "| top functions (self time) | % of samples | % of one core |", "|---|---|---|"]

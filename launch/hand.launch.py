@@ -101,7 +101,8 @@ def generate_launch_description():
         condition=on_robot,
     )
     emulator = ExecuteProcess(
-        cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup", "prisma-hand-emulator"]),
+        cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup",
+                                   "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world")],
         name="hand_emulator", output="screen", prefix=prefix, condition=emulated,
     )

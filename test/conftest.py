@@ -18,6 +18,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 
 import pytest  # noqa: E402
+
 from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402
 
 if ROS_AVAILABLE:

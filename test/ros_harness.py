@@ -193,9 +193,8 @@ class RosHarness:
     def set_time(self, stamp_ns: int, settle: bool = False) -> None:
         """Publish /clock = stamp_ns and wait until every sim-time node's clock reads it (then,
         with `settle`, until the callbacks of that instant are all done)."""
-        from rosgraph_msgs.msg import Clock
-
         from builtin_interfaces.msg import Time
+        from rosgraph_msgs.msg import Clock
 
         if self._clock_pub is None:
             from rclpy.qos import QoSProfile
@@ -436,7 +435,8 @@ class NodeProcess:
             self.proc.wait(timeout=timeout_sec)
         except subprocess.TimeoutExpired:
             self.kill()
-            raise TimeoutError(f"{' '.join(self.args)} still ran after {timeout_sec} s; output:\n{self.output}") from None
+            raise TimeoutError(f"{' '.join(self.args)} still ran after {timeout_sec} s; "
+                               f"output:\n{self.output}") from None
         self._reader.join(timeout=5.0)
         return ProcessResult(self.proc.returncode, self.output)
 
@@ -453,7 +453,7 @@ class NodeProcess:
             self.proc.wait()
         self._reader.join(timeout=5.0)
 
-    def __enter__(self) -> "NodeProcess":
+    def __enter__(self) -> NodeProcess:
         return self
 
     def __exit__(self, *exc: object) -> None:

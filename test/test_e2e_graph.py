@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import require_ros, stamp_ns
 
 require_ros()

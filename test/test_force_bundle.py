@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 import torch
 
-from prisma_force_estimator.bundle import (FORMAT_VERSION, METADATA_FILE, MODEL_FILE, BundleError,
-                                           BundleMetadata, load_bundle, save_bundle, save_untrained_bundle)
+from prisma_force_estimator.bundle import (
+    FORMAT_VERSION,
+    METADATA_FILE,
+    MODEL_FILE,
+    BundleError,
+    BundleMetadata,
+    load_bundle,
+    save_bundle,
+    save_untrained_bundle,
+)
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.networks import build_model
 from prisma_force_estimator.normalisation import Normaliser

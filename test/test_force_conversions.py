@@ -4,9 +4,9 @@ import pytest
 
 from prisma_bringup.typestore import get_typestore, types
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg, wrench_from_msg, wrench_to_msg
+from prisma_force_estimator.wrench import WrenchSample, full_wrench
 from prisma_manipulation.ros_conversions import hand_wrench_samples
 from prisma_tactile_driver.ros_conversions import ns_from_stamp
-from prisma_force_estimator.wrench import WrenchSample, full_wrench
 
 
 def _round_trip(msg):

@@ -3,8 +3,14 @@ import numpy as np
 import pytest
 
 from prisma_force_estimator.bundle import save_untrained_bundle
-from prisma_force_estimator.evaluation import (EvalResult, evaluate, held_out_tests, low_force_mae, plot_tests,
-                                               results_table)
+from prisma_force_estimator.evaluation import (
+    EvalResult,
+    evaluate,
+    held_out_tests,
+    low_force_mae,
+    plot_tests,
+    results_table,
+)
 from prisma_force_estimator.inference import ForceEstimator
 
 

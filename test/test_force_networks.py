@@ -3,8 +3,16 @@ import pytest
 import torch
 from torch import nn
 
-from prisma_force_estimator.networks import (ANN, CNN, CNN2, MODEL_KINDS, MODEL_SPECS, build_model,
-                                             parameter_count, taxel_image)
+from prisma_force_estimator.networks import (
+    ANN,
+    CNN,
+    CNN2,
+    MODEL_KINDS,
+    MODEL_SPECS,
+    build_model,
+    parameter_count,
+    taxel_image,
+)
 
 
 def test_taxel_image_puts_taxel_i_at_row_i_div_3_col_i_mod_3():

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()
@@ -220,7 +221,8 @@ def test_takes_the_per_hand_taxels_once_they_come_each_sample_once(ros, node_cls
         if k == 0:
             assert ros.spin_until(lambda: node._taxels.state.switched)
         else:
-            assert ros.spin_until(lambda: sum(c.received for c in node.pipeline.counts.values()) == received + 5)
+            assert ros.spin_until(lambda: sum(c.received for c in node.pipeline.counts.values())
+                                  == received + 5)  # noqa: B023 - spin_until runs it now
     assert ros.spin_until(lambda: len(hands) == 4)
     ros.spin_for(0.1)
     stamps = [s for s, _ in scans]
@@ -267,7 +269,8 @@ def test_main_logs_an_invalid_parameter_and_exits_1(bundles):
 
 def test_main_exits_0_on_sigint_without_a_traceback(ros, bundles):
     result = start_and_interrupt([*RUN, "--ros-args", "-p", f"model_bundle:={bundles['cnn2']}"],
-                                 "[force_estimator]: fingers thumb, index, middle, ring, little", ros, "/force_estimator")
+                                 "[force_estimator]: fingers thumb, index, middle, ring, little", ros,
+                                 "/force_estimator")
     assert result.returncode == 0, result.output
     assert "Traceback" not in result.output
 

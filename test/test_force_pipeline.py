@@ -29,7 +29,10 @@ def bundles(tmp_path_factory):
             "cnn": save_untrained_bundle(root / "cnn", "cnn", seed=2)}
 
 
-def _scan(stamp_ns, fingers=FINGERS, rng=np.random.default_rng(0)):
+_RNG = np.random.default_rng(0)  # one generator for every _scan call: each scan reads new voltages
+
+
+def _scan(stamp_ns, fingers=FINGERS, rng=_RNG):
     return [TaxelSample(f, stamp_ns, rng.uniform(0.3, 3.0, 9).astype(np.float32), f"{f}_frame") for f in fingers]
 
 

@@ -117,7 +117,9 @@ def test_weight_decay_trains_with_adamw_and_shrinks_the_weights(small_set):
                     progress=None)
     # 15 steps of decoupled decay at lr*wd = 0.05 shrink every weight by 1 - 0.95**15 ~ 54% (plus Adam's
     # own step of at most lr per parameter); plain Adam cannot move the norm that far in 15 steps.
-    norm = lambda r: float(torch.sqrt(sum((p.detach() ** 2).sum() for p in r.model.parameters())))
+    def norm(r):
+        return float(torch.sqrt(sum((p.detach() ** 2).sum() for p in r.model.parameters())))
+
     assert norm(decayed) < 0.6 * norm(plain)
     assert decayed.metadata.training["optimiser"] == "AdamW" and decayed.metadata.training["weight_decay"] == 50.0
     assert plain.metadata.training["optimiser"] == "Adam"

@@ -47,7 +47,8 @@ def test_train_classifier_writes_curve_confusion_json_and_bundle(files, tmp_path
     text = capsys.readouterr().out
     assert "[seed 0 N=1] epoch 1/1" in text and "cluster    3" in text
     result = json.loads((out / "r.json").read_text())
-    assert {(r["selection"], r["n"]) for r in result["summary"]} == {(s, n) for s in ("random", "cluster") for n in (1, 2, 3)}
+    assert ({(r["selection"], r["n"]) for r in result["summary"]}
+            == {(s, n) for s in ("random", "cluster") for n in (1, 2, 3)})
     assert all(0 <= r["top1"] <= r["top3"] <= 1 for r in result["summary"])
     assert (out / "curve.png").stat().st_size < 300_000 and (out / "confusion.png").stat().st_size < 300_000
     bundle = load_bundle(out / "bundle", "object")

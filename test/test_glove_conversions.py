@@ -4,10 +4,22 @@ import pytest
 
 from prisma_bringup.typestore import get_typestore, types
 from stag_glove.processing import FrameProcessor
-from stag_glove.ros_conversions import (ERROR, DiagnosticData, Estimate, WeightResult, diagnostics_from_msg,
-                                        diagnostics_to_msg, estimate_from_msg, estimate_to_msg, glove_frame_from_msg,
-                                        glove_frame_to_msg, image_to_pressure, pressure_image_msg, weight_from_msg,
-                                        weight_to_msg)
+from stag_glove.ros_conversions import (
+    ERROR,
+    DiagnosticData,
+    Estimate,
+    WeightResult,
+    diagnostics_from_msg,
+    diagnostics_to_msg,
+    estimate_from_msg,
+    estimate_to_msg,
+    glove_frame_from_msg,
+    glove_frame_to_msg,
+    image_to_pressure,
+    pressure_image_msg,
+    weight_from_msg,
+    weight_to_msg,
+)
 
 
 def round_trip(msg):

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stag_glove.protocol import GloveStreamParser, SYNC, VERSION, encode_frame
+from stag_glove.protocol import SYNC, VERSION, GloveStreamParser, encode_frame
 
 ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "firmware" / "stag_readout"

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()
@@ -64,7 +65,8 @@ def perception_cls():
 def tiny_bundles(tmp_path_factory):
     root = tmp_path_factory.mktemp("bundles")
     torch.manual_seed(0)
-    save_bundle(root / "object", "object", TouchNet(3, 2, width=4), {"width": 4, "n_frames": 2, "labels": ["a", "b", "c"]})
+    save_bundle(root / "object", "object", TouchNet(3, 2, width=4),
+                {"width": 4, "n_frames": 2, "labels": ["a", "b", "c"]})
     save_bundle(root / "pose", "pose", TouchNet(2, 1, width=4), {"width": 4, "n_frames": 1, "labels": ["open", "fist"]})
     save_bundle(root / "weight", "weight", WeightNet(width=4), {"width": 4, "linear_baseline": {"a": 1.0, "b": 5.0}})
     return {k: str(root / k) for k in ("object", "pose", "weight")}
@@ -163,7 +165,8 @@ def test_serial_backend_reads_the_readout_board(ros, driver_cls):
 
 
 def test_replay_backend_publishes_the_file(ros, driver_cls, tmp_path):
-    ds = SyntheticGlove(SyntheticConfig(n_objects=1, sessions=1, test_sessions=(0,), frames_per_session=8)).object_dataset()
+    config = SyntheticConfig(n_objects=1, sessions=1, test_sessions=(0,), frames_per_session=8)
+    ds = SyntheticGlove(config).object_dataset()
     save_hdf5(ds, tmp_path / "rec.h5")
     frames = ros.collect(GloveFrame, "/stag/frame")
     ros.node(driver_cls, params={"backend": "replay", "replay_file": str(tmp_path / "rec.h5"), "replay_loop": False,

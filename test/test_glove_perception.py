@@ -21,7 +21,8 @@ NS = 1_000_000_000
 def bundles(tmp_path_factory):
     root = tmp_path_factory.mktemp("bundles")
     torch.manual_seed(0)
-    save_bundle(root / "object", "object", TouchNet(3, 4, width=4), {"width": 4, "n_frames": 4, "labels": ["a", "b", "c"]})
+    save_bundle(root / "object", "object", TouchNet(3, 4, width=4),
+                {"width": 4, "n_frames": 4, "labels": ["a", "b", "c"]})
     save_bundle(root / "pose", "pose", TouchNet(2, 1, width=4), {"width": 4, "n_frames": 1, "labels": ["open", "fist"]})
     save_bundle(root / "weight", "weight", WeightNet(width=4),
                 {"width": 4, "linear_baseline": {"a": 2.0, "b": 10.0}})
@@ -132,7 +133,8 @@ def test_driver_diagnostics_levels():
 
 
 def test_replay_backend_plays_a_dataset_file_in_order(tmp_path):
-    ds = SyntheticGlove(SyntheticConfig(n_objects=2, sessions=1, test_sessions=(0,), frames_per_session=10)).object_dataset()
+    config = SyntheticConfig(n_objects=2, sessions=1, test_sessions=(0,), frames_per_session=10)
+    ds = SyntheticGlove(config).object_dataset()
     save_hdf5(ds, tmp_path / "rec.h5")
     backend = ReplayGloveBackend(tmp_path / "rec.h5", rate_hz=10.0, loop=False)
     got = []

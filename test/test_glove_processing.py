@@ -3,8 +3,14 @@ import numpy as np
 import pytest
 
 from stag_glove.layout import STAG_SENSOR_COUNT, load_layout, mask_from_pressure, parse_layout
-from stag_glove.processing import (EmptyHandCalibration, FrameProcessor, NormalisationConfig, is_shorted,
-                                   normalise, shorted_frames)
+from stag_glove.processing import (
+    EmptyHandCalibration,
+    FrameProcessor,
+    NormalisationConfig,
+    is_shorted,
+    normalise,
+    shorted_frames,
+)
 
 
 def test_normalisation_maps_500_650_to_0_1_and_clips():

@@ -2,10 +2,10 @@
 import struct
 
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from stag_glove.protocol import (SYNC, GloveStreamParser, crc16_ccitt, encode_frame, frame_size, pack10,
-                                 unpack10)
+from stag_glove.protocol import SYNC, GloveStreamParser, crc16_ccitt, encode_frame, frame_size, pack10, unpack10
 
 
 def frame(seed: int, rows: int = 32, cols: int = 32) -> np.ndarray:

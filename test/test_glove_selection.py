@@ -3,8 +3,15 @@ import numpy as np
 import pytest
 from sklearn.decomposition import PCA
 
-from stag_glove.selection import (cluster_frames, cluster_ids, cluster_tuples, embed, pca_scores, random_tuples,
-                                  select_from_buffer)
+from stag_glove.selection import (
+    cluster_frames,
+    cluster_ids,
+    cluster_tuples,
+    embed,
+    pca_scores,
+    random_tuples,
+    select_from_buffer,
+)
 
 
 def grouped_frames(groups=4, per_group=15, seed=0):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosbags.serde import SerdeError
 from rosbags.typesys.store import Nodetype
 
 from prisma_bringup import typestore as ts_module
@@ -99,7 +100,7 @@ def test_taxel_array_layout_is_fixed_nine():
     store = get_typestore()
     message = build_message("prisma_msgs/msg/TaxelArray")
     assert message.counts.shape == (9,) and message.voltages.shape == (9,)
-    with pytest.raises(Exception):
+    with pytest.raises(SerdeError):
         bad = types("prisma_msgs/msg/TaxelArray")(
             header=message.header, finger="thumb",
             counts=np.zeros(8, np.uint16), voltages=np.zeros(9, np.float32))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import unittest
 
 import pytest
+
 from ros_harness import RosHarness, assert_clean_shutdown, include_launch, output_of, require_ros
 
 require_ros()

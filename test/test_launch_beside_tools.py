@@ -14,6 +14,7 @@ import importlib.util
 import os
 
 import pytest
+
 from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
 
 require_ros()

@@ -15,6 +15,7 @@ import time
 import unittest
 
 import pytest
+
 from ros_harness import RosHarness, require_ros, stamp_ns
 
 require_ros()
@@ -76,7 +77,7 @@ class TestControllerLost(unittest.TestCase):
         for _ in range(5):  # on a loaded machine estimator lag may end it sensor_stale first: again
             result = ros.send_until_accepted(client, goal).get_result_async()
             accepted = len(joints)
-            ros.spin_until(lambda: result.done() or closing_at_10_rpm(joints[accepted:]), 10.0)
+            ros.spin_until(lambda: result.done() or closing_at_10_rpm(joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
             if not result.done():
                 break
         self.assertFalse(result.done(), f"the grasp ended before the kill: {result.result()}")

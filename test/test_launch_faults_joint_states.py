@@ -14,6 +14,7 @@ import time
 import unittest
 
 import pytest
+
 from ros_harness import RosHarness, require_ros, stamp_ns
 
 require_ros()

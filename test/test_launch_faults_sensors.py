@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import NodeProcess, RosHarness, require_ros, stamp_ns
 
 require_ros()
@@ -194,7 +195,7 @@ class TestMissingParts(unittest.TestCase):
         for _ in range(5):  # on a loaded machine estimator lag may end it sensor_stale first: again
             result = ros.send_until_accepted(self.grasp, goal, timeout_sec=30.0).get_result_async()
             accepted = len(self.joints)
-            ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)
+            ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
             if not result.done():
                 break
         self.assertFalse(result.done(), f"the grasp ended before the hub was unplugged: {result.result()}")

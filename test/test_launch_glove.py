@@ -17,6 +17,7 @@ import time
 import unittest
 
 import pytest
+
 from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros, stamp_ns
 
 require_ros()

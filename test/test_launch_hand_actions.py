@@ -29,6 +29,7 @@ import unittest
 
 import numpy as np
 import pytest
+
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
@@ -181,7 +182,7 @@ class TestHandActions(unittest.TestCase):
             handle = ros.send_until_accepted(self.grasp, goal)
             result = handle.get_result_async()
             accepted = len(self.joints)
-            ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)
+            ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
             if not result.done():
                 break
             # a starved machine can end it sensor_stale before it gets going (the watchdog working)
@@ -216,7 +217,7 @@ class TestHandActions(unittest.TestCase):
         stale = 0
         for _ in range(100):
             futures = [self.grasp.send_goal_async(PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
-            self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))
+            self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))  # noqa: B023 - spin_until runs it now
             handles = dict(zip(("grasp", "manipulate"), (f.result() for f in futures)))
             if not any(h.accepted for h in handles.values()):
                 ros.spin_for(RETRY_S)

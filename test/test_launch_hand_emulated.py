@@ -31,6 +31,7 @@ import unittest
 from pathlib import Path
 
 import pytest
+
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
@@ -210,7 +211,8 @@ class TestHandEmulated(unittest.TestCase):
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with an overloaded servo")
         self.assertEqual(outcome(result.result()), ("ABORTED", "motor_fault"))
         fault_reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
-        self.assertTrue(ros.wait_for_log(name="manipulation", contains=f"grasp goal ended: motor_fault ({fault_reason}"))
+        self.assertTrue(ros.wait_for_log(name="manipulation",
+                                         contains=f"grasp goal ended: motor_fault ({fault_reason}"))
         self.assertTrue(ros.spin_until(lambda: not emulator_status()["servos"]["fingers"]["torque_on"], 2.0),
                         "the overloaded servo's torque is still on")
         fault("servo-clear")
@@ -244,7 +246,8 @@ class TestHandEmulated(unittest.TestCase):
             start = emulator_status()
             ends[name] = outcome(self.run_goal(goal))
             end = emulator_status()
-            rotations[name] = end["servos"]["thumb_rotation"]["position_rad"] - start["servos"]["thumb_rotation"]["position_rad"]
+            rotations[name] = (end["servos"]["thumb_rotation"]["position_rad"]
+                               - start["servos"]["thumb_rotation"]["position_rad"])
             forces[name] = end["forces_n"]
             print(f"{name}: {ends[name]}, thumb rotation {rotations[name]:+.3f} rad, forces {forces[name]}")
         # the holds restore the contact side by rotating the thumb (the push came 0.5 s into the

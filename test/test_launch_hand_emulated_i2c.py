@@ -21,6 +21,7 @@ import unittest
 from pathlib import Path
 
 import pytest
+
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,

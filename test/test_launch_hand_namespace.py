@@ -27,6 +27,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+
 from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros
 
 require_ros()

@@ -20,6 +20,7 @@ import time
 import unittest
 
 import pytest
+
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
@@ -40,6 +41,7 @@ from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+
 from test_static_consistency import topic_table  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")

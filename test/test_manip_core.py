@@ -20,8 +20,8 @@ from prisma_manipulation.controllers import (
 from prisma_manipulation.grasp_controller import GraspController
 from prisma_manipulation.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource, released
 from prisma_manipulation.motion_controllers import ForceKeeper, HoldController, HorizontalController
-from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
 from prisma_manipulation.motor_bus import default_motors
+from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
 from prisma_manipulation.sim_motors import SimMotorBus
 from prisma_tactile_driver.contact_source import ContactSource
 
@@ -67,7 +67,8 @@ def test_untouched_pad_is_not_a_feasible_contact_with_a_minimum_mean():
 def test_reference_first_loss_matches_the_monitor(volts, k):
     monitor = ContactMonitor(k)
     for edge in ("bottom", "top", "right", "left"):
-        expected = next((i for i, row in enumerate(volts) if edge in monitor.evaluate("thumb", i, row).lost_edges), None)
+        expected = next((i for i, row in enumerate(volts) if edge in monitor.evaluate("thumb", i, row).lost_edges),
+                        None)
         assert first_lost_index(volts, k, edge) == expected
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -382,7 +383,7 @@ def test_goals_are_rejected_until_every_stream_they_need_is_ready(ros, hand):
 def test_alternating_failing_and_succeeding_goals_keep_the_node_serving(ros, hand):
     """A goal that fails (ABORTED), then one that succeeds, and again: every result delivered."""
     ros.capture_logs()
-    h = hand(pinched_world())
+    hand(pinched_world())
     failing = Manipulate.Goal(motion="vertical", timeout=0.05)  # ends unsuccessfully on its timeout
     succeeding = Manipulate.Goal(motion="hold", timeout=0.1)  # a hold succeeds when its time is up
     outcomes = []
@@ -628,9 +629,10 @@ def test_sim_stack_tactile_driver_fed_by_motor_driver_through_hand_world(ros):
     pose = HandWorld().grasp_pose(1.0)
     contacts = ros.collect(ContactState, f"{NS}/prisma/thumb/contact")
     joints = ros.collect(JointState, f"{NS}/joint_states")
-    ros.node(MotorDriverNode, namespace=NS, params={"sim_initial_positions": [pose["fingers"], pose["thumb_flexion"], 0.0]},
-             sim_time=True)
-    tactile = ros.node(TactileDriverNode, namespace=NS, params={"backend": "sim", "contact_source": "hand_world"}, sim_time=True)
+    ros.node(MotorDriverNode, namespace=NS,
+             params={"sim_initial_positions": [pose["fingers"], pose["thumb_flexion"], 0.0]}, sim_time=True)
+    tactile = ros.node(TactileDriverNode, namespace=NS, params={"backend": "sim", "contact_source": "hand_world"},
+                       sim_time=True)
     manipulation = ros.node(ManipulationNode, namespace=NS, sim_time=True)
     ros.advance(0.6, step=STEP, settle=True)  # the presenting hand lets go of the ball once the pinch holds it
     assert tactile._source.world.forces()["thumb"] == pytest.approx(1.0, abs=0.05)

@@ -46,8 +46,8 @@ from prisma_manipulation.ros_conversions import (
     robot_types,
 )
 from prisma_manipulation.sample_alignment import SampleAligner
-from prisma_tactile_driver.ros_conversions import make_header
 from prisma_manipulation.watchdog import SensorWatchdog
+from prisma_tactile_driver.ros_conversions import make_header
 
 REPO = Path(__file__).resolve().parents[1]
 MS = 1_000_000
@@ -126,8 +126,10 @@ def test_core_validates_goals_with_defaults_and_limits():
     core = _core()
     resolved, reason = core.resolve_grasp(GraspRequest("pinch"))
     assert reason is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
-    assert core.resolve_grasp(GraspRequest("pinch", speed_rpm=71.0))[1] == "speed_rpm 71.0 above the configured limit 70.0"
-    assert core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1] == "thumb_force 3.5 above the configured limit 3.0"
+    assert (core.resolve_grasp(GraspRequest("pinch", speed_rpm=71.0))[1]
+            == "speed_rpm 71.0 above the configured limit 70.0")
+    assert (core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1]
+            == "thumb_force 3.5 above the configured limit 3.0")
     assert core.resolve_grasp(GraspRequest("pinch", finger_force=-1.0))[1] == "finger_force -1.0 must be > 0"
     assert "k 0.55 too low for hold" in core.resolve_manipulate(ManipulateRequest("hold", k=0.55))[1]
     assert "motion 'roll'" in core.resolve_manipulate(ManipulateRequest("roll"))[1]
@@ -342,10 +344,10 @@ class FlakyBus:
     """Opens only after `failures` attempts; can lose the link."""
 
     def __init__(self, failures):
-        from prisma_manipulation.motor_bus import default_motors
-        from prisma_manipulation.motor_bus import BusStats
+        from prisma_manipulation.motor_bus import BusStats, default_motors
 
-        self.motors, self.stats, self.failures, self.attempts, self.down = default_motors(), BusStats(), failures, [], False
+        self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
+        self.attempts, self.down = [], False
 
     def open(self):
         self.attempts.append(self.now)
@@ -482,7 +484,8 @@ def test_hand_contact_holds_each_fingers_contact_state():
 
 
 def test_joint_state_round_trip_units():
-    states = {"fingers": MotorState("fingers", 1.5, 60.0, 250.0), "thumb_rotation": MotorState("thumb_rotation", -0.5, -20.0, 10.0)}
+    states = {"fingers": MotorState("fingers", 1.5, 60.0, 250.0),
+              "thumb_rotation": MotorState("thumb_rotation", -0.5, -20.0, 10.0)}
     msg = roundtrip(joint_state_to_msg(types, 2_000_000_000, states))
     assert list(msg.velocity) == pytest.approx([2 * np.pi, -2 * np.pi / 3])  # rad/s
     assert list(msg.effort) == pytest.approx([0.25, 0.01])  # A
@@ -511,6 +514,7 @@ def test_robot_types_fetches_action_parts_from_the_action_class():
     class Action:
         Goal, Result, Feedback = "G", "R", "F"
 
-    lookup = robot_types(lambda name: f"msg:{name}", lambda name: Action if name == "prisma_msgs/action/MoveMotors" else None)
+    lookup = robot_types(lambda name: f"msg:{name}",
+                         lambda name: Action if name == "prisma_msgs/action/MoveMotors" else None)
     assert lookup("prisma_msgs/action/MoveMotors_Goal") == "G"
     assert lookup("prisma_msgs/msg/ContactState") == "msg:prisma_msgs/msg/ContactState"

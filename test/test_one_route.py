@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -114,7 +115,8 @@ def test_the_node_decides_as_the_off_robot_loop(ros, name):
     scans = []
     scenario = build(name, k=f32(DEFAULT_K), observer=scans.append)
     scenario.loop.run(scenario.request, scenario.duration_s, start_ns=ros.START_NS, settle_s=scenario.settle_s)
-    off_goals = [(s.stamp_ns, a.velocities_rpm, a.timeout_s) for s in scans for a in s.actions if isinstance(a, SendMove)]
+    off_goals = [(s.stamp_ns, a.velocities_rpm, a.timeout_s)
+                 for s in scans for a in s.actions if isinstance(a, SendMove)]
     off_cancels = [s.stamp_ns for s in scans for a in s.actions if isinstance(a, StopMotors)]
     grasp = isinstance(scenario.request, GraspRequest)
     off_feedback = [feedback_values(a, grasp) for s in scans for a in s.actions if isinstance(a, Feedback)]
@@ -126,7 +128,8 @@ def test_the_node_decides_as_the_off_robot_loop(ros, name):
     ros.node(ManipulationNode, params_files=[CONFIG / "manipulation.yaml"], sim_time=True, namespace=NS)
     server = MoveServer(ros)
     contacts = ros.collect(HandContact, f"{NS}/prisma/hand/contact")
-    client = ActionClient(ros.probe, Grasp if grasp else Manipulate, f"{NS}/prisma/{'grasp' if grasp else 'manipulate'}")
+    action = f"{NS}/prisma/{'grasp' if grasp else 'manipulate'}"
+    client = ActionClient(ros.probe, Grasp if grasp else Manipulate, action)
     assert ros.spin_until(client.server_is_ready, 10.0)
     r = scenario.request
     goal = (Grasp.Goal(grasp=r.grasp, finger_force=r.finger_force, thumb_force=r.thumb_force, speed_rpm=r.speed_rpm,

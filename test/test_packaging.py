@@ -26,10 +26,10 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
 
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from prisma_tactile_driver import share_data
+from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
 from stag_glove import paths as glove_paths
 
 ROOT = Path(__file__).resolve().parents[1]

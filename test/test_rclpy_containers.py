@@ -9,6 +9,7 @@ import array
 
 import numpy as np
 import pytest
+
 from ros_harness import require_ros
 
 require_ros()
@@ -25,9 +26,9 @@ from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     joint_sample_from_msg,
     joint_state_to_msg,
+    move_feedback_to_msg,
     move_goal_from_msg,
     move_goal_to_msg,
-    move_feedback_to_msg,
     move_result_from_msg,
     move_result_to_msg,
     robot_types,
@@ -43,6 +44,7 @@ from stag_glove.ros_conversions import (
     image_to_pressure,
     pressure_image_msg,
 )
+
 
 @pytest.fixture(scope="module")
 def rclpy_types():

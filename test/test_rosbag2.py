@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
 
 require_ros()

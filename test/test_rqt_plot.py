@@ -16,7 +16,8 @@ from __future__ import annotations
 import os
 
 import pytest
-from ros_harness import require_ros, ros2_launch, stamp_ns, stop_process
+
+from ros_harness import require_ros, ros2_launch, stop_process
 
 require_ros()
 

@@ -240,9 +240,8 @@ def test_glove_bag_topics_stamps_and_counts(run):
 def test_offline_estimator_reproduces_the_recorded_wrenches(run, tmp_path):
     """prisma-estimate-bag over a sim bag gives exactly the wrenches the run recorded (and the
     controller used): one pipeline, one converter."""
-    from prisma_force_estimator.cli import estimate_bag_main
-
     from prisma_bringup.bag import read_bag
+    from prisma_force_estimator.cli import estimate_bag_main
 
     bag = run.out / run.summaries["horizontal"]["bag"]
     assert estimate_bag_main([str(bag), str(tmp_path / "estimated")]) == 0

@@ -25,13 +25,14 @@ import importlib
 import inspect
 import re
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 import yaml
+
 from ros_harness import ROS_AVAILABLE, require_ros
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,7 +79,8 @@ def console_scripts(setup_py: Path) -> list[ConsoleScript]:
     names: dict = {}
     evaluator = _Evaluator(names)
     for statement in tree.body:
-        if isinstance(statement, ast.Assign) and len(statement.targets) == 1 and isinstance(statement.targets[0], ast.Name):
+        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
+                and isinstance(statement.targets[0], ast.Name)):
             try:
                 names[statement.targets[0].id] = evaluator.value(statement.value)
             except (ValueError, KeyError):
@@ -423,7 +425,8 @@ def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
             continue  # reported by test_launched_parameter_files_exist
         keys = {key.strip("/").rsplit("/", 1)[-1] for path in matches for key in files[path]}  # /**/<node> too
         assert entry.name in keys or "**" in keys, (
-            f"{entry.launch_file}:{entry.line}: {name} has node key(s) {sorted(keys)}, the node is named '{entry.name}'")
+            f"{entry.launch_file}:{entry.line}: {name} has node key(s) {sorted(keys)}, "
+            f"the node is named '{entry.name}'")
 
 
 @pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters], ids=_launch_id)

@@ -40,7 +40,10 @@ struct WireStub {
   void setClock(unsigned long) {}
   void beginTransmission(uint8_t a) { address = a; tx.clear(); }
   size_t write(uint8_t b) { tx.push_back(b); return 1; }
-  int selected() { for (int c = 0; c < 8; ++c) if (mux == (1u << c) && !(absent_channels >> c & 1)) return c; return -1; }
+  int selected() {
+    for (int c = 0; c < 8; ++c) if (mux == (1u << c) && !(absent_channels >> c & 1)) return c;
+    return -1;
+  }
   uint8_t endTransmission() {
     if (address == 0x70) { if (!tx.empty()) mux = tx.back(); return 0; }
     if (address == 0x35 && selected() >= 0) {

@@ -15,8 +15,15 @@ from prisma_tactile_driver.hub import ERROR, OK, TactileHub
 from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_emulator import EmulatedSMBus, five_finger_bus
 from prisma_tactile_driver.i2c_socket import (
-    FramingError, I2CSocketServer, SocketSMBus, decode_reply, decode_request, encode_error, encode_reply,
-    encode_request, recv_frame,
+    FramingError,
+    I2CSocketServer,
+    SocketSMBus,
+    decode_reply,
+    decode_request,
+    encode_error,
+    encode_reply,
+    encode_request,
+    recv_frame,
 )
 from prisma_tactile_driver.taxels import FINGERS
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -112,6 +113,7 @@ def test_invalid_parameters_fail_at_start_naming_the_parameter(ros, node_cls, ov
 
 def test_i2c_nacking_finger_goes_stale_while_four_keep_publishing(ros, node_cls, monkeypatch):
     import smbus2
+
     from prisma_tactile_driver.i2c_emulator import EmulatedSMBus, five_finger_bus
     values = {ch: np.arange(9) * 400 + ch for ch in range(5)}
     bus = five_finger_bus(values)

@@ -4,8 +4,7 @@ import pytest
 
 from prisma_tactile_driver.contact_source import ContactSource, ScriptedContactSource
 from prisma_tactile_driver.pad_model import PadContact, PadModel, PadParams
-from prisma_tactile_driver.taxels import (EDGES, FINGERS, TareBuffer, TaxelFrame, counts_to_voltages,
-                                          voltages_to_counts)
+from prisma_tactile_driver.taxels import EDGES, FINGERS, TareBuffer, TaxelFrame, counts_to_voltages, voltages_to_counts
 
 
 def algorithm1(volts: np.ndarray, k: float) -> tuple[np.ndarray, list[str]]:
@@ -132,7 +131,10 @@ def test_hysteresis_unloading_branch_reads_about_10_percent_higher_pressure():
     model = PadModel(params)
     forces = np.concatenate([np.linspace(0, 4, 200), np.linspace(4, 0, 200)])
     volts = counts_to_voltages(model.sample_sequence(np.zeros(400), np.zeros(400), forces))[:, 4]
-    at = lambda f, branch: volts[branch][np.argmin(np.abs(forces[branch] - f))]
+
+    def at(f, branch):
+        return volts[branch][np.argmin(np.abs(forces[branch] - f))]
+
     loading, unloading = slice(0, 200), slice(200, 400)
     for f in (1.0, 2.0, 3.0):
         assert at(f, unloading) > at(f, loading) + 0.02
@@ -146,7 +148,10 @@ def test_hysteresis_unloading_branch_reads_about_10_percent_higher_pressure():
 def test_scripted_source_cycles_press_slide_roll_release():
     source = ScriptedContactSource()
     assert isinstance(source, ContactSource)
-    at = lambda t, finger="thumb": source.contact(finger, int(t * 1e9))
+
+    def at(t, finger="thumb"):
+        return source.contact(finger, int(t * 1e9))
+
     assert at(0.5) is None and at(7.0) is None
     press = at(1.5)
     assert press.x_mm == 0 and 0 < press.normal_n < 2.0

@@ -4,8 +4,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from prisma_tactile_driver.protocol import (ALL_FINGERS_MASK, SYNC, FrameParser, crc16_ccitt,
-                                            encode_frame, frame_size, pack_counts, unpack_counts)
+from prisma_tactile_driver.protocol import (
+    ALL_FINGERS_MASK,
+    SYNC,
+    FrameParser,
+    crc16_ccitt,
+    encode_frame,
+    frame_size,
+    pack_counts,
+    unpack_counts,
+)
 
 RNG = np.random.default_rng(0)
 COUNTS = RNG.integers(0, 4096, (5, 9))

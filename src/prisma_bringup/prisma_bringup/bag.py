@@ -6,13 +6,15 @@ so nothing at `<bag>` ever looks complete while it is not.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any
 
-from prisma_tactile_driver.atomic import atomic_output
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
+
+from prisma_tactile_driver.atomic import atomic_output
 
 from .typestore import get_typestore, message_definition
 
@@ -117,7 +119,7 @@ class BagWriter:
         finally:
             self._output.abort()
 
-    def __enter__(self) -> "BagWriter":
+    def __enter__(self) -> BagWriter:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:

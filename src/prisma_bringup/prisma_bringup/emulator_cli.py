@@ -15,8 +15,9 @@ import argparse
 import json
 import signal
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,

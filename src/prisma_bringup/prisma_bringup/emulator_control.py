@@ -10,8 +10,9 @@ from __future__ import annotations
 import json
 import socket
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from prisma_tactile_driver.i2c_socket import bind_unix_socket, release_unix_socket
 
@@ -28,7 +29,7 @@ class ControlServer:
         self._identity: tuple[int, int] | None = None
         self._thread = threading.Thread(target=self._serve, name="emulator-control", daemon=True)
 
-    def start(self) -> "ControlServer":
+    def start(self) -> ControlServer:
         self._socket, self._identity = bind_unix_socket(self.path)
         self._socket.listen(4)
         self._thread.start()
@@ -47,9 +48,11 @@ class ControlServer:
         self._socket = None
 
     def _serve(self) -> None:
+        listener = self._socket  # close() sets _socket to None: keep the one this thread serves
+        assert listener is not None  # the thread starts in start(), once the socket is bound
         while True:
             try:
-                connection, _ = self._socket.accept()
+                connection, _ = listener.accept()
             except OSError:
                 return  # closed
             with connection:

@@ -5,7 +5,8 @@ wearer/placement, the configured share of shorted frames): ~8 s of the empty han
 each object a grasp recording of 60 frames followed by ~3 s of open, empty hand (the release that
 clears perception's buffer, > `release_frames`), paced at the glove's `frame_rate_hz`. It is polled
 at the driver's `poll_rate_hz` by `GloveDriver` with the node's frame processing. After the
-empty-hand phase the session calls `capture_empty_hand()`, as a user calls `~/capture_empty_hand`. Every processed frame goes to `GlovePerception` with the bundles of
+empty-hand phase the session calls `capture_empty_hand()`, as a user calls `~/capture_empty_hand`.
+Every processed frame goes to `GlovePerception` with the bundles of
 config/glove_perception.yaml, as the perception node's subscription would. Messages come from the
 glove converters: /stag/frame + /stag/image for every frame, /stag/hand_pose for every non-shorted
 frame, /stag/weight for contact frames, /stag/object once N contact frames are buffered, and the
@@ -13,9 +14,10 @@ driver's /diagnostics once per second.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -98,6 +100,9 @@ class SessionGloveBackend:
 
     def status(self) -> BackendStatus:
         return BackendStatus(True, "simulated glove session", {"frames": str(self.frames_sent)})
+
+    def take_errors(self) -> list[str]:
+        return []  # no link to lose
 
     def close(self) -> None:
         pass

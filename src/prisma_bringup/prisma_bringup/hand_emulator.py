@@ -26,9 +26,10 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -144,7 +145,7 @@ class EmulatedHand:
         self._place_servos()
 
     # ---- lifecycle -------------------------------------------------------------------------
-    def start(self) -> "EmulatedHand":
+    def start(self) -> EmulatedHand:
         """Create the devices. FileExistsError (naming the path) if one of the paths holds something
         that is not an earlier emulator's link or socket; nothing is replaced then."""
         from prisma_tactile_driver.i2c_socket import I2CSocketServer
@@ -177,7 +178,7 @@ class EmulatedHand:
         if self._hub_port.is_open:
             self._hub_port.hang_up()
 
-    def __enter__(self) -> "EmulatedHand":
+    def __enter__(self) -> EmulatedHand:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

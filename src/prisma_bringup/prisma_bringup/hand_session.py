@@ -21,8 +21,9 @@ Stamps are the loop's sample stamps (sim time from 0), so every topic is ordered
 from __future__ import annotations
 
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,8 @@ class HandScenarioSpec:
         if isinstance(r, GraspRequest):
             return {"grasp": r.grasp, "finger_force": r.finger_force, "thumb_force": r.thumb_force,
                     "speed_rpm": r.speed_rpm, "timeout": r.timeout_s}
-        return {"motion": r.motion, "speed_rpm": r.speed_rpm, "k": r.k, "use_force": r.use_force, "timeout": r.timeout_s}
+        return {"motion": r.motion, "speed_rpm": r.speed_rpm, "k": r.k, "use_force": r.use_force,
+                "timeout": r.timeout_s}
 
     def make(self, estimator: ForceEstimator | None = None) -> Scenario:
         return replace(build(self.world, estimator=estimator), name=self.name)
@@ -139,13 +141,6 @@ def _goal_uuid(*parts: object) -> np.ndarray:
 
 
 @dataclass
-class _Goal:
-    action: str
-    goal_id: np.ndarray
-    accepted_ns: int
-
-
-@dataclass
 class GoalRecord:
     """One action goal as recorded: for summaries and tests."""
 
@@ -154,6 +149,14 @@ class GoalRecord:
     ended_ns: int | None = None
     status: int = STATUS_EXECUTING
     feedback: int = 0
+
+
+@dataclass
+class _Goal:
+    action: str
+    goal_id: np.ndarray
+    accepted_ns: int
+    record: GoalRecord
 
 
 @dataclass
@@ -174,8 +177,9 @@ class HandRecorder:
         if action not in ("grasp", "manipulate"):
             raise ValueError(f"action must be grasp or manipulate, got {action!r}")
         loop = scenario.loop
-        if loop.pipeline is None:
+        if loop.pipeline is None or loop.estimator is None:
             raise ValueError(f"scenario {scenario.name} has no force estimator: its wrench topics would be empty")
+        self.pipeline = loop.pipeline
         self.scenario, self.writer, self.types, self.action = scenario, writer, types, action
         self.loop = loop
         self.recording = HandRecording()
@@ -186,8 +190,6 @@ class HandRecorder:
         self._goal: _Goal | None = None  # the Grasp/Manipulate goal
         self._move: _Goal | None = None  # the MoveMotors goal it is running
         self._moves = 0
-        self._goal_record: GoalRecord | None = None
-        self._move_record: GoalRecord | None = None
         loop.observer = self.record
 
     # ---- one period --------------------------------------------------------------------------
@@ -210,14 +212,11 @@ class HandRecorder:
                                              self.contact_frame_id.format(finger=frame.finger)))
         if self._move is not None and scan.move_feedback is not None:
             self._write_feedback(self._move, move_feedback_to_msg(types, scan.move_feedback), t)
-            self._move_record.feedback += 1
+            self._move.record.feedback += 1
         if self._move is not None and scan.move_result is not None:  # ended on the driver (limit, timeout, fault)
             self._end_move(STATUS_SUCCEEDED if scan.move_result.success else STATUS_ABORTED, t)
         if scan.goal_started:
-            self._goal = _Goal(self.action, _goal_uuid(self.scenario.name, self.action), t)
-            self._goal_record = GoalRecord(self.action, t)
-            self.recording.goals.append(self._goal_record)
-            self._write_status(self._goal, STATUS_EXECUTING, t)
+            self._goal = self._new_goal(self.action, _goal_uuid(self.scenario.name, self.action), t)
         for action in scan.actions:
             self._record_decision(action, t)
         if self._next_diagnostics_ns is None or t >= self._next_diagnostics_ns:
@@ -234,12 +233,11 @@ class HandRecorder:
         elif isinstance(action, Feedback) and self._goal is not None:
             convert = grasp_feedback_to_msg if self.action == "grasp" else manipulate_feedback_to_msg
             self._write_feedback(self._goal, convert(self.types, action), t)
-            self._goal_record.feedback += 1
+            self._goal.record.feedback += 1
         elif isinstance(action, Finished) and self._goal is not None:
             status = STATUS_SUCCEEDED if action.success else \
                 STATUS_CANCELED if action.reason == "canceled" else STATUS_ABORTED
-            self._write_status(self._goal, status, t)
-            self._goal_record.ended_ns, self._goal_record.status = t, status
+            self._end(self._goal, status, t)
             self._goal = None
 
     # ---- messages ----------------------------------------------------------------------------
@@ -251,7 +249,7 @@ class HandRecorder:
         types, loop = self.types, self.loop
         self._write(DIAGNOSTICS, diagnostics_to_msg(types, t, loop.hub.diagnostics(t)))
         self._write(DIAGNOSTICS, diagnostics_to_msg(
-            types, t, pipeline_diagnostics(loop.pipeline, "force_estimator", self.bundle_paths)))
+            types, t, pipeline_diagnostics(self.pipeline, "force_estimator", self.bundle_paths)))
         self._write(DIAGNOSTICS, diagnostics_to_msg(types, t, loop.motor.diagnostics()))
 
     def _send_move(self, t: int) -> None:
@@ -259,15 +257,22 @@ class HandRecorder:
         if self._move is not None:
             self._end_move(STATUS_ABORTED, t)  # preempted
         self._moves += 1
-        self._move = _Goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
-        self._move_record = GoalRecord("move", t)
-        self.recording.goals.append(self._move_record)
-        self._write_status(self._move, STATUS_EXECUTING, t)
+        self._move = self._new_goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
 
     def _end_move(self, status: int, t: int) -> None:
-        self._write_status(self._move, status, t)
-        self._move_record.ended_ns, self._move_record.status = t, status
-        self._move = None
+        if self._move is not None:
+            self._end(self._move, status, t)
+            self._move = None
+
+    def _new_goal(self, action: str, goal_id: np.ndarray, t: int) -> _Goal:
+        goal = _Goal(action, goal_id, t, GoalRecord(action, t))
+        self.recording.goals.append(goal.record)
+        self._write_status(goal, STATUS_EXECUTING, t)
+        return goal
+
+    def _end(self, goal: _Goal, status: int, t: int) -> None:
+        self._write_status(goal, status, t)
+        goal.record.ended_ns, goal.record.status = t, status
 
     def _write_feedback(self, goal: _Goal, feedback: Any, t: int) -> None:
         types = self.types
@@ -286,11 +291,9 @@ class HandRecorder:
     def finish(self) -> HandRecording:
         """Close open goals at the last sample (a run cut by its duration ends them aborted)."""
         t = self.recording.last_ns or 0
-        if self._move is not None:
-            self._end_move(STATUS_ABORTED, t)
+        self._end_move(STATUS_ABORTED, t)
         if self._goal is not None:
-            self._write_status(self._goal, STATUS_ABORTED, t)
-            self._goal_record.ended_ns, self._goal_record.status = t, STATUS_ABORTED
+            self._end(self._goal, STATUS_ABORTED, t)
             self._goal = None
         return self.recording
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from prisma_tactile_driver.atomic import atomic_output
 
@@ -169,23 +169,28 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
     summary["index_force_used_final_n"] = float(trace.force("index", "used")[-1])
     checks = force_errors(scenario, trace)
     worst = max((max(e["used_error_n"], e["true_error_n"]) for e in checks.values()), default=None)
-    c = scenario.controller
+    done = scenario.loop.finished  # the goal's result, as the manipulation node returns it
+    if done is None:
+        result = None
+    elif spec.action == "grasp":
+        result = {"success": done.success, "reason": done.reason, "finger_force": done.finger_force,
+                  "thumb_force": done.thumb_force}
+    else:
+        result = {"success": done.success, "stop_reason": done.reason, "stop_time": done.stop_time_s}
+    first_ns, last_ns = recording.first_ns or 0, recording.last_ns or 0
     summary.update({
         "description": spec.description,
         "action": spec.action,
         "goal": spec.goal,
         "bundle": str(estimator.path),
-        "result": ({"success": c.success, "reason": c.reason,
-                    "finger_force": c.finger_force, "thumb_force": c.thumb_force} if spec.action == "grasp" else
-                   {"success": c.success, "stop_reason": c.reason,
-                    "stop_time": None if c.stop_ns is None else (c.stop_ns - c.start_ns) / NS}),
+        "result": result,
         "force_set_points": checks,
         "force_error_n": worst,
         "force_tolerance_n": options.force_tolerance_n,
         "force_within_tolerance": worst is None or worst <= options.force_tolerance_n,
         "samples": recording.samples,  # every sample incl. the one the goal started on
         "rate_hz": NS / scenario.loop.period_ns,
-        "duration_s": (recording.last_ns - recording.first_ns) / NS,
+        "duration_s": (last_ns - first_ns) / NS,
         "bag": _rel(bag, root),
         "topics": dict(sorted(recording.counts.items())),
         "goals": [{"action": g.action, "accepted_s": g.accepted_ns / NS,
@@ -312,7 +317,8 @@ def markdown(summaries: list[dict]) -> str:
                          f"{s['samples']} | {s['bag']} |")
         lines.append("")
         for s in hand:
-            events = ", ".join(f"{e['what']} at {e['t_s']:.2f} s" for e in s["events"] if not e["what"].startswith("phase"))
+            events = ", ".join(f"{e['what']} at {e['t_s']:.2f} s" for e in s["events"]
+                               if not e["what"].startswith("phase"))
             lines.append(f"- **{s['scenario']}**: {s['description']}. Events: {events or 'none'}.")
         lines.append("")
     for s in glove:
@@ -321,11 +327,13 @@ def markdown(summaries: list[dict]) -> str:
             f"{s['contact_frames']} with contact; {s['object_correct']}/{len(s['grasps'])} objects recognised; "
             f"stop reason {s['reason']} ({'as expected' if s['as_expected'] else 'NOT as expected'}); "
             f"bag {s['bag']}.", "",
-            "| object in hand | /stag/object (last while held) | decisions | weight true (g) | /stag/weight median (g) | linear baseline (g) | hand pose |",
+            "| object in hand | /stag/object (last while held) | decisions | weight true (g) "
+            "| /stag/weight median (g) | linear baseline (g) | hand pose |",
             "|---|---|---|---|---|---|---|",
         ]
         for g in s["grasps"]:
-            lines.append(f"| {g['truth']} | {g['decision'] or '-'} | {g['decisions']} | {_fmt(g['true_weight_g'], 0)} | "
+            lines.append(f"| {g['truth']} | {g['decision'] or '-'} | {g['decisions']} "
+                         f"| {_fmt(g['true_weight_g'], 0)} | "
                          f"{_fmt(g['weight_g'], 0)} | {_fmt(g['baseline_weight_g'], 0)} | {g['pose'] or '-'} |")
         lines.append("")
     return "\n".join(lines)

@@ -9,13 +9,15 @@ from __future__ import annotations
 import functools
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+
+from rosbags.typesys import Stores, get_types_from_msg
+from rosbags.typesys import get_typestore as _rosbags_typestore
+from rosbags.typesys.store import Typestore
 
 from prisma_tactile_driver import share_data
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore as _rosbags_typestore
-from rosbags.typesys.store import Typestore
 
 PACKAGE = "prisma_msgs"
 
@@ -119,7 +121,7 @@ def prisma_types(root: Path | None = None) -> dict:
     return types
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def get_typestore() -> Typestore:
     """The Jazzy typestore with prisma_msgs registered (cached; do not mutate)."""
     store = _rosbags_typestore(Stores.ROS2_JAZZY)
@@ -150,7 +152,7 @@ def _as_msg_name(value):
     return value
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _msg_alias_typestore() -> Typestore:
     """The typestore with action/service-derived types also registered under msg names."""
     store = _rosbags_typestore(Stores.ROS2_JAZZY)
@@ -160,7 +162,7 @@ def _msg_alias_typestore() -> Typestore:
     return store
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def message_definition(msgtype: str) -> tuple[str, str]:
     """(ros2msg definition text, RIHS01 hash) of `msgtype` as bags store it.
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+
 from prisma_tactile_driver import share_data
 
 from .networks import MODEL_SPECS, WRENCH_AXES, taxel_image

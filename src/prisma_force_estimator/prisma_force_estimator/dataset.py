@@ -40,7 +40,7 @@ class ForceDataset:
     def __len__(self) -> int:
         return int(self.voltages.shape[0])
 
-    def subset(self, index: np.ndarray) -> "ForceDataset":
+    def subset(self, index: np.ndarray) -> ForceDataset:
         return ForceDataset(self.voltages[index], self.wrench[index], self.stamp_ns[index],
                             self.block[index], self.source)
 
@@ -49,7 +49,7 @@ class ForceDataset:
         return self.wrench[:, [WRENCH_AXES.index(a) for a in axes]]
 
     @classmethod
-    def from_calibration_set(cls, calibration, source: str = "synthetic") -> "ForceDataset":
+    def from_calibration_set(cls, calibration, source: str = "synthetic") -> ForceDataset:
         """From a prisma_tactile_driver.calibration.CalibrationSet (trajectory ids become blocks)."""
         return cls(calibration.voltages, calibration.wrench, calibration.stamp_ns,
                    calibration.trajectory, source)
@@ -108,7 +108,7 @@ def contiguous_block_split(block: np.ndarray, val_fraction: float = 0.2, seed: i
     pieces_per_run = max(1, int(np.ceil(min_chunks / max(len(runs), 1)))) if len(runs) < min_chunks else 1
     for start, stop in runs:
         bounds = np.linspace(start, stop, pieces_per_run + 1).round().astype(int)
-        for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        for a, b in zip(bounds[:-1], bounds[1:]):
             if b > a:
                 chunks.append((int(a), int(b), pieces_per_run > 1))
     rng = np.random.default_rng(seed)

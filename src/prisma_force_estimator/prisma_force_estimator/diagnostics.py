@@ -1,7 +1,7 @@
 """/diagnostics content of the force estimator: per-finger sample counters."""
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 from prisma_tactile_driver.hub import DiagnosticStatusData
 

@@ -46,7 +46,7 @@ def estimate_bag(in_path: str | Path, out_path: str | Path, pipeline: WrenchPipe
     report = EstimateBagReport({f: 0 for f in pipeline.fingers}, {f: 0 for f in pipeline.fingers},
                                {f: 0 for f in pipeline.fingers})
 
-    def write(writer: "BagWriter", results) -> None:
+    def write(writer: BagWriter, results) -> None:
         for finger, sample in results:
             writer.write(wrench_topic.format(finger=finger), wrench_to_msg(types, sample))
             report.wrenches_written[finger] += 1

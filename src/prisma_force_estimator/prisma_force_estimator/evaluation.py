@@ -5,9 +5,9 @@ default training set does not use, so every number here is on data no model has 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -175,6 +175,7 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
 
     fig, axs = plt.subplots(1, n, figsize=(3.6 * n, 3.0), sharey=True, squeeze=False)
     for ax, r in zip(axs[0], results):
+        assert r.push_pred is not None  # results of evaluate(), which keeps the predictions
         ax.plot(t_push, tests.push.wrench[:n_push, 2], color="k", lw=1.2, label="reference")
         ax.plot(t_push, r.push_pred[:n_push, 2], color="tab:red", lw=0.8, label="estimate")
         ax.set_title(f"{r.name}: push Fz (MSE {r.push_fz_mse:.3f} N²)", fontsize=9)
@@ -188,6 +189,7 @@ def plot_tests(results: Sequence[EvalResult], tests: HeldOutTests, out_dir: str 
 
     fig, axs = plt.subplots(2, n, figsize=(3.6 * n, 5.0), sharex=True, squeeze=False)
     for col, r in enumerate(results):
+        assert r.slide_pred is not None  # results of evaluate(), which keeps the predictions
         for row, (axis, mse) in enumerate((("fx", r.slide_fx_mse), ("fy", r.slide_fy_mse))):
             i = WRENCH_AXES.index(axis)
             ax = axs[row][col]

@@ -12,14 +12,15 @@ A missing or mismatched model bundle stops the node at start with the path and t
 from __future__ import annotations
 
 import functools
+
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, hand_taxels_samples, taxel_frame_from_msg
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, hand_taxels_samples, taxel_frame_from_msg
 from prisma_tactile_driver.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 
 from .bundle import BundleError, resolve_bundle_path

@@ -51,7 +51,7 @@ class ForceEstimator:
         self.rejected = 0  # rows refused for non-finite input
 
     @classmethod
-    def from_bundle(cls, path: str | Path, threads: int | None = None) -> "ForceEstimator":
+    def from_bundle(cls, path: str | Path, threads: int | None = None) -> ForceEstimator:
         """Load and validate a bundle directory (BundleError names the path and the mismatch).
 
         `threads` sets torch's intra-op thread count; None leaves it as it is.

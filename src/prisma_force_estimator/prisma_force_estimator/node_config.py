@@ -40,7 +40,7 @@ class EstimatorConfig:
         return params
 
     @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> "EstimatorConfig":
+    def from_parameters(cls, values: dict[str, Any]) -> EstimatorConfig:
         config = cls()
         for name, value in values.items():
             if name.startswith(OVERRIDE_PREFIX):
@@ -51,7 +51,7 @@ class EstimatorConfig:
                 setattr(config, name, value)
         return config.validate()
 
-    def validate(self) -> "EstimatorConfig":
+    def validate(self) -> EstimatorConfig:
         if not isinstance(self.model_bundle, str) or not self.model_bundle:
             raise ParameterError("model_bundle", self.model_bundle, "a bundle directory path")
         for finger, path in self.finger_bundles.items():

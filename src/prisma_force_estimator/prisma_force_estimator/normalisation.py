@@ -20,7 +20,7 @@ class Normaliser:
     std: np.ndarray  # float64 [C], strictly positive
 
     @classmethod
-    def fit(cls, values: np.ndarray) -> "Normaliser":
+    def fit(cls, values: np.ndarray) -> Normaliser:
         values = np.asarray(values, dtype=np.float64)
         if values.ndim != 2 or values.shape[0] < 2:
             raise ValueError(f"need at least two samples of shape [N, C] to fit, got {values.shape}")
@@ -28,7 +28,7 @@ class Normaliser:
         return cls(values.mean(axis=0), np.where(std > _MIN_STD, std, 1.0))
 
     @classmethod
-    def identity(cls, channels: int) -> "Normaliser":
+    def identity(cls, channels: int) -> Normaliser:
         return cls(np.zeros(channels), np.ones(channels))
 
     @property
@@ -45,7 +45,7 @@ class Normaliser:
         return {"mean": [float(v) for v in self.mean], "std": [float(v) for v in self.std]}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Normaliser":
+    def from_dict(cls, data: dict) -> Normaliser:
         mean = np.asarray(data["mean"], dtype=np.float64)
         std = np.asarray(data["std"], dtype=np.float64)
         if mean.ndim != 1 or mean.shape != std.shape:

@@ -9,8 +9,8 @@ prisma-estimate-bag, so both produce identical wrenches.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 

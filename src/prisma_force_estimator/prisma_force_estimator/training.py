@@ -11,8 +11,8 @@ from __future__ import annotations
 import copy
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable
 
 import numpy as np
 import torch
@@ -134,6 +134,7 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
     y_val = torch.from_numpy(out_norm.apply(y_val_raw))
 
     model = build_model(config.model_kind)
+    optimiser: torch.optim.Optimizer
     if config.weight_decay:
         optimiser = torch.optim.AdamW(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
     else:

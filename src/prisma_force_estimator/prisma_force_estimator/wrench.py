@@ -1,8 +1,8 @@
 """A stamped wrench estimate, the core data the converters turn into WrenchStamped."""
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -16,7 +16,7 @@ class WrenchSample:
     frame_id: str = ""
 
 
-def full_wrench(values: Sequence[float], axes: Sequence[str]) -> np.ndarray:
+def full_wrench(values: Iterable[float], axes: Sequence[str]) -> np.ndarray:
     """Place a model's outputs (named by `axes`) into a 6-vector; axes it lacks are NaN.
 
     NaN rather than 0: a force-only model knows nothing about torque, and a zero would read as

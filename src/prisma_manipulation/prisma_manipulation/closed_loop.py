@@ -18,8 +18,9 @@ Finished end up in the `Scan` each period hands to `observer` (the bag recorder)
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ class Scan:
     states: dict[str, MotorState]
     frames: list[TaxelFrame]
     evaluations: dict[str, ContactEvaluation]
-    wrenches: dict[str, "WrenchSample"]
+    wrenches: dict[str, WrenchSample]
     forces: dict[str, float] = field(default_factory=dict)  # the normal force handed to the core per finger
     move_feedback: MoveFeedback | None = None  # the running MoveMotors goal's, this tick
     move_result: MoveResult | None = None  # the MoveMotors goal that ended by itself this tick
@@ -116,7 +117,7 @@ class ClosedLoop:
     def __init__(
         self,
         world: HandWorld,
-        estimator: "ForceEstimator | None" = None,
+        estimator: ForceEstimator | None = None,
         config: ManipulationConfig | None = None,
         rate_hz: float = 100.0,
         pad_params: PadParams | None = None,
@@ -130,8 +131,8 @@ class ClosedLoop:
         self.core = ManipulationCore(config or ManipulationConfig())
         motor_config = MotorDriverConfig(backend="sim")
         # the motors' clock starts at the first scan, whatever its stamp
-        bus = SimMotorBus(motor_config.motors(), initial_positions=world.positions, start_ns=None)
-        self.motor = MotorDriverCore(motor_config, bus)
+        self.bus = SimMotorBus(motor_config.motors(), initial_positions=world.positions, start_ns=None)
+        self.motor = MotorDriverCore(motor_config, self.bus)
         self.motor.connect(0)
         self._pads_backend = _PadsBackend()
         self.hub = TactileHub(self._pads_backend, FINGERS, name="tactile_driver", hardware_id="sim/hand_world")
@@ -146,10 +147,6 @@ class ClosedLoop:
         self.controller: Controller | None = None  # the goal's controller, kept after it ends
         self.finished: Finished | None = None
 
-    @property
-    def bus(self) -> SimMotorBus:
-        return self.motor.bus
-
     # ---- one scan --------------------------------------------------------------------------
     def scan(self, stamp_ns: int) -> tuple[Scan, np.ndarray, np.ndarray]:
         """One period at stamp_ns: (the scan, the pads' voltages [5, 9], the normal forces the
@@ -157,7 +154,8 @@ class ClosedLoop:
         tick = self.motor.tick(stamp_ns)
         states = tick.states or {}
         joints = JointSample(stamp_ns, {n: s.position_rad for n, s in states.items()},
-                             {n: s.velocity_rpm for n, s in states.items()}, {n: s.current_ma for n, s in states.items()})
+                             {n: s.velocity_rpm for n, s in states.items()},
+                             {n: s.current_ma for n, s in states.items()})
         scan = Scan(stamp_ns, states, [], {}, {}, move_feedback=tick.feedback, move_result=tick.result)
         if tick.result is not None:
             self._carry_out(self.core.on_move_result(tick.result.reason, stamp_ns), scan)
@@ -183,7 +181,8 @@ class ClosedLoop:
 
             forces = {}
             for frame in scan.frames:
-                sample = TaxelSample(frame.finger, frame.stamp_ns, frame.voltages, FRAME_ID_FORMAT.format(finger=frame.finger))
+                frame_id = FRAME_ID_FORMAT.format(finger=frame.finger)
+                sample = TaxelSample(frame.finger, frame.stamp_ns, frame.voltages, frame_id)
                 for finger, wrench in self.pipeline.add(sample):
                     scan.wrenches[finger] = wrench
                     forces[(finger, wrench.stamp_ns)] = float(wrench.wrench[2])  # +Fz presses the pad
@@ -208,13 +207,19 @@ class ClosedLoop:
         """Send the goal at the scan's stamp as a client would: refused (RuntimeError naming why)
         where the manipulation node would refuse it."""
         core, t = self.core, scan.stamp_ns
-        grasp = isinstance(request, GraspRequest)
-        reason = (core.accept_grasp if grasp else core.accept_manipulate)(request, True, t)
+        if isinstance(request, GraspRequest):
+            reason = core.accept_grasp(request, True, t)
+        else:
+            reason = core.accept_manipulate(request, True, t)
         if reason is not None:
             raise RuntimeError(f"the manipulation node would reject the goal at {t * 1e-9:.2f} s: {reason}")
         scan.goal_started = True
-        self._carry_out((core.start_grasp if grasp else core.start_manipulate)(request, t), scan)
+        if isinstance(request, GraspRequest):
+            actions = core.start_grasp(request, t)
+        else:
+            actions = core.start_manipulate(request, t)
         self.controller = core.controller
+        self._carry_out(actions, scan)
 
     def run(self, request: GraspRequest | ManipulateRequest, duration_s: float, start_ns: int = 0,
             settle_s: float = 0.0, progress: Callable[[str], None] | None = None) -> Trace:
@@ -228,6 +233,7 @@ class ClosedLoop:
         self.start(request, scan)
         self._observe(scan)
         controller = self.controller
+        assert controller is not None  # start() raised for a goal that did not start
         phase = controller.phase
         for k in range(1, n_max + 1):
             t = start_ns + k * self.period_ns
@@ -241,7 +247,7 @@ class ClosedLoop:
             if progress and controller.phase != phase:
                 progress(f"t={t * 1e-9:.2f}s phase {phase} -> {controller.phase}")
             phase = controller.phase
-            self._record(trace, scan, volts, used)
+            self._record(trace, scan, volts, used, controller)
             if self.finished is not None and settle_left <= 0:
                 break
         return trace
@@ -250,8 +256,7 @@ class ClosedLoop:
         if self.observer is not None:
             self.observer(scan)
 
-    def _record(self, trace: Trace, scan: Scan, volts: np.ndarray, used: np.ndarray) -> None:
-        controller = self.controller
+    def _record(self, trace: Trace, scan: Scan, volts: np.ndarray, used: np.ndarray, controller: Controller) -> None:
         trace.stamps_ns.append(scan.stamp_ns)
         trace.voltages.append(volts)
         trace.thresholds.append(np.array([scan.evaluations[f].threshold for f in FINGERS]))

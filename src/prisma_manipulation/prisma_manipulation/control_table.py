@@ -75,7 +75,7 @@ def rad_to_ticks(rad: float) -> int:
     return int(round(rad * TICKS_PER_REV / (2.0 * math.pi)))
 
 
-def ticks_to_rad(ticks: int) -> float:
+def ticks_to_rad(ticks: float) -> float:  # the emulator's continuous positions too
     return ticks * 2.0 * math.pi / TICKS_PER_REV
 
 
@@ -127,7 +127,7 @@ class PresentState:
     position_ticks: int
 
     @classmethod
-    def from_bytes(cls, block: bytes | list[int]) -> "PresentState":
+    def from_bytes(cls, block: bytes | list[int]) -> PresentState:
         b = bytes(block)
         if len(b) != STATE_LENGTH:
             raise ValueError(f"present-state block must be {STATE_LENGTH} bytes, got {len(b)}")

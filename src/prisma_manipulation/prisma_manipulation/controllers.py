@@ -12,8 +12,8 @@ Stop reasons: edge_lost, force_reached, joint_limit, timeout, canceled, sensor_s
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 from .contact_monitor import ContactEvaluation
 from .motor_bus import MOTOR_NAMES, MotorConfig
@@ -51,11 +51,11 @@ class MotorCommand:
     velocities_rpm: Mapping[str, float]
 
     @classmethod
-    def stop(cls) -> "MotorCommand":
+    def stop(cls) -> MotorCommand:
         return cls({name: 0.0 for name in MOTOR_NAMES})
 
     @classmethod
-    def of(cls, **rpm: float) -> "MotorCommand":
+    def of(cls, **rpm: float) -> MotorCommand:
         return cls({name: float(rpm.get(name, 0.0)) for name in MOTOR_NAMES})
 
     @property

@@ -10,7 +10,7 @@ input flush) raises BusError at once, naming the port and the OS reason.
 from __future__ import annotations
 
 import termios
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import dynamixel_sdk as sdk
 import serial
@@ -167,7 +167,8 @@ class DynamixelBus:
     def hardware_error(self, name: str) -> int:
         """Hardware Error Status of one motor, read directly."""
         c = self._config(name)
-        value, _ = self._retry(lambda: self._packet.read1ByteTxRx(self._port, c.servo_id, ct.ADDR_HARDWARE_ERROR_STATUS),
+        value, _ = self._retry(lambda: self._packet.read1ByteTxRx(self._port, c.servo_id,
+                                                                  ct.ADDR_HARDWARE_ERROR_STATUS),
                                f"read hardware error status of {name} (id {c.servo_id})", result_index=1, error_index=2)
         return int(value)
 
@@ -189,7 +190,9 @@ class DynamixelBus:
             if mode == ct.MODE_VELOCITY:
                 self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
             else:
-                present = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id, ct.ADDR_PRESENT_POSITION),
+                # the lambda runs inside _retry, within this iteration
+                present = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id,  # noqa: B023
+                                                                         ct.ADDR_PRESENT_POSITION),
                                       f"read present position of {name}", result_index=1, error_index=2)[0]
                 self._write4(c, ct.ADDR_GOAL_POSITION, ct.to_signed(present, 4))
             self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)

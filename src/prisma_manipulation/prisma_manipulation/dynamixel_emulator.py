@@ -22,8 +22,8 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from . import control_table as ct
 from .dynamixel_packets import (
@@ -167,7 +167,7 @@ class DynamixelEmulator:
         self._thread = threading.Thread(target=self._serve, name="dynamixel-emulator", daemon=True)
 
     # ---- lifecycle -------------------------------------------------------------------------
-    def start(self) -> "DynamixelEmulator":
+    def start(self) -> DynamixelEmulator:
         self._thread.start()
         return self
 
@@ -185,7 +185,7 @@ class DynamixelEmulator:
                 pass
         self._master = self._slave = -1
 
-    def __enter__(self) -> "DynamixelEmulator":
+    def __enter__(self) -> DynamixelEmulator:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -205,11 +205,12 @@ class DynamixelEmulator:
         with self._lock:
             self.servos[servo_id].silent = silent
 
-    def present(self) -> dict[int, "ServoPresent"]:
+    def present(self) -> dict[int, ServoPresent]:
         """What each servo is doing, integrated to now."""
         with self._lock:
             self._integrate()
-            return {i: ServoPresent(s.position_ticks, ct.units_to_rpm(s.read_int(ct.ADDR_PRESENT_VELOCITY, 4, signed=True)),
+            return {i: ServoPresent(s.position_ticks,
+                                    ct.units_to_rpm(s.read_int(ct.ADDR_PRESENT_VELOCITY, 4, signed=True)),
                                     s.torque_on, s.hardware_error) for i, s in self.servos.items()}
 
     def drop_status(self, servo_id: int, count: int = 1) -> None:
@@ -331,7 +332,8 @@ class DynamixelEmulator:
         if address <= ct.ADDR_PRESENT_CURRENT < address + len(data):
             return ERR_ACCESS  # read-only area
         servo.table[address : address + len(data)] = data
-        if address <= ct.ADDR_GOAL_POSITION < address + len(data) or address <= ct.ADDR_TORQUE_ENABLE < address + len(data):
+        if (address <= ct.ADDR_GOAL_POSITION < address + len(data)
+                or address <= ct.ADDR_TORQUE_ENABLE < address + len(data)):
             servo.integrate(0.0)
         return 0
 

@@ -61,7 +61,8 @@ class GraspController(Controller):
         super().__init__(limits, timeout_s)
         if grasp not in GRASP_PRESETS:
             raise ValueError(f"grasp {grasp!r} is not one of {sorted(GRASP_PRESETS)}")
-        for label, value in (("finger_force", finger_force_n), ("thumb_force", thumb_force_n), ("speed_rpm", speed_rpm)):
+        for label, value in (("finger_force", finger_force_n), ("thumb_force", thumb_force_n),
+                             ("speed_rpm", speed_rpm)):
             if not value > 0:
                 raise ValueError(f"{label} {value} must be > 0")
         self.preset = GRASP_PRESETS[grasp]

@@ -31,8 +31,8 @@ Shear is not modelled (rolling without slip carries little tangential force): Pa
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Mapping, Sequence
 
 from prisma_tactile_driver.pad_model import PadContact, PadParams
 from prisma_tactile_driver.taxels import FINGERS, check_finger

@@ -24,8 +24,9 @@ times out and the driver stops the motors.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -134,31 +135,31 @@ class MoveLease:
         self.velocities: dict[str, float] | None = None  # the command being kept alive, None = none
         self.sent_ns = 0
 
-    def command(self, velocities_rpm: Mapping[str, float], now_ns: int) -> "SendMove | StopMotors":
+    def command(self, velocities_rpm: Mapping[str, float], now_ns: int) -> SendMove | StopMotors:
         """A new command from the controller: a goal for motion, a cancel for a stop."""
         if all(v == 0.0 for v in velocities_rpm.values()):
             self.velocities = None
             return StopMotors()
         self.velocities = dict(velocities_rpm)
-        return self._send(now_ns)
+        return self._send(self.velocities, now_ns)
 
-    def refresh(self, now_ns: int) -> "SendMove | None":
+    def refresh(self, now_ns: int) -> SendMove | None:
         """The same command again when the last goal is `refresh_s` old."""
         if self.velocities is None or now_ns - self.sent_ns < self.refresh_ns:
             return None
-        return self._send(now_ns)
+        return self._send(self.velocities, now_ns)
 
-    def renew(self, now_ns: int) -> "SendMove | None":
+    def renew(self, now_ns: int) -> SendMove | None:
         """The driver ended the goal by its timeout before the refresh came: send it again now."""
-        return None if self.velocities is None else self._send(now_ns)
+        return None if self.velocities is None else self._send(self.velocities, now_ns)
 
     def release(self) -> None:
         """Nothing to keep alive (goal over, or the driver stopped the motors at a limit)."""
         self.velocities = None
 
-    def _send(self, now_ns: int) -> "SendMove":
+    def _send(self, velocities: dict[str, float], now_ns: int) -> SendMove:
         self.sent_ns = now_ns
-        return SendMove(dict(self.velocities), self.lease_s)
+        return SendMove(dict(velocities), self.lease_s)
 
 
 class ManipulationCore:
@@ -268,10 +269,14 @@ class ManipulationCore:
     def accept_grasp(self, req: GraspRequest, move_server_ready: bool, now_ns: int) -> str | None:
         """The goal callback's decision: None = accepted (the core is held for it), else the reason."""
         r, reason = self.resolve_grasp(req)
+        if r is None:
+            return reason
         return reason or self._admit(GRASP, self.grasp_streams(r), move_server_ready, now_ns)
 
     def accept_manipulate(self, req: ManipulateRequest, move_server_ready: bool, now_ns: int) -> str | None:
         r, reason = self.resolve_manipulate(req)
+        if r is None:
+            return reason
         return reason or self._admit(MANIPULATE, self.manipulate_streams(r), move_server_ready, now_ns)
 
     def _admit(self, kind: str, streams: tuple[tuple[str, ...], tuple[str, ...]], move_server_ready: bool,
@@ -282,29 +287,31 @@ class ManipulationCore:
         return reason
 
     # ---- goal start / end ------------------------------------------------------------------
-    def _startable(self, kind: str, reason: str | None) -> None:
+    def _startable(self, kind: str, resolved: tuple[Any, str | None]) -> Any:
+        """The resolved request of a goal that may start now; ValueError naming why it may not."""
         if self._accepted == kind:
             self._accepted = None  # the accepted goal starts now (or fails to)
+        request, reason = resolved
         reason = reason or self._busy_reason()
         if reason is None and self.joints is None:
             reason = "no /joint_states received yet"
-        if reason:
+        if reason or request is None:
             raise ValueError(reason)
+        return request
 
     def start_grasp(self, req: GraspRequest, now_ns: int) -> list:
-        r, reason = self.resolve_grasp(req)
-        self._startable(GRASP, reason)
+        r: GraspRequest = self._startable(GRASP, self.resolve_grasp(req))
         c = self.config
         controller = GraspController(self.limits, r.grasp, r.finger_force, r.thumb_force, r.speed_rpm,
                                      r.timeout_s, c.contact_force_n, c.lateral_closure)
         return self._start(GRASP, controller, self.grasp_streams(r)[1], now_ns)
 
     def start_manipulate(self, req: ManipulateRequest, now_ns: int) -> list:
-        r, reason = self.resolve_manipulate(req)
-        self._startable(MANIPULATE, reason)
+        r: ManipulateRequest = self._startable(MANIPULATE, self.resolve_manipulate(req))
         c = self.config
         keeper = ForceKeeper(c.force_target_n, c.force_band_n, c.force_speed_rpm) if r.use_force else None
         finger = c.monitored_finger
+        controller: Controller
         if r.motion == "horizontal":
             controller = HorizontalController(self.limits, r.speed_rpm, finger, timeout_s=r.timeout_s,
                                               force_keeper=keeper)
@@ -321,6 +328,7 @@ class ManipulationCore:
                                    {("wrench", f) for f in force_fingers})
         self.aligner.reset()
         self.watchdog.arm(now_ns)
+        assert self.joints is not None  # _startable refused the goal without them
         return self._actions(controller.start(self.joints), now_ns)
 
     def _end(self) -> None:
@@ -330,7 +338,8 @@ class ManipulationCore:
         self.monitor.set_k(self.k_parameter)
 
     # ---- inputs ----------------------------------------------------------------------------
-    def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray, receipt_ns: int) -> tuple[ContactEvaluation, list]:
+    def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray,
+                  receipt_ns: int) -> tuple[ContactEvaluation, list]:
         evaluation = self.monitor.evaluate(finger, stamp_ns, voltages)
         self.watchdog.sample(f"taxels/{finger}", stamp_ns, receipt_ns)
         if self.controller is None:
@@ -395,18 +404,25 @@ class ManipulationCore:
         return []
 
     # ---- internals -------------------------------------------------------------------------
+    def _running(self) -> tuple[Controller, str]:
+        """The running goal's controller and kind (callers check that one runs)."""
+        if self.controller is None or self.kind is None:
+            raise RuntimeError("no goal is running")
+        return self.controller, self.kind
+
     def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:
-        return self._actions(self.controller.abort(now_ns, reason), now_ns, detail)
+        return self._actions(self._running()[0].abort(now_ns, reason), now_ns, detail)
 
     def _try_step(self, now_ns: int) -> list:
         ready = self.aligner.ready(self._required)
         if ready is None or self.joints is None:
             return []
+        controller = self._running()[0]
         stamp, entries = ready
-        contacts = {f: entries[("taxels", f)] for f in self.controller.fingers}
+        contacts = {f: entries[("taxels", f)] for f in controller.fingers}
         forces = dict(self.forces)
         forces.update({f: entries[("wrench", f)] for f in self._force_fingers})
-        return self._actions(self.controller.step(ControlInput(stamp, contacts, forces, self.joints)), now_ns)
+        return self._actions(controller.step(ControlInput(stamp, contacts, forces, self.joints)), now_ns)
 
     def _forces(self) -> tuple[float, float]:
         c = self.controller
@@ -415,16 +431,18 @@ class ManipulationCore:
         return self.forces.get("index", 0.0), self.forces.get("thumb", 0.0)
 
     def _actions(self, out: ControlOutput, now_ns: int, detail: str = "") -> list:
-        c = self.controller
+        c, kind = self._running()
         actions: list = []
         if out.command is not None:
             actions.append(self.lease.command(out.command.velocities_rpm, now_ns))
         finger_force, thumb_force = self._forces()
         feasible = getattr(c, "feasible", False)
         threshold = getattr(c, "threshold", 0.0)
-        actions.append(Feedback(self.kind, out.phase, finger_force, thumb_force, feasible, threshold))
+        actions.append(Feedback(kind, out.phase, finger_force, thumb_force, feasible, threshold))
         if out.done:
-            stop_time = (c.stop_ns - c.start_ns) * 1e-9 if c.stop_ns is not None else 0.0
-            actions.append(Finished(self.kind, out.success, out.reason, stop_time, finger_force, thumb_force, detail))
+            stop_time = 0.0
+            if c.stop_ns is not None and c.start_ns is not None:
+                stop_time = (c.stop_ns - c.start_ns) * 1e-9
+            actions.append(Finished(kind, out.success, out.reason or "", stop_time, finger_force, thumb_force, detail))
             self._end()
         return actions

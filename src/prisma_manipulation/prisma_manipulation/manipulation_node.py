@@ -28,8 +28,8 @@ from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
-from prisma_tactile_driver.ros_conversions import hand_taxels_samples, ns_from_stamp
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.ros_conversions import hand_taxels_samples, ns_from_stamp
 from prisma_tactile_driver.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 
 from .contact_monitor import check_k

@@ -76,7 +76,8 @@ class _MotionController(Controller):
         self.threshold = 0.0
         self.feasible = False
 
-    def _motion(self, stamp_ns: int, phase: str, rpm: dict[str, float], inp: ControlInput | None = None) -> ControlOutput:
+    def _motion(self, stamp_ns: int, phase: str, rpm: dict[str, float],
+                inp: ControlInput | None = None) -> ControlOutput:
         """Set a phase's motion plus the force keeper's thumb flexion share."""
         rpm = dict(rpm)
         if self.force_keeper is not None and inp is not None:

@@ -6,8 +6,9 @@ rad from the configured zero, velocities in rpm, currents in mA.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping, Protocol
+from typing import Protocol
 
 from .control_table import describe_hardware_error
 
@@ -131,7 +132,7 @@ class MotorMap:
         max_velocities: list[float],
         directions: list[int] | None = None,
         zero_ticks: list[int] | None = None,
-    ) -> "MotorMap":
+    ) -> MotorMap:
         n = len(names)
         for label, values in (("motor_ids", ids), ("min_positions", min_positions),
                               ("max_positions", max_positions), ("max_velocities_rpm", max_velocities)):

@@ -153,7 +153,7 @@ class MotorDriverCore:
             error = self.runner.faults.get(name, 0)
             m_level = ERROR if error else OK
             m_message = ("hardware error " + ", ".join(decode_hardware_error(error))) if error else "ok"
-            vals = {"id": c.servo_id}
+            vals: dict[str, object] = {"id": c.servo_id}
             if s is not None:
                 vals.update(position_rad=f"{s.position_rad:.4f}", velocity_rpm=f"{s.velocity_rpm:.2f}",
                             current_ma=f"{s.current_ma:.1f}", torque_on=s.torque_on)

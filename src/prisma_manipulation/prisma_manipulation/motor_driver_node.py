@@ -16,8 +16,8 @@ from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
 from prisma_tactile_driver.driver_config import ParameterError
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.node_process import run_node
+from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.sample_streams import stream_publisher
 
 from .motor_bus import BusError
@@ -36,7 +36,6 @@ from .ros_conversions import (
 class MotorDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("motor_driver", **kwargs)
-        self.core: MotorDriverCore | None = None
         defaults = MotorDriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid

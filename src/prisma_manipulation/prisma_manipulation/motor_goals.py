@@ -33,7 +33,7 @@ class GoalStartError(BusError):
     """The bus failed while a goal was starting: the new goal never ran (the motors it could reach
     were told to stop) and `preempted` is the result of the goal it replaced, which is over too."""
 
-    def __init__(self, error: BusError, preempted: "MoveResult | None") -> None:
+    def __init__(self, error: BusError, preempted: MoveResult | None) -> None:
         super().__init__(str(error))
         self.preempted = preempted
 

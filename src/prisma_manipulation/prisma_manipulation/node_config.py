@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
+from typing import Any, ClassVar
 
 from prisma_tactile_driver.driver_config import ParameterError
 from prisma_tactile_driver.taxels import FINGERS
@@ -33,6 +34,14 @@ def _positive(name: str, value: float) -> None:
 
 
 class _Params:
+    """Base of the parameter dataclasses below."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]  # (each subclass is a dataclass)
+
+    def validate(self) -> None:
+        """Check the values; raise ParameterError naming the first bad one."""
+        raise NotImplementedError
+
     def as_parameters(self) -> dict:
         """name -> default value, in the types ROS parameters take (lists, not tuples)."""
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}

@@ -8,7 +8,8 @@ which every required (stream, finger) entry has arrived and that was not consume
 from __future__ import annotations
 
 from collections import OrderedDict
-from typing import Any, Hashable
+from collections.abc import Hashable
+from typing import Any
 
 
 class SampleAligner:

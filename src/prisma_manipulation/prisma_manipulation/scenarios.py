@@ -16,8 +16,9 @@ configuration (`ManipulationConfig`).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 from .closed_loop import ClosedLoop, Trace
 from .contact_monitor import DEFAULT_K
@@ -55,7 +56,8 @@ def _specs(k: float, speed_rpm: float | None) -> dict[str, ScenarioSpec]:
     }
 
 
-def scenario_request(name: str, k: float = DEFAULT_K, speed_rpm: float | None = None) -> GraspRequest | ManipulateRequest:
+def scenario_request(name: str, k: float = DEFAULT_K,
+                     speed_rpm: float | None = None) -> GraspRequest | ManipulateRequest:
     """The goal the scenario sends."""
     if name not in SCENARIO_NAMES:
         raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
@@ -105,7 +107,7 @@ def scenario_world(name: str) -> HandWorld:
     raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
 
 
-def build(name: str, estimator: "ForceEstimator | None" = None, k: float = DEFAULT_K, seed: int = 0,
+def build(name: str, estimator: ForceEstimator | None = None, k: float = DEFAULT_K, seed: int = 0,
           rate_hz: float = 100.0, speed_rpm: float | None = None, observer=None) -> Scenario:
     """The scenario's closed loop: with `estimator` the force estimator's core turns taxels into
     the forces the manipulation core steers by, without it the world's pad forces do."""

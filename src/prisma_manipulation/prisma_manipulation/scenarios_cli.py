@@ -9,6 +9,7 @@ written under a temporary name and renamed when complete (existing ones are repl
 """
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from pathlib import Path
@@ -20,12 +21,17 @@ from prisma_tactile_driver.cli_args import ArgumentParser, check_bundle_dir, com
 from prisma_tactile_driver.taxels import EDGES
 
 from .closed_loop import Trace
-from .motor_bus import MOTOR_NAMES
 from .contact_monitor import DEFAULT_K, first_lost_index
+from .grasp_controller import GraspController
+from .motor_bus import MOTOR_NAMES
 from .scenarios import SCENARIO_NAMES, Scenario, build
 
 SETTLE_SAMPLES = 10  # 100 ms at 100 Hz: ten velocity-loop time constants
 EDGE_COLOURS = {"right": "tab:red", "left": "tab:blue", "top": "tab:green", "bottom": "tab:orange"}
+
+
+def _say(scenario: str, line: str) -> None:
+    print(f"[{scenario}] {line}")
 
 
 def summarise(sc: Scenario, trace: Trace) -> dict:
@@ -41,7 +47,7 @@ def summarise(sc: Scenario, trace: Trace) -> dict:
     for edge in ("right", "top", "left"):
         i = first_lost_index(volts, DEFAULT_K, edge)
         out[f"first_{edge}_lost_s"] = None if i is None else float(t[i])
-    if hasattr(c, "phase_end_ns"):
+    if isinstance(c, GraspController):
         for phase, stamp in c.phase_end_ns.items():
             i = trace.index_of(stamp)
             finger = "index" if phase == "close_fingers" else "thumb"
@@ -73,7 +79,7 @@ def plot(sc: Scenario, trace: Trace, path: Path) -> None:
         edge = next((e for e in edges if i in EDGES[e]), None)
         label = None if edge in labelled else (f"{edge} {'-'.join(map(str, EDGES[edge]))}" if edge else "others")
         labelled.add(edge)
-        ax.plot(t, volts[:, i], color=EDGE_COLOURS.get(edge, "0.6"), lw=1, label=label)
+        ax.plot(t, volts[:, i], color="0.6" if edge is None else EDGE_COLOURS[edge], lw=1, label=label)
     ax.plot(t, trace.array("thresholds")[:, 0], "k--", lw=1.5, label=f"v_t = {DEFAULT_K} v_a")
     ax.set_ylabel("thumb taxels (V)")
     ax.legend(loc="upper right", fontsize=8, ncol=4)
@@ -131,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.only or SCENARIO_NAMES:
         print(f"[{name}] running")
         sc = build(name, estimator=estimator)
-        trace = sc.run(progress=lambda line, n=name: print(f"[{n}] {line}"))
+        trace = sc.run(progress=functools.partial(_say, name))
         summary = summarise(sc, trace)
         summaries.append(summary)
         plot(sc, trace, args.out / f"{name}.png")

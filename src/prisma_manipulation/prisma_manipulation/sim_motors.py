@@ -8,8 +8,8 @@ passes a later stamp_ns to `advance`/`read_state`, so runs are deterministic.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
 from .motor_bus import BusStats, MotorConfig, MotorState, check_velocity
@@ -57,7 +57,8 @@ class SimMotorBus:
         self._now_ns = start_ns
 
     @property
-    def now_ns(self) -> int:
+    def now_ns(self) -> int | None:
+        """The simulated time; None until the first read when started with start_ns=None."""
         return self._now_ns
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -149,7 +150,8 @@ class SimMotorBus:
             m = self._motor(name)
             c = m.config
             if not c.min_position_rad <= value <= c.max_position_rad:
-                raise ValueError(f"motor {name}: position {value} rad outside [{c.min_position_rad}, {c.max_position_rad}]")
+                raise ValueError(f"motor {name}: position {value} rad outside "
+                                 f"[{c.min_position_rad}, {c.max_position_rad}]")
             check_velocity(c, profile_rpm)
             if m.mode != "position":
                 self.stats.mode_changes += 1

@@ -22,8 +22,8 @@ STALE_NS_DEFAULT = 100_000_000
 
 @dataclass
 class _Stream:
-    stamp_ns: int | None = None
-    receipt_ns: int | None = None
+    stamp_ns: int
+    receipt_ns: int
 
 
 class SensorWatchdog:
@@ -46,8 +46,7 @@ class SensorWatchdog:
     def sample(self, stream: str, stamp_ns: int, receipt_ns: int) -> None:
         # the age of what just arrived counts, even when an earlier message was newer: a sample
         # delivered 150 ms late is stale data
-        s = self._streams.setdefault(stream, _Stream())
-        s.stamp_ns, s.receipt_ns = stamp_ns, receipt_ns
+        self._streams[stream] = _Stream(stamp_ns, receipt_ns)
 
     def reference(self, stamp_ns: int, receipt_ns: int) -> None:
         """A /joint_states header stamp: the time base ages are measured against."""
@@ -64,7 +63,7 @@ class SensorWatchdog:
             return f"/joint_states silent for {(now_ns - self._joint_receipt_ns) / 1e6:.0f} ms"
         for name in streams:
             s = self._streams.get(name)
-            if s is None or s.receipt_ns is None:
+            if s is None:
                 return f"no {name} received yet"
             if now_ns - s.receipt_ns > self.stale_ns:
                 return f"{name} silent for {(now_ns - s.receipt_ns) / 1e6:.0f} ms"
@@ -82,11 +81,11 @@ class SensorWatchdog:
             return f"/joint_states silent for {(now_ns - joint_seen) / 1e6:.0f} ms"
         for name in streams:
             s = self._streams.get(name)
-            receipt = s.receipt_ns if s and s.receipt_ns is not None else None
+            receipt = s.receipt_ns if s else None
             if now_ns - max(receipt if receipt is not None else grace_from, grace_from) > self.stale_ns:
                 silent = (now_ns - receipt) / 1e6 if receipt is not None else (now_ns - grace_from) / 1e6
                 return f"{name} silent for {silent:.0f} ms"
-            if s and s.stamp_ns is not None and self._reference_ns is not None:
+            if s and self._reference_ns is not None:
                 age = self._reference_ns - s.stamp_ns
                 if age > self.stale_ns:
                     return f"{name} {age / 1e6:.0f} ms older than /joint_states"

@@ -15,9 +15,9 @@ Deterministic: a seed fixes the trajectories and the sensor noise.
 from __future__ import annotations
 
 import zipfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -60,7 +60,7 @@ class CalibrationSet:
     def __len__(self) -> int:
         return len(self.voltages)
 
-    def subset(self, index) -> "CalibrationSet":
+    def subset(self, index) -> CalibrationSet:
         return CalibrationSet(self.voltages[index], self.wrench[index], self.stamp_ns[index],
                               self.trajectory[index], self.kind[index],
                               None if self.contact_mm is None else self.contact_mm[index])
@@ -72,10 +72,11 @@ class CalibrationSet:
             arrays["contact_mm"] = self.contact_mm
         # written whole or not at all: staged under a temporary name, renamed when complete
         with atomic_output(path) as staged, open(staged, "wb") as f:
-            np.savez_compressed(f, **arrays)  # a file object keeps numpy from appending .npz to the name
+            # (mypy matches **arrays against savez_compressed's allow_pickle: bool)
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]  # a file object: no .npz appended
 
     @classmethod
-    def load(cls, path: str | Path) -> "CalibrationSet":
+    def load(cls, path: str | Path) -> CalibrationSet:
         """A set written by save(); ValueError naming the file if it is anything else."""
         not_a_set = f"{path} is not a calibration set (an .npz written by prisma-tactile-calset)"
         try:
@@ -133,7 +134,8 @@ def _point(rng: np.random.Generator) -> np.ndarray:
 
 
 def _push(rng: np.random.Generator, dt: float) -> _Track:
-    gap, t_up, t_hold, t_down = rng.uniform(0.1, 0.5), rng.uniform(0.2, 2.0), rng.uniform(0.0, 1.0), rng.uniform(0.2, 2.0)
+    gap, t_up, t_hold, t_down = (rng.uniform(0.1, 0.5), rng.uniform(0.2, 2.0), rng.uniform(0.0, 1.0),
+                                 rng.uniform(0.2, 2.0))
     t = np.arange(0.0, gap + t_up + t_hold + t_down + rng.uniform(0.1, 0.4), dt)
     peak = rng.uniform(0.2, 5.0)
     profile = _ramp_profile(t, gap, t_up, t_hold, t_down)
@@ -182,7 +184,8 @@ def _roll(rng: np.random.Generator, dt: float) -> _Track:
     radius = rng.uniform(2.0, 4.0)
     a0 = rng.uniform(0, 2 * np.pi)
     sweep = rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 1.5) * np.pi
-    gap, t_press, t_roll, t_release = rng.uniform(0.1, 0.5), rng.uniform(0.3, 1.0), rng.uniform(1.0, 3.0), rng.uniform(0.3, 1.0)
+    gap, t_press, t_roll, t_release = (rng.uniform(0.1, 0.5), rng.uniform(0.3, 1.0), rng.uniform(1.0, 3.0),
+                                       rng.uniform(0.3, 1.0))
     t = np.arange(0.0, gap + t_press + t_roll + t_release + 0.2, dt)
     progress = _smooth((t - gap - t_press) / t_roll)
     angle = a0 + sweep * progress
@@ -235,7 +238,7 @@ def generate_calibration_set(n_samples: int = 140_000, seed: int = 0,
     cat = {name: np.concatenate([getattr(tr, name) for tr in tracks])[:n_samples]
            for name in ("x", "y", "fz", "sx", "sy")}
     trajectory = np.repeat(np.arange(len(tracks), dtype=np.int32), lengths)[:n_samples]
-    kind = np.repeat(np.array(kind_of), lengths)[:n_samples]
+    sample_kind = np.repeat(np.array(kind_of), lengths)[:n_samples]
 
     pad = PadModel(params, seed=seed + 1)  # noise stream distinct from the trajectory stream
     counts = pad.sample_sequence(cat["x"], cat["y"], cat["fz"], cat["sx"], cat["sy"])
@@ -245,7 +248,7 @@ def generate_calibration_set(n_samples: int = 140_000, seed: int = 0,
     contact = np.where(loaded[:, None], np.stack([cat["x"], cat["y"]], axis=1), np.nan)
     stamp_ns = np.rint(np.arange(n_samples) * (1e9 / rate_hz)).astype(np.int64)
     return CalibrationSet(counts_to_voltages(counts, pad.params.vref), wrench, stamp_ns,
-                          trajectory, kind, contact)
+                          trajectory, sample_kind, contact)
 
 
 def generate_trajectory(kind: str, n_samples: int, seed: int, rate_hz: float = 100.0,

@@ -27,8 +27,8 @@ import importlib
 import math
 import os
 import sys
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable, Iterable
 
 # matplotlib's savefig formats that need nothing beyond matplotlib and Pillow (a matplotlib
 # dependency); the extension picks the format.

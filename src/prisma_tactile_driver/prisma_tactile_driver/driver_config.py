@@ -3,6 +3,7 @@ parameter and value, and the backend factory. The node only copies ROS parameter
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -61,17 +62,17 @@ class DriverConfig:
     sim_seed: int = 0
 
     @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> "DriverConfig":
+    def from_parameters(cls, values: dict[str, Any]) -> DriverConfig:
         known = {f.name for f in fields(cls)}
         # rclpy hands integer/double arrays over as array.array: store plain lists
-        config = cls(**{k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
-                        for k, v in values.items() if k in known})
-        return config.validate()
+        kwargs: dict[str, Any] = {k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
+                                  for k, v in values.items() if k in known}
+        return cls(**kwargs).validate()
 
     def as_parameters(self) -> dict[str, Any]:
         return asdict(self)
 
-    def validate(self) -> "DriverConfig":
+    def validate(self) -> DriverConfig:
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
         check_fingers(self.fingers)
@@ -136,7 +137,8 @@ def make_backend(config: DriverConfig, contact_source: ContactSource | None = No
                                 backoff_max_s=config.reconnect_backoff_max)
     if config.backend == "i2c":
         from .i2c_backend import I2CHubBackend
-        bus, factory = config.i2c_bus, None
+        bus: int | str = config.i2c_bus
+        factory: Callable[[str], Any] | None = None
         if config.i2c_socket:
             from .i2c_socket import SocketSMBus
             bus, factory = config.i2c_socket, SocketSMBus

@@ -8,8 +8,8 @@ Link errors (the port and the OS reason) go to /diagnostics and, once per change
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 
@@ -138,8 +138,9 @@ class TactileHub:
             last = self.last_stamp_ns[finger]
             values = {"samples": str(self.published[finger]),
                       "age_ms": "never" if last is None else f"{(stamp_ns - last) / 1e6:.1f}"}
-            if self.baselines[finger] is not None:
-                values["baseline_v"] = " ".join(f"{v:.3f}" for v in self.baselines[finger])
+            baseline = self.baselines[finger]
+            if baseline is not None:
+                values["baseline_v"] = " ".join(f"{v:.3f}" for v in baseline)
             if finger in stale:
                 age = "no sample yet" if last is None else f"no sample for {(stamp_ns - last) / 1e6:.0f} ms"
                 statuses.append(DiagnosticStatusData(f"{self.name}: {finger}", STALE, f"stale: {age}",

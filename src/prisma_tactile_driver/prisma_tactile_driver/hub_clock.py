@@ -146,6 +146,7 @@ def update(state: HubClockState, sequences: list[int], receive_ns: int,
             segment = [0]
             gap_before = 0 if step is None else step - 1
         else:
+            assert step is not None  # only a part's first frame has no step
             segment.append(segment[-1] + step)
         last = seq
     part, n_dropped, did_anchor = _stamp_part(w, segment, gap_before, restart, receive_ns, config)
@@ -207,19 +208,23 @@ def _stamp_part(w: _Working, offsets: list[int], gap_before: int, restart: bool,
         w.anchors += 1
         return stamps, dropped, True
 
+    anchor_ns = w.anchor_ns
+    assert anchor_ns is not None  # not anchoring: there is a line
     # the newest frame of a read has waited least: it alone can lower the envelope
-    _add_point(w, (indices[-1], float(receive_ns - w.anchor_ns) - indices[-1] * period), config)
+    _add_point(w, (indices[-1], float(receive_ns - anchor_ns) - indices[-1] * period), config)
     slope = w.skew * period
     # until the period is fitted, look back one window only: an unknown skew bends older minima
     back = config.offset_windows if len(w.minima) >= config.min_fit_windows else 1
-    points = w.minima[-back:] + (w.window_min,)
+    window_min = w.window_min
+    assert window_min is not None  # _add_point has set it
+    points = w.minima[-back:] + (window_min,)
     offset = min(y - slope * k for k, y in points)
     stamps = []
     for k in indices:
         n = k - w.last_index
         step = n * (period + slope)
         # the line's stamp for frame k, relative to the last stamp handed out
-        target = (w.anchor_ns - w.last_stamp_ns) + k * (period + slope) + offset
+        target = (anchor_ns - w.last_stamp_ns) + k * (period + slope) + offset
         limit = config.slew * period * n
         w.last_stamp_ns += round(step + min(max(target - step, -limit), limit))
         w.last_index = k

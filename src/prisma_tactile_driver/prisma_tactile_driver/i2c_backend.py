@@ -11,8 +11,9 @@ is too old, while the other fingers keep going. Frames are stamped with the host
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -70,7 +71,7 @@ class FingerLinkStats:
 class I2CHubBackend:
     def __init__(self, bus: int | str | Any, channels: dict[str, int], *, mux_address: int = 0x70,
                  adc_address: int = 0x35, retries: int = 2,
-                 bus_factory: Callable[[int | str], Any] | None = None) -> None:
+                 bus_factory: Callable[[Any], Any] | None = None) -> None:  # called with `bus`
         if retries < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
         if not 0x08 <= mux_address <= 0x77:

@@ -20,8 +20,9 @@ import ctypes
 import errno
 import itertools
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import smbus2
@@ -165,7 +166,8 @@ def i2c_rdwr_ioctl(transfer: Callable[[Messages], list[bytes]], request: int, ar
 IoctlHandler = Callable[[int, int, Any], int]  # (fd, request, arg) -> result, like fcntl.ioctl
 _ROUTES: dict[int, IoctlHandler] = {}
 _pseudo_fds = itertools.count(-1, -1)
-_real_ioctl = smbus2.smbus2.ioctl
+# (smbus2's type stub does not declare the `ioctl` its module imports from fcntl)
+_real_ioctl = smbus2.smbus2.ioctl  # type: ignore[attr-defined]
 
 
 def _routing_ioctl(fd, request, arg=0, *rest):
@@ -177,14 +179,15 @@ def _routing_ioctl(fd, request, arg=0, *rest):
 
 def route_ioctl(handler: IoctlHandler) -> int:
     """A pseudo file descriptor for an SMBus whose ioctls `handler` serves instead of the kernel."""
-    smbus2.smbus2.ioctl = _routing_ioctl
+    smbus2.smbus2.ioctl = _routing_ioctl  # type: ignore[attr-defined]
     fd = next(_pseudo_fds)
     _ROUTES[fd] = handler
     return fd
 
 
 def unroute_ioctl(fd: int | None) -> None:
-    _ROUTES.pop(fd, None)
+    if fd is not None:
+        _ROUTES.pop(fd, None)
 
 
 class EmulatedSMBus(smbus2.SMBus):

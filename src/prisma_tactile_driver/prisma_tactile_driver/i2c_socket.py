@@ -265,7 +265,7 @@ class I2CSocketServer:
         self._accept_thread: threading.Thread | None = None
         self._clients: dict[socket.socket, threading.Thread] = {}
 
-    def start(self) -> "I2CSocketServer":
+    def start(self) -> I2CSocketServer:
         with self._state:
             if self._closed or self._listener is not None:
                 raise RuntimeError(f"I2C socket server {self.path} was already started; a server serves once: "
@@ -278,15 +278,15 @@ class I2CSocketServer:
                 release_unix_socket(self.path, identity)
                 raise
             self._listener, self._identity = listener, identity
-            self._accept_thread = threading.Thread(target=self._accept_loop, name=f"i2c-socket {self.path}",
-                                                   daemon=True)
+            self._accept_thread = threading.Thread(target=self._accept_loop, args=(listener,),
+                                                   name=f"i2c-socket {self.path}", daemon=True)
             self._accept_thread.start()
         return self
 
-    def _accept_loop(self) -> None:
+    def _accept_loop(self, listener: socket.socket) -> None:
         while True:
             try:
-                conn, _ = self._listener.accept()
+                conn, _ = listener.accept()
             except OSError:
                 return  # close() shut the listener down
             with self._state:
@@ -319,8 +319,8 @@ class I2CSocketServer:
             check_messages(messages)  # what i2c-dev refuses (EINVAL) is refused here too
         except FramingError as exc:
             return encode_error(errno.EPROTO, f"{os.strerror(errno.EPROTO)} ({exc})")
-        except OSError as exc:
-            return encode_error(exc.errno, exc.strerror)
+        except OSError as exc:  # check_messages: always EINVAL with its reason
+            return encode_error(exc.errno or errno.EINVAL, exc.strerror or str(exc))
         try:
             with self.lock:
                 reads = self.bus.transfer(messages)
@@ -353,7 +353,7 @@ class I2CSocketServer:
             if thread is not threading.current_thread():
                 thread.join(timeout=2.0)
 
-    def __enter__(self) -> "I2CSocketServer":
+    def __enter__(self) -> I2CSocketServer:
         return self if self._listener is not None else self.start()
 
     def __exit__(self, *exc: Any) -> None:

@@ -11,7 +11,7 @@ A node process ends one of three ways, and the exit status says which:
 from __future__ import annotations
 
 import signal
-from typing import Callable
+from collections.abc import Callable
 
 import rclpy
 import rclpy.logging

@@ -180,7 +180,7 @@ class PadModel:
         without its array set-up: this runs for every finger of every simulated scan."""
         p = self.params
         fz = 0.0 if contact is None else _finite(contact.normal_n)
-        if fz > 0.0:
+        if contact is not None and fz > 0.0:
             x, y = _finite(contact.x_mm), _finite(contact.y_mm)
             sx, sy = _finite(contact.shear_x_n), _finite(contact.shear_y_n)
         else:  # nothing touching: the pad relaxes and no shear acts

@@ -20,7 +20,6 @@ import time
 import tty
 from pathlib import Path
 
-
 PTS_DIR = "/dev/pts/"
 
 
@@ -113,15 +112,21 @@ class PtyHubPort:
         self._master, self._slave = master, slave
         return str(self.link_path)
 
+    def _open_fds(self) -> tuple[int, int]:
+        if self._master is None or self._slave is None:
+            raise RuntimeError("pty not open")
+        return self._master, self._slave
+
     def write(self, data: bytes) -> None:
         view = memoryview(data)
         while view:
-            written = os.write(self._master, view)
+            written = os.write(self._open_fds()[0], view)
             view = view[written:]
 
     def pending(self) -> int:
         """Bytes written but not yet read by the other end."""
-        raw = fcntl.ioctl(self._slave, termios.FIONREAD, struct.pack("i", 0))
+        _, slave = self._open_fds()
+        raw = fcntl.ioctl(slave, termios.FIONREAD, struct.pack("i", 0))
         return struct.unpack("i", raw)[0]
 
     def drain(self, timeout_s: float = 5.0) -> bool:

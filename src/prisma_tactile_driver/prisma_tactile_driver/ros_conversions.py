@@ -8,7 +8,8 @@ Messages are built by keyword with every field (typestore classes have no defaul
 from __future__ import annotations
 
 import array
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 

@@ -14,7 +14,9 @@ on the launched graph nobody does until rqt_plot or a recorder starts.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable
+import functools
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -68,8 +70,8 @@ class FingerAndHandInput:
         self._on_sample = on_sample
         self._on_message_end = on_message_end or (lambda: None)
         self._finger_subs = [
-            stream_subscription(node, finger_type, f"prisma/{f}/{kind}",
-                                lambda msg, finger=f: self._on_finger(finger, msg), **kwargs)
+            stream_subscription(node, finger_type, f"prisma/{f}/{kind}", functools.partial(self._on_finger, f),
+                                **kwargs)
             for f in sorted(self._fingers)]
         self._hand_sub = stream_subscription(node, hand_type, self.hand_topic, self._on_hand, **kwargs)
 

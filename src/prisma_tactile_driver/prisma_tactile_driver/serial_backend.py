@@ -10,8 +10,8 @@ Why the link is down (the port and the OS reason) is kept in `last_error` and `l
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import serial
 
@@ -87,7 +87,8 @@ class SerialHubBackend:
         if self.parser.discard_buffer():
             self.link.partial_frames_dropped += 1
         try:
-            self._serial.close()
+            if self._serial is not None:
+                self._serial.close()
         except (serial.SerialException, OSError):
             pass  # the device is gone; closing its handle cannot fail usefully
         self._serial = None
@@ -98,9 +99,11 @@ class SerialHubBackend:
         """Read what is there (waiting at most read_timeout_s) and parse it; never raises."""
         if self._serial is None and not self._open():
             return []
+        port = self._serial
+        assert port is not None  # open, or just opened by _open()
         try:
-            waiting = self._serial.in_waiting
-            data = self._serial.read(min(max(waiting, 1), self._max_read))
+            waiting = port.in_waiting
+            data = port.read(min(max(waiting, 1), self._max_read))
         except (serial.SerialException, OSError) as exc:
             self._drop(exc)
             return []

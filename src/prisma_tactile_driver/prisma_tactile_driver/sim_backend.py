@@ -1,7 +1,7 @@
 """Simulated hub: one optical pad model per finger, driven by a contact source."""
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 from .backend import HubReading
 from .contact_source import ContactSource

@@ -7,25 +7,25 @@ the same samples once per poll on /prisma/hand/taxels (for the nodes that take a
 from __future__ import annotations
 
 import functools
+
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from .node_process import run_node
-from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 from .driver_config import DriverConfig, ParameterError, make_backend
 from .hub import TactileHub
+from .node_process import run_node
 from .ros_conversions import diagnostics_to_msg, hand_taxels_to_msg, ns_from_stamp, taxel_frame_to_msg
+from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 
 class TactileDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        self.hub: TactileHub | None = None
         defaults = DriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
@@ -83,6 +83,7 @@ class TactileDriverNode(Node):
         self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.hub.diagnostics(stamp_ns)))
 
     def _on_joints(self, msg: JointState) -> None:
+        assert self._source is not None  # subscribed only with the hand_world contact source
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
                                    ns_from_stamp(msg.header.stamp))
 

@@ -72,7 +72,7 @@ class TaxelFrame:
 
     @classmethod
     def from_counts(cls, finger: str, stamp_ns: int, counts: np.ndarray, vref: float = DEFAULT_VREF,
-                    baseline: np.ndarray | None = None) -> "TaxelFrame":
+                    baseline: np.ndarray | None = None) -> TaxelFrame:
         counts = np.asarray(counts, dtype=np.uint16)
         return cls(finger, stamp_ns, counts, counts_to_voltages(counts, vref), baseline)
 

@@ -4,12 +4,14 @@ clock itself, so the node's timer (and use_sim_time) sets the pace.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Protocol
+from typing import Protocol
 
 import numpy as np
 import serial
+
 from prisma_tactile_driver.backend import describe_os_error
 
 from .dataset import load_dataset
@@ -101,8 +103,10 @@ class SerialGloveBackend:
     def _poll(self, now_ns: int) -> list[BackendFrame]:
         if self._serial is None and not self._try_open(now_ns):
             return []
+        port = self._serial
+        assert port is not None  # open, or just opened by _try_open()
         try:
-            data = self._serial.read(self._max_read)
+            data = port.read(self._max_read)
         except (serial.SerialException, OSError) as exc:
             self._lost(now_ns, f"read failed on {self.port}: {describe_os_error(exc)}")
             return []
@@ -172,7 +176,7 @@ class _PacedBackend:
     def __init__(self, frames: Iterator[np.ndarray], rate_hz: float, max_burst: int = 8) -> None:
         if rate_hz <= 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
-        self._frames = frames
+        self._frame_iter = frames
         self._period_ns = int(round(NS / rate_hz))
         self._next_ns: int | None = None
         self._sequence = 0
@@ -183,10 +187,10 @@ class _PacedBackend:
     def poll(self, now_ns: int) -> list[BackendFrame]:
         if self._next_ns is None:
             self._next_ns = now_ns
-        out = []
+        out: list[BackendFrame] = []
         while self._next_ns <= now_ns and len(out) < self._max_burst and not self.finished:
             try:
-                raw = next(self._frames)
+                raw = next(self._frame_iter)
             except StopIteration:
                 self.finished = True
                 break

@@ -13,10 +13,12 @@ import json
 import shlex
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+
 from prisma_tactile_driver.atomic import atomic_output
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,
@@ -104,7 +106,7 @@ def _synthetic(kind: str, seed: int) -> tuple[GloveDataset, str]:
 
 
 def _data(args, kind: str,
-          check: Callable[["GloveDataset", str], None] | None = None) -> tuple["GloveDataset", str]:
+          check: Callable[[GloveDataset, str], None] | None = None) -> tuple[GloveDataset, str]:
     """The dataset, with the thread limit applied before any heavy work (the synthetic glove's
     generation included). A file is read, and `check` finds it fit for the command (UserError
     otherwise), before torch is imported."""
@@ -124,10 +126,10 @@ def _data(args, kind: str,
     return _synthetic(kind, args.synthetic_seed)
 
 
-def _splits_check(balanced: bool) -> Callable[["GloveDataset", str], None]:
+def _splits_check(balanced: bool) -> Callable[[GloveDataset, str], None]:
     """The held-out-session experiments need valid (and, for anchors, balanced) frames in both splits."""
 
-    def check(ds: "GloveDataset", source: str) -> None:
+    def check(ds: GloveDataset, source: str) -> None:
         from .dataset import SPLIT_TEST, SPLIT_TRAIN
 
         anchor = ds.is_balanced if balanced else np.ones(len(ds), bool)
@@ -139,7 +141,7 @@ def _splits_check(balanced: bool) -> Callable[["GloveDataset", str], None]:
     return check
 
 
-def _weights_check(ds: "GloveDataset", source: str) -> None:
+def _weights_check(ds: GloveDataset, source: str) -> None:
     if ds.weights_g is None:
         raise UserError(f"--dataset {source}: no per-object weights ('weights' field); give the STAG weights set")
     if len(np.unique(ds.object_id)) < 2:
@@ -147,7 +149,7 @@ def _weights_check(ds: "GloveDataset", source: str) -> None:
                         f"leave-one-object-out needs at least 2")
 
 
-def _recording_check(ds: "GloveDataset", source: str) -> None:
+def _recording_check(ds: GloveDataset, source: str) -> None:
     if len(ds) < 2:
         raise UserError(f"--dataset {source}: {len(ds)} frame(s); the correlation needs a recording")
 
@@ -258,7 +260,8 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
     if args.confusion_png:
         print(f"wrote {confusion_png(panels, ds.objects, args.confusion_png)}")
     if args.curve_png:
-        title = f"held-out sessions, trunk width {args.width}, {args.epochs} epochs, mode {args.mode}, seeds {args.seeds}"
+        title = (f"held-out sessions, trunk width {args.width}, {args.epochs} epochs, mode {args.mode}, "
+                 f"seeds {args.seeds}")
         print(f"wrote {accuracy_curve_png(summary, args.curve_png, title)}")
     command = _command(argv, "stag-train-classifier")
     elapsed = time.perf_counter() - started
@@ -317,6 +320,7 @@ def train_weight_main(argv: list[str] | None = None) -> int:
         from .models import WeightNet
 
         frames = frames_tensor(ds)
+        assert ds.weights_g is not None  # _weights_check
         grams = ds.weights_g[ds.object_id]
         torch.manual_seed(cfg.seed)
         net = WeightNet(cfg.width, cfg.dropout)
@@ -352,7 +356,8 @@ def train_pose_main(argv: list[str] | None = None) -> int:
     net, ev, _ = pose_experiment(ds, _train_config(args))
     print(f"held-out session: top-1 {100 * ev.top1:.1f}%, top-3 {100 * ev.top3:.1f}%")
     if args.confusion_png:
-        print(f"wrote {confusion_png([(f'hand pose, top-1 {100 * ev.top1:.1f}%', ev.confusion)], ds.objects, args.confusion_png)}")
+        panels = [(f"hand pose, top-1 {100 * ev.top1:.1f}%", ev.confusion)]
+        print(f"wrote {confusion_png(panels, ds.objects, args.confusion_png)}")
     command = _command(argv, "stag-train-pose")
     _write_json(args.out_json, {"command": command, "dataset": source, "top1": ev.top1, "top3": ev.top3,
                                 "labels": ds.objects, "confusion": ev.confusion.tolist(),
@@ -397,15 +402,18 @@ def correlation_main(argv: list[str] | None = None) -> int:
         raise UserError(f"--dataset {source}: {segments_total} grasp(s), {len(signal)} frame(s) of object "
                         f"signal; the correlation needs recordings with grasps")
     print(f"dataset: {source}; {segments_total} grasps found, {len(signal)} frames of object signal")
-    refs = [(name, tuple(int(round(v)) for v in layout.centroid(name)))
-            for name in ("thumb_distal", "index_distal", "middle_proximal", "palm")]
+    refs: list[tuple[str, tuple[int, int]]] = []
+    for name in ("thumb_distal", "index_distal", "middle_proximal", "palm"):
+        row, col = layout.centroid(name)
+        refs.append((name, (int(round(row)), int(round(col)))))
     maps = [(name, pearson_map(signal, mask, ref), ref) for name, ref in refs]
     names, cca = region_cca(signal, layout)
     summary = {n: float(np.nanmean(np.delete(cca[i], i))) for i, n in enumerate(names)}
     for name, value in summary.items():
         print(f"  mean CCA of {name:<16} with the other regions: {value:.2f}")
     if args.png:
-        print(f"wrote {correlation_png(maps, (names, cca), args.png, f'object signal after removing the hand pose ({source})')}")
+        title = f"object signal after removing the hand pose ({source})"
+        print(f"wrote {correlation_png(maps, (names, cca), args.png, title)}")
     _write_json(args.out_json, {"command": _command(argv, "stag-glove-correlation"), "dataset": source,
                                 "grasps": segments_total, "frames": len(signal), "region_names": names,
                                 "cca": cca.tolist(), "mean_cca": summary})

@@ -22,9 +22,9 @@ h5py and scipy are imported when a file is read or written, not with this module
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -76,7 +76,8 @@ class GloveDataset:
     def __len__(self) -> int:
         return int(self.pressure.shape[0])
 
-    def subset(self, index: np.ndarray) -> "GloveDataset":
+    def subset(self, index: np.ndarray) -> GloveDataset:
+        assert self.frame is not None  # numbered by __post_init__
         return GloveDataset(self.pressure[index], self.object_id[index], self.recording_id[index],
                             self.split_id[index], self.has_valid_label[index], self.is_balanced[index],
                             list(self.objects), self.weights_g, self.frame[index],
@@ -263,6 +264,7 @@ def _read_hdf5(path: Path) -> dict:
 
 # ---------------------------------------------------------------------------------------- writing
 def _fields(ds: GloveDataset) -> dict:
+    assert ds.frame is not None  # numbered by __post_init__
     out = {
         "pressure": ds.pressure,
         "objectId": ds.object_id.astype(np.int32),

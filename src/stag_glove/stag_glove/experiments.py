@@ -14,9 +14,20 @@ from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset
 from .models import TouchNet, WeightNet, init_combination_from_single
 from .processing import normalise
 from .selection import check_selection, cluster_ids, cluster_tuples, random_tuples
-from .training import (ClassifierEval, LinearBaseline, Progress, TrainConfig, _eval_from_probs, head_proba,
-                       evaluate_classifier, predict_grams, train_classifier, train_head, train_weight,
-                       trunk_features)
+from .training import (
+    ClassifierEval,
+    LinearBaseline,
+    Progress,
+    TrainConfig,
+    _eval_from_probs,
+    evaluate_classifier,
+    head_proba,
+    predict_grams,
+    train_classifier,
+    train_head,
+    train_weight,
+    trunk_features,
+)
 
 MODES = ("head", "finetune", "scratch")
 
@@ -35,7 +46,7 @@ class Split:
     test_anchors: np.ndarray
 
     @classmethod
-    def of(cls, ds: GloveDataset, balanced: bool = True) -> "Split":
+    def of(cls, ds: GloveDataset, balanced: bool = True) -> Split:
         train_pool = ds.has_valid_label & (ds.split_id == SPLIT_TRAIN)
         test_pool = ds.has_valid_label & (ds.split_id == SPLIT_TEST)
         anchor = ds.is_balanced if balanced else np.ones(len(ds), bool)
@@ -103,8 +114,10 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
         test1 = split.test_anchors[:, None]
         _log(progress, f"[seed {seed}] N=1: training the {cfg.width}-wide trunk end to end "
                        f"on {len(split.train_anchors)} frames, testing on {len(test1)} held-out-session frames")
+        # (the evaluation lambdas below run inside train_classifier, within the iteration that defines them)
         hist = train_classifier(single, frames, lambda e: (split.train_anchors[:, None], labels[split.train_anchors]),
-                                cfg, progress, lambda m: evaluate_classifier(m, frames, test1, labels[split.test_anchors]),
+                                cfg, progress,
+                                lambda m: evaluate_classifier(m, frames, test1, labels[split.test_anchors]),  # noqa: B023
                                 label=f"[seed {seed} N=1] ")
         ev = evaluate_classifier(single, frames, test1, labels[split.test_anchors])
         results.histories[(seed, "any", 1)] = hist
@@ -121,22 +134,24 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                 train_rng = np.random.default_rng(20_000 + 97 * seed + n)
 
                 def make(epoch, selection=selection, n=n, rng=train_rng):
-                    return tuples_for(selection, n, split.train_anchors, split.train_pool, rng), labels[split.train_anchors]
+                    return (tuples_for(selection, n, split.train_anchors, split.train_pool, rng),
+                            labels[split.train_anchors])
 
                 net = TouchNet(n_classes, n, cfg.width, cfg.dropout)
                 tag = f"[seed {seed} {selection} N={n}] "
                 if mode == "scratch":
                     hist = train_classifier(net, frames, make, cfg, progress,
-                                            lambda m: evaluate_classifier(m, frames, test_tuples, test_labels), tag)
+                                            lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
+                                            tag)
                     ev = evaluate_classifier(net, frames, test_tuples, test_labels)
                 else:
                     init_combination_from_single(net, single)
                     if features is not None:  # the warm start alone (branches averaged), for reference
                         warm = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    if mode == "head" and head_epochs == 0:  # the warm start alone: averaged branches
+                    if features is not None and head_epochs == 0:  # mode "head", the warm start alone
                         hist = []
                         ev = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    elif mode == "head":
+                    elif features is not None:  # mode "head"
                         head_cfg = TrainConfig(**{**cfg.__dict__, "epochs": head_epochs, "noise_std": 0.0})
                         hist = train_head(net, features, make, head_cfg, progress, None, tag)
                         probs = head_proba(net, features, test_tuples)
@@ -144,7 +159,8 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                     else:
                         ft_cfg = TrainConfig(**{**cfg.__dict__, "epochs": finetune_epochs})
                         hist = train_classifier(net, frames, make, ft_cfg, progress,
-                                                lambda m: evaluate_classifier(m, frames, test_tuples, test_labels), tag)
+                                                lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
+                                                tag)
                         ev = evaluate_classifier(net, frames, test_tuples, test_labels)
                 results.histories[(seed, selection, n)] = hist
                 _record(results, seed, selection, n, ev, mode, cfg, keep_models, net)
@@ -176,8 +192,9 @@ def summarise_curve(results: ObjectResults, selections=("random", "cluster")) ->
                 row = {"selection": selection, "n": n, "top1": float(top1.mean()), "top1_std": float(top1.std()),
                        "top3": float(top3.mean()), "seeds": len(rows)}
                 warm = [r.get("warm_top1", r["top1"] if n == 1 else None) for r in rows]
-                if all(w is not None for w in warm):
-                    row["warm_top1"] = float(np.mean(warm))
+                known = [w for w in warm if w is not None]
+                if len(known) == len(warm):
+                    row["warm_top1"] = float(np.mean(known))
                 out.append(row)
     return out
 
@@ -188,6 +205,8 @@ def default_folds(ds: GloveDataset, count: int | None) -> list[int]:
     objects = np.unique(ds.object_id)
     if count is None or count >= len(objects):
         return [int(o) for o in objects]
+    if ds.weights_g is None:
+        raise ValueError("folds spread over the weight range need a dataset with per-object weights")
     by_weight = objects[np.argsort(ds.weights_g[objects])]
     pick = np.round(np.linspace(0, len(by_weight) - 1, count)).astype(int)
     return [int(by_weight[i]) for i in pick]
@@ -212,8 +231,9 @@ def weight_experiment(ds: GloveDataset, folds: list[int], config: TrainConfig = 
         tag = f"[fold {i + 1}/{len(folds)}: {ds.objects[obj]} {ds.weights_g[obj]:.0f} g] "
         train_idx = torch.from_numpy(np.nonzero(train)[0])
         test_idx = torch.from_numpy(np.nonzero(test)[0])
+        # (the lambda runs inside train_weight, within this iteration)
         train_weight(net, frames[train_idx], grams[train], config, progress, tag,
-                     lambda m: float(np.mean(np.abs(predict_grams(m, frames[test_idx]) - grams[test]))))
+                     lambda m: float(np.mean(np.abs(predict_grams(m, frames[test_idx]) - grams[test]))))  # noqa: B023
         cnn = predict_grams(net, frames[test_idx])
         linear = LinearBaseline.fit(sums[train], grams[train]).predict(sums[test])
         row = {"object": ds.objects[obj], "grams": float(ds.weights_g[obj]),
@@ -238,7 +258,8 @@ def pose_experiment(ds: GloveDataset, config: TrainConfig = TrainConfig(), progr
     net = TouchNet(len(ds.objects), 1, config.width, config.dropout)
     test = split.test_anchors[:, None]
     hist = train_classifier(net, frames, lambda e: (split.train_anchors[:, None], ds.object_id[split.train_anchors]),
-                            config, progress, lambda m: evaluate_classifier(m, frames, test, ds.object_id[split.test_anchors]),
+                            config, progress,
+                            lambda m: evaluate_classifier(m, frames, test, ds.object_id[split.test_anchors]),
                             label="[pose] ")
     return net, evaluate_classifier(net, frames, test, ds.object_id[split.test_anchors]), hist
 

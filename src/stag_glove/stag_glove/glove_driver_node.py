@@ -7,6 +7,7 @@ rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
 from __future__ import annotations
 
 import functools
+
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import GloveFrame
 from rclpy.node import Node
@@ -27,7 +28,6 @@ class GloveDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("glove_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        self.driver: GloveDriver | None = None
         defaults = GloveDriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid

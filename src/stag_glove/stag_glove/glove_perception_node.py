@@ -7,6 +7,7 @@ Shorted frames are ignored.
 from __future__ import annotations
 
 import functools
+
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message

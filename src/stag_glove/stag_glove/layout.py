@@ -30,7 +30,7 @@ class GloveLayout:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return tuple(self.mask.shape)  # type: ignore[return-value]
+        return tuple(self.mask.shape)
 
     @property
     def sensor_count(self) -> int:

@@ -134,7 +134,9 @@ def init_combination_from_single(net: TouchNet, single: TouchNet) -> None:
     with torch.no_grad():
         w = single.combination.weight  # [C, C, 1, 1]
         net.combination.weight.copy_(torch.cat([w] * net.n_frames, dim=1) / net.n_frames)
-        net.combination.bias.copy_(single.combination.bias)
+        bias, single_bias = net.combination.bias, single.combination.bias
+        assert bias is not None and single_bias is not None  # Conv2d with its default bias=True
+        bias.copy_(single_bias)
 
 
 def parameter_count(module: nn.Module) -> int:

@@ -3,7 +3,7 @@ repeat), validation that names the bad parameter and value, and the factories th
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, ClassVar
 
 from .backends import BACKENDS, GloveBackend, ReplayGloveBackend, SerialGloveBackend, SimGloveBackend
 from .selection import SELECTIONS
@@ -24,6 +24,14 @@ def _positive(config: Any, *names: str) -> None:
 
 
 class _Parameters:
+    """Base of the parameter dataclasses below."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]  # (each subclass is a dataclass)
+
+    def validate(self) -> Any:
+        """Check the values; raise ParameterError naming the first bad one."""
+        raise NotImplementedError
+
     @classmethod
     def from_parameters(cls, values: dict[str, Any]):
         known = {f.name for f in fields(cls)}
@@ -65,7 +73,7 @@ class GloveDriverConfig(_Parameters):
     stale_timeout: float = 1.0         # s without a frame -> /diagnostics WARN
     diagnostics_period: float = 1.0    # s
 
-    def validate(self) -> "GloveDriverConfig":
+    def validate(self) -> GloveDriverConfig:
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
         if self.backend == "serial" and not self.port:
@@ -115,7 +123,7 @@ class GlovePerceptionConfig(_Parameters):
     threads: int = 1                   # torch/BLAS threads
     frame_id: str = "stag_glove"
 
-    def validate(self) -> "GlovePerceptionConfig":
+    def validate(self) -> GlovePerceptionConfig:
         if self.selection not in SELECTIONS:
             raise ParameterError("selection", self.selection, f"expected one of {'|'.join(SELECTIONS)}")
         _positive(self, "buffer_size", "release_frames", "kmeans_restarts", "threads")

@@ -19,7 +19,6 @@ from .processing import ProcessedFrame
 from .ros_conversions import Estimate, WeightResult
 from .selection import check_selection, select_from_buffer
 
-
 _thread_limit = None
 
 
@@ -33,7 +32,7 @@ def limit_threads(threads: int) -> None:
     _thread_limit = threadpool_limits(limits=threads)  # kept referenced: applies to the whole process
 
 
-@dataclass
+@dataclass(frozen=True)
 class PerceptionConfig:
     selection: str = "cluster"
     buffer_size: int = 64
@@ -67,7 +66,8 @@ class PerceptionStats:
 
 def _estimate(probabilities: np.ndarray, labels: list[str], frames_used: int) -> Estimate:
     best = int(np.argmax(probabilities))
-    return Estimate(labels[best], float(probabilities[best]), list(labels), probabilities.astype(np.float32), frames_used)
+    return Estimate(labels[best], float(probabilities[best]), list(labels), probabilities.astype(np.float32),
+                    frames_used)
 
 
 class GlovePerception:
@@ -116,23 +116,32 @@ class GlovePerception:
             out.weight = self.estimate_weight(frame.pressure)
         return out
 
+    @staticmethod
+    def _loaded(bundle: Bundle | None, kind: str) -> Bundle:
+        if bundle is None:
+            raise RuntimeError(f"no {kind} model was given to GlovePerception")
+        return bundle
+
     @torch.no_grad()
     def classify_object(self) -> Estimate:
+        bundle = self._loaded(self.object_bundle, "object")
         frames = np.stack(self.buffer)
         index = select_from_buffer(frames, self.n_frames, self.config.selection, self._rng,
                                    n_init=self.config.kmeans_restarts)
-        logits = self.object_bundle.model(torch.from_numpy(frames[index][None]))
+        logits = bundle.model(torch.from_numpy(frames[index][None]))
         self.stats.object_decisions += 1
-        return _estimate(torch.softmax(logits[0], 0).numpy(), self.object_bundle.labels, self.n_frames)
+        return _estimate(torch.softmax(logits[0], 0).numpy(), bundle.labels, self.n_frames)
 
     @torch.no_grad()
     def classify_pose(self, pressure: np.ndarray) -> Estimate:
+        bundle = self._loaded(self.pose_bundle, "pose")
         x = torch.from_numpy(np.asarray(pressure, dtype=np.float32)[None, None])
-        return _estimate(torch.softmax(self.pose_bundle.model(x)[0], 0).numpy(), self.pose_bundle.labels, 1)
+        return _estimate(torch.softmax(bundle.model(x)[0], 0).numpy(), bundle.labels, 1)
 
     @torch.no_grad()
     def estimate_weight(self, pressure: np.ndarray) -> WeightResult:
+        bundle = self._loaded(self.weight_bundle, "weight")
         x = torch.from_numpy(np.asarray(pressure, dtype=np.float32)[None, None])
-        grams = float(np.exp(float(self.weight_bundle.model(x)[0])))
+        grams = float(np.exp(float(bundle.model(x)[0])))
         a, b = self._baseline
         return WeightResult(grams, a * float(np.sum(pressure)) + b)

@@ -8,6 +8,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
 from prisma_tactile_driver.atomic import atomic_output  # noqa: E402
 
 PAPER_CURVE = {1: 38.0, 7: 75.0}  # STAG paper, Fig. 2b anchors (top-1 %, their 26 objects + empty)
@@ -27,7 +28,7 @@ def _save(fig, path: str | Path) -> Path:
 def confusion_png(panels: list[tuple[str, np.ndarray]], labels: list[str], path: str | Path) -> Path:
     """One or more row-normalised confusion matrices side by side."""
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 5.0), squeeze=False)
-    short = [l.replace("object_", "o") for l in labels]
+    short = [label.replace("object_", "o") for label in labels]
     for ax, (title, matrix) in zip(axes[0], panels):
         rows = matrix.sum(axis=1, keepdims=True)
         norm = np.divide(matrix, rows, out=np.zeros(matrix.shape, float), where=rows > 0)

@@ -49,7 +49,7 @@ def is_shorted(raw: np.ndarray, threshold: int = 950, mask: np.ndarray | None = 
 def shorted_frames(raw: np.ndarray, threshold: int = 950) -> np.ndarray:
     """Per-frame shorted flag for a stack [N, rows, cols]."""
     raw = np.asarray(raw)
-    return (raw.reshape(raw.shape[0], -1) > threshold).any(axis=1)
+    return np.asarray((raw.reshape(raw.shape[0], -1) > threshold).any(axis=1))
 
 
 @dataclass
@@ -61,7 +61,7 @@ class EmptyHandCalibration:
 
     @classmethod
     def from_frames(cls, raw_frames: np.ndarray, config: NormalisationConfig = NormalisationConfig()
-                    ) -> "EmptyHandCalibration":
+                    ) -> EmptyHandCalibration:
         """Calibrate from raw counts [N, rows, cols]; shorted frames are left out."""
         raw_frames = np.asarray(raw_frames)
         if raw_frames.ndim != 3 or raw_frames.shape[0] == 0:

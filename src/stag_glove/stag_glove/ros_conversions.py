@@ -10,8 +10,9 @@ class expects. The package keeps its own small header helpers so it depends on n
 from __future__ import annotations
 
 import array
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

@@ -57,6 +57,8 @@ def kmeans(points: np.ndarray, k: int, seed: int = 0, n_init: int = 10) -> np.nd
             inertia = float(((points - centres[labels]) ** 2).sum())
             if inertia < best_inertia:
                 best, best_inertia = labels, inertia
+    if best is None:  # no run had a finite inertia
+        raise ValueError("k-means: no run had a finite inertia (NaN in the points?)")
     return best.astype(np.int64)
 
 
@@ -108,7 +110,7 @@ def cluster_tuples(anchors: np.ndarray, pool: np.ndarray, recording_id: np.ndarr
             by_cluster[(rec, int(c))] = idx[clusters[idx] == c]
     for i, a in enumerate(anchors):
         rec, own = recording_id[a], clusters[a]
-        chosen = []
+        chosen: list[np.integer] = []
         for c in sorted({c for (r, c) in by_cluster if r == rec} - {own}):
             if len(chosen) == n - 1:
                 break

@@ -25,8 +25,8 @@ Durations are in frames of the glove's ~7.3 frames/s. The generator is determini
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import Iterator
 
 import numpy as np
 from scipy import ndimage
@@ -70,9 +70,11 @@ PRIMITIVES: dict[str, dict] = {
 # Hand-pose classes (the paper's 7 grasps + empty hand); self-contact where fingers touch.
 POSES: dict[str, dict] = {
     "empty": dict(flexion=(0.15, 0.2, 0.2, 0.2, 0.2), contact={}),
-    "power": dict(flexion=(0.85, 0.95, 0.95, 0.95, 0.95), contact={"index_distal": 0.3, "middle_distal": 0.3, "palm": 0.15}),
+    "power": dict(flexion=(0.85, 0.95, 0.95, 0.95, 0.95),
+                  contact={"index_distal": 0.3, "middle_distal": 0.3, "palm": 0.15}),
     "pinch": dict(flexion=(0.6, 0.65, 0.3, 0.3, 0.3), contact={"thumb_distal": 0.5, "index_distal": 0.5}),
-    "tripod": dict(flexion=(0.6, 0.6, 0.6, 0.35, 0.35), contact={"thumb_distal": 0.4, "index_distal": 0.35, "middle_distal": 0.3}),
+    "tripod": dict(flexion=(0.6, 0.6, 0.6, 0.35, 0.35),
+                   contact={"thumb_distal": 0.4, "index_distal": 0.35, "middle_distal": 0.3}),
     "lateral": dict(flexion=(0.4, 0.85, 0.85, 0.85, 0.85), contact={"thumb_distal": 0.4, "index_middle": 0.4}),
     "hook": dict(flexion=(0.15, 0.8, 0.8, 0.8, 0.8), contact={}),
     "point": dict(flexion=(0.7, 0.1, 0.9, 0.9, 0.9), contact={"thumb_distal": 0.2, "middle_middle": 0.2}),
@@ -290,7 +292,8 @@ class SyntheticGlove:
 
     def pose_field(self, flexion: np.ndarray, creases: np.ndarray) -> np.ndarray:
         amount = self.config.crease_gain * np.clip(flexion, 0, 1.2) ** 1.5
-        return np.tensordot(amount, creases, axes=1) + 0.06 * np.tensordot(np.clip(flexion, 0, 1.2), creases > 0.05, axes=1)
+        return (np.tensordot(amount, creases, axes=1)
+                + 0.06 * np.tensordot(np.clip(flexion, 0, 1.2), creases > 0.05, axes=1))
 
     def to_counts(self, pressure: np.ndarray, session: Session) -> np.ndarray:
         """Pressure field(s) -> 10-bit counts with this session's gain/baseline and ADC noise."""
@@ -337,7 +340,8 @@ class SyntheticGlove:
                 target = np.array(spec["flexion"]) + session.flexion_offset + rng.normal(0, 0.08, 5)
                 if spec["contact"]:
                     grip = float(np.exp(rng.normal(0, 0.3)))
-                    base_field = self.contact_field(self._region_vector(spec["contact"]), np.ones(self.shape, np.float32))
+                    base_field = self.contact_field(self._region_vector(spec["contact"]),
+                                                    np.ones(self.shape, np.float32))
             else:  # empty hand: moving without an object
                 target = rng.uniform(0.0, 0.7, 5) + session.flexion_offset
             if pose is not None or obj is None:
@@ -348,7 +352,8 @@ class SyntheticGlove:
                 if t >= n_frames:
                     break
                 wobble = 0.7 * wobble + 0.3 * np.exp(rng.normal(0, 0.12))
-                flexion = rest + (target - rest) * (e if obj is not None or pose is not None else 1.0) + rng.normal(0, 0.03, 5)
+                flexion = (rest + (target - rest) * (e if obj is not None or pose is not None else 1.0)
+                           + rng.normal(0, 0.03, 5))
                 pose_out[t] = self.pose_field(flexion, creases)
                 if base_field is not None and e > 0:
                     placement = placement + rng.normal(0, cfg.object_drift_cells, 2)  # the object rolls a little
@@ -389,7 +394,8 @@ class SyntheticGlove:
                 valid = rec.contact if obj is not None else np.ones(len(rec.raw), bool)
                 parts.append((rec.raw, k, recording, s, valid))
                 recording += 1
-        return self._assemble(parts, classes, np.array([o.weight_g for o in self.objects] + [0.0] * (len(classes) - len(self.objects))))
+        return self._assemble(parts, classes,
+                              np.array([o.weight_g for o in self.objects] + [0.0] * (len(classes) - len(self.objects))))
 
     def pose_dataset(self, frames_per_session: int | None = None) -> GloveDataset:
         """Hand-pose set: 7 grasp poses + empty hand, no object; split by session."""

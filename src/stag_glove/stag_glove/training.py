@@ -7,8 +7,8 @@ in docs/glove.md use fewer epochs and a narrower trunk.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import torch
@@ -92,7 +92,8 @@ def predict_proba(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray, bat
     return np.concatenate(out) if out else np.zeros((0, model.n_classes), np.float32)
 
 
-def evaluate_classifier(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray, labels: np.ndarray) -> ClassifierEval:
+def evaluate_classifier(model: TouchNet, frames: torch.Tensor, tuples: np.ndarray,
+                        labels: np.ndarray) -> ClassifierEval:
     return _eval_from_probs(predict_proba(model, frames, tuples), labels, model.n_classes)
 
 
@@ -264,7 +265,7 @@ class LinearBaseline:
     b: float
 
     @classmethod
-    def fit(cls, pressure_sums: np.ndarray, grams: np.ndarray) -> "LinearBaseline":
+    def fit(cls, pressure_sums: np.ndarray, grams: np.ndarray) -> LinearBaseline:
         a, b = np.polyfit(np.asarray(pressure_sums, float), np.asarray(grams, float), 1)
         return cls(float(a), float(b))
 
