@@ -27,6 +27,11 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.bag import BagWriter
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.hand import FINGERS
+from prisma_common.messages import stamp_from_ns
+from prisma_common.typestore import types as typestore_types
 from prisma_force_estimator.diagnostics import pipeline_diagnostics
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.ros_conversions import wrench_to_msg
@@ -35,17 +40,12 @@ from prisma_manipulation.manipulation_core import Feedback, Finished, GraspReque
 from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     grasp_feedback_to_msg,
-    joint_state_to_msg,
     manipulate_feedback_to_msg,
-    move_feedback_to_msg,
 )
 from prisma_manipulation.scenarios import Scenario, build, scenario_request
+from prisma_motor_driver.ros_conversions import joint_state_to_msg, move_feedback_to_msg
 from prisma_tactile_driver.driver_config import DriverConfig
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, stamp_from_ns, taxel_frame_to_msg
-from prisma_tactile_driver.taxels import FINGERS
-
-from .bag import BagWriter
-from .typestore import types as typestore_types
+from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
 
 NS = 1_000_000_000
 DIAGNOSTICS_PERIOD_NS = NS  # every driver's diagnostics_period default (1 s)

@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
 
 GLOVE = "glove"
 NS = 1_000_000_000
@@ -149,9 +149,9 @@ def force_errors(scenario, trace) -> dict[str, dict]:
 def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str], None],
              root: Path | None = None) -> dict:
     """One hand scenario into `root` (default options.out): its bag, plot and summary."""
+    from prisma_common.bag import BagWriter
     from prisma_manipulation.scenarios_cli import plot, summarise
 
-    from .bag import BagWriter
     from .hand_session import HAND_SCENARIOS, HandRecorder
 
     root = options.out if root is None else root
@@ -207,7 +207,8 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
 
 
 def run_glove(options: SimOptions, progress: Callable[[str], None], root: Path | None = None) -> dict:
-    from .bag import BagWriter
+    from prisma_common.bag import BagWriter
+
     from .glove_session import plot, run_glove_session, summarise
 
     root = options.out if root is None else root

@@ -17,7 +17,7 @@ from typing import Any
 
 import torch
 
-from prisma_tactile_driver import share_data
+from prisma_common import share_data
 
 from .networks import MODEL_SPECS, WRENCH_AXES, taxel_image
 from .normalisation import Normaliser
@@ -79,7 +79,7 @@ def save_bundle(directory: str | Path, model: torch.nn.Module, metadata: BundleM
     Written whole or not at all: staged beside `directory` and renamed into place when both files
     are complete, replacing an earlier bundle there. A directory holding anything else is refused
     (BundleError) and left alone."""
-    from prisma_tactile_driver.atomic import atomic_output
+    from prisma_common.atomic import atomic_output
 
     directory = Path(directory)
     if directory.is_symlink() or (directory.exists() and not directory.is_dir()):

@@ -40,7 +40,7 @@ class HeldOutTests:
 
 def held_out_tests(push_samples: int = 30_000, slide_samples: int = 30_000,
                    push_seed: int = PUSH_SEED, slide_seed: int = SLIDE_SEED) -> HeldOutTests:
-    from prisma_tactile_driver.calibration import generate_trajectory
+    from prisma_hand_sim.calibration import generate_trajectory
 
     push = ForceDataset.from_calibration_set(generate_trajectory("push", push_samples, push_seed),
                                              f"push(n={push_samples}, seed={push_seed})")
@@ -143,7 +143,7 @@ def results_table(results: Sequence[EvalResult]) -> str:
 
 def _save(fig, path: Path) -> None:
     """savefig whole or not at all (staged, renamed when complete)."""
-    from prisma_tactile_driver.atomic import atomic_output
+    from prisma_common.atomic import atomic_output
 
     with atomic_output(path) as staged:
         fig.savefig(staged, dpi=90)

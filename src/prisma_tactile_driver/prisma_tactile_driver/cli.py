@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output
-from .calibration import KINDS, CalibrationSet
+from prisma_common.atomic import atomic_output
+from prisma_hand_sim.calibration import KINDS, CalibrationSet
+
 from .cli_args import (
     ArgumentParser,
     UserError,
@@ -68,7 +69,7 @@ def plot_pad_response(path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .pad_model import PadContact, PadModel
+    from prisma_hand_sim.pad_model import PadContact, PadModel
 
     model = PadModel(seed=0)
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
@@ -107,7 +108,7 @@ def plot_pad_response(path: Path) -> None:
 
 @command("prisma-tactile-calset")
 def calset_main(argv: list[str] | None = None) -> int:
-    from .calibration import generate_calibration_set
+    from prisma_hand_sim.calibration import generate_calibration_set
 
     parser = ArgumentParser(prog="prisma-tactile-calset",
                             description="Generate a synthetic fingertip calibration set (.npz)")
@@ -156,11 +157,12 @@ def hub_emulator_main(argv: list[str] | None = None) -> int:
                         help="stop after this long (0 = run until Ctrl-C)")
     args = parser.parse_args(argv)
 
-    from .contact_source import ScriptedContactSource
+    from prisma_common.hand import FINGERS
+    from prisma_hand_sim.contact_source import ScriptedContactSource
+
     from .protocol import encode_frame
     from .pty_hub import PtyHubPort
     from .sim_backend import SimHubBackend
-    from .taxels import FINGERS
 
     if not args.link.parent.is_dir():
         raise UserError(f"--link {args.link}: the directory {args.link.parent} does not exist; "

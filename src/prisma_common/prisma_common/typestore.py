@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_types_from_msg
 from rosbags.typesys import get_typestore as _rosbags_typestore
 from rosbags.typesys.store import Typestore
 
-from prisma_tactile_driver import share_data
+from . import share_data
 
 PACKAGE = "prisma_msgs"
 

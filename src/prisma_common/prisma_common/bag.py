@@ -14,8 +14,7 @@ from typing import Any
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from prisma_tactile_driver.atomic import atomic_output
-
+from .atomic import atomic_output
 from .typestore import get_typestore, message_definition
 
 STORAGE = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
