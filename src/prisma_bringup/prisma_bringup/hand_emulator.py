@@ -41,6 +41,7 @@ from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ServoPresent
 from prisma_motor_driver.sim_motors import SimMotorParams
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
+from prisma_tactile_driver.i2c_socket import I2CSocketServer
 from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort, PtyLink
 
@@ -147,8 +148,6 @@ class EmulatedHand:
     def start(self) -> EmulatedHand:
         """Create the devices. FileExistsError (naming the path) if one of the paths holds something
         that is not an earlier emulator's link or socket; nothing is replaced then."""
-        from prisma_tactile_driver.i2c_socket import I2CSocketServer
-
         self.paths.root.mkdir(parents=True, exist_ok=True)
         started: list[Callable[[], None]] = []
         try:

@@ -12,7 +12,10 @@ import sys
 from pathlib import Path
 
 from prisma_common.atomic import atomic_output
+from prisma_common.bag import BagError, MissingTopicsError, require_topics
 from prisma_common.hand import FINGERS
+from prisma_common.typestore import types
+from prisma_hand_sim.calibration import CalibrationSet
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,
     UserError,
@@ -61,14 +64,10 @@ def check_training_data(args: argparse.Namespace):
         return None
     path = Path(args.data)
     if path.suffix == ".npz":
-        from prisma_hand_sim.calibration import CalibrationSet
-
         try:
             return CalibrationSet.load(path)
         except ValueError as exc:  # not a calibration set: the message names the file and why
             raise UserError(f"--data {exc}") from None
-    from prisma_common.bag import BagError, require_topics
-
     taxel_topic = args.taxel_topic or f"/prisma/{args.finger}/taxels"
     try:
         require_topics(path, [taxel_topic, args.wrench_topic])
@@ -327,15 +326,11 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
             check_bundle_dir(path)
     # the input must hold every requested finger's taxel topic: checked (and named) before any
     # bundle is loaded or anything is written
-    from prisma_common.bag import MissingTopicsError, require_topics
-
     try:
         require_topics(args.input, [args.taxel_topic.format(finger=f) for f in fingers])
     except MissingTopicsError as exc:
         raise UserError(f"{exc}; pick the fingers it has with --fingers or the topic name with --taxel-topic") \
             from None
-
-    from prisma_common.typestore import types
 
     from .bundle import DEFAULT_BUNDLE, resolve_bundle_path
     from .estimate_bag import estimate_bag

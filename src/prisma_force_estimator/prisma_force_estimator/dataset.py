@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .networks import WRENCH_AXES
+from prisma_hand_sim.calibration import CalibrationSet, generate_calibration_set
+
+from .wrench import WRENCH_AXES
 
 
 @dataclass
@@ -57,16 +59,12 @@ class ForceDataset:
 
 def synthetic_dataset(n_samples: int = 140_000, seed: int = 0) -> ForceDataset:
     """The tactile driver's default synthetic calibration set (push, slide and roll trajectories)."""
-    from prisma_hand_sim.calibration import generate_calibration_set
-
     calibration = generate_calibration_set(n_samples=n_samples, seed=seed)
     return ForceDataset.from_calibration_set(calibration, f"synthetic(n={n_samples}, seed={seed})")
 
 
 def load_calibration_npz(path: str | Path) -> ForceDataset:
     """A CalibrationSet saved with CalibrationSet.save()."""
-    from prisma_hand_sim.calibration import CalibrationSet
-
     return ForceDataset.from_calibration_set(CalibrationSet.load(path), str(path))
 
 

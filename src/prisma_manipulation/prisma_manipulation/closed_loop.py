@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_force_estimator.node_config import EstimatorConfig
+from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
 from prisma_hand_sim.hand_world import HandWorld
 from prisma_hand_sim.pad_model import PadModel, PadParams
 from prisma_motor_driver.motor_bus import MotorState
@@ -141,9 +143,6 @@ class ClosedLoop:
         self.estimator = estimator
         self.pipeline = None
         if estimator is not None:
-            from prisma_force_estimator.node_config import EstimatorConfig
-            from prisma_force_estimator.pipeline import WrenchPipeline
-
             batch_window_ns = int(round(EstimatorConfig().batch_window * NS))
             self.pipeline = WrenchPipeline({f: estimator for f in FINGERS}, FRAME_ID_FORMAT, batch_window_ns)
         self.controller: Controller | None = None  # the goal's controller, kept after it ends
@@ -179,8 +178,6 @@ class ClosedLoop:
             truth = self.world.forces()
             forces = {(f.finger, f.stamp_ns): truth[f.finger] for f in scan.frames}
         else:
-            from prisma_force_estimator.pipeline import TaxelSample
-
             forces = {}
             for frame in scan.frames:
                 frame_id = FRAME_ID_FORMAT.format(finger=frame.finger)

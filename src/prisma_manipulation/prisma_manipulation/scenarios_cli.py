@@ -18,6 +18,7 @@ import numpy as np
 
 from prisma_common.atomic import atomic_output
 from prisma_common.hand import MOTOR_NAMES
+from prisma_force_estimator.pipeline import load_estimator
 from prisma_tactile_driver.cli_args import ArgumentParser, check_bundle_dir, command, output_dir
 from prisma_tactile_driver.taxels import EDGES
 
@@ -129,10 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     estimator = None
     if args.bundle:
         check_bundle_dir(args.bundle)
-        from prisma_force_estimator.bundle import resolve_bundle_path
-        from prisma_force_estimator.inference import ForceEstimator
-
-        estimator = ForceEstimator.from_bundle(resolve_bundle_path(args.bundle))
+        estimator = load_estimator(args.bundle)
     summaries = []
     for name in args.only or SCENARIO_NAMES:
         print(f"[{name}] running")

@@ -18,6 +18,7 @@ from std_srvs.srv import Trigger
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
+from prisma_hand_sim.hand_world import HandWorldContactSource
 
 from .driver_config import DriverConfig, make_backend
 from .hub import TactileHub
@@ -39,8 +40,6 @@ class TactileDriverNode(Node):
 
         source = None
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
-            # imported only when asked for: the hand/world model lives in prisma_manipulation
-            from prisma_hand_sim.hand_world import HandWorldContactSource
             source = HandWorldContactSource()
             self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
         self._source = source
