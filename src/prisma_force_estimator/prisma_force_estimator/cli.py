@@ -14,6 +14,7 @@ from pathlib import Path
 from prisma_common.atomic import atomic_output
 from prisma_common.bag import BagError, MissingTopicsError, require_topics
 from prisma_common.hand import FINGERS
+from prisma_common.topics import TAXELS, WRENCH
 from prisma_common.typestore import types
 from prisma_hand_sim.calibration import CalibrationSet
 from prisma_tactile_driver.cli_args import (
@@ -68,7 +69,7 @@ def check_training_data(args: argparse.Namespace):
             return CalibrationSet.load(path)
         except ValueError as exc:  # not a calibration set: the message names the file and why
             raise UserError(f"--data {exc}") from None
-    taxel_topic = args.taxel_topic or f"/prisma/{args.finger}/taxels"
+    taxel_topic = args.taxel_topic or TAXELS.format(finger=args.finger)
     try:
         require_topics(path, [taxel_topic, args.wrench_topic])
     except BagError as exc:
@@ -92,7 +93,7 @@ def load_training_data(args: argparse.Namespace, calibration=None):
             raise UserError(f"--data {exc}") from None
     from .calibration_bag import load_calibration_bag
 
-    taxel_topic = args.taxel_topic or f"/prisma/{args.finger}/taxels"
+    taxel_topic = args.taxel_topic or TAXELS.format(finger=args.finger)
     try:
         dataset, report = load_calibration_bag(path, taxel_topic, args.wrench_topic,
                                                int(args.tolerance_ms * 1e6))
@@ -314,8 +315,8 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
                         help="comma-separated fingers (default all five)")
     parser.add_argument("--frame-id-template", type=finger_template, default="",
                         help="e.g. '{finger}_pad'; empty keeps the input's")
-    parser.add_argument("--taxel-topic", type=finger_template, default="/prisma/{finger}/taxels")
-    parser.add_argument("--wrench-topic", type=finger_template, default="/prisma/{finger}/wrench")
+    parser.add_argument("--taxel-topic", type=finger_template, default=TAXELS)
+    parser.add_argument("--wrench-topic", type=finger_template, default=WRENCH)
     parser.add_argument("--batch-window-ms", type=non_negative_float, default=5.0)
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--threads", type=positive_int, default=1)

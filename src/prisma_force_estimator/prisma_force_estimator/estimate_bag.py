@@ -5,13 +5,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from prisma_common.bag import BagWriter, read_bag, require_topics
+from prisma_common.topics import TAXELS, WRENCH
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
 from .pipeline import TaxelSample, WrenchPipeline
 from .ros_conversions import MessageLookup, wrench_to_msg
 
-TAXEL_TOPIC = "/prisma/{finger}/taxels"
-WRENCH_TOPIC = "/prisma/{finger}/wrench"
+TAXEL_TOPIC = TAXELS
+WRENCH_TOPIC = WRENCH
 
 
 @dataclass
