@@ -4,33 +4,23 @@ DiagnosticArray).
 Every function takes a message-class lookup `types(name)`: on the robot
 `rosidl_runtime_py.utilities.get_message`, off-robot `prisma_common.typestore.types`. Messages are
 built by keyword with every field. Dynamic numeric arrays are numpy arrays in the rosbags typestore
-but `array.array` in rclpy (whose setters reject numpy arrays), so `_sequence` builds whichever the
-class expects. Header and stamp helpers and the
+but `array.array` in rclpy (whose setters reject numpy arrays), so prisma_common's `sequence_field`
+builds whichever the class expects. Header and stamp helpers and the
 diagnostics converters: prisma_common.
 """
 from __future__ import annotations
 
-import array
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from prisma_common.messages import make_header, ns_from_stamp
+from prisma_common.messages import make_header, ns_from_stamp, sequence_field
 
 from .processing import ProcessedFrame
 
 Types = Callable[[str], Any]
-
-
-def _is_typestore(cls: Any) -> bool:
-    return hasattr(cls, "__msgtype__")
-
-
-def _sequence(cls: Any, values: np.ndarray, dtype: Any, typecode: str) -> Any:
-    values = np.ascontiguousarray(values, dtype=dtype).reshape(-1)
-    return values if _is_typestore(cls) else array.array(typecode, values.tobytes())
 
 
 # ------------------------------------------------------------------------------- glove frame
@@ -40,8 +30,8 @@ def glove_frame_to_msg(frame: ProcessedFrame, types: Types, frame_id: str) -> An
     return cls(
         header=make_header(types, frame.stamp_ns, frame_id),
         rows=int(rows), cols=int(cols),
-        raw=_sequence(cls, frame.raw, np.uint16, "H"),
-        pressure=_sequence(cls, frame.pressure, np.float32, "f"),
+        raw=sequence_field(cls, frame.raw, np.uint16),
+        pressure=sequence_field(cls, frame.pressure, np.float32),
         shorted=bool(frame.shorted), contact=bool(frame.contact),
     )
 
@@ -62,7 +52,7 @@ def pressure_image_msg(frame: ProcessedFrame, types: Types, frame_id: str) -> An
     rows, cols = frame.pressure.shape
     data = np.ascontiguousarray(frame.pressure, dtype="<f4").view(np.uint8)
     return cls(header=make_header(types, frame.stamp_ns, frame_id), height=int(rows), width=int(cols),
-               encoding="32FC1", is_bigendian=0, step=int(cols * 4), data=_sequence(cls, data, np.uint8, "B"))
+               encoding="32FC1", is_bigendian=0, step=int(cols * 4), data=sequence_field(cls, data, np.uint8))
 
 
 def image_to_pressure(msg: Any) -> np.ndarray:
@@ -94,7 +84,7 @@ def estimate_to_msg(estimate: Estimate, types: Types, stamp_ns: int, frame_id: s
     cls = types("prisma_msgs/msg/ObjectEstimate")
     return cls(header=make_header(types, stamp_ns, frame_id), label=estimate.label,
                confidence=float(estimate.confidence), labels=list(estimate.labels),
-               probabilities=_sequence(cls, estimate.probabilities, np.float32, "f"),
+               probabilities=sequence_field(cls, estimate.probabilities, np.float32),
                frames_used=int(min(estimate.frames_used, 255)))
 
 
