@@ -3,7 +3,6 @@
 Sim-time tests drive the node's timers with a /clock the test publishes, so stamps are exact.
 """
 import sys
-import types as pytypes
 from pathlib import Path
 
 import numpy as np
@@ -203,9 +202,8 @@ def test_hand_world_contact_source_is_fed_from_joint_states(ros, node_cls, monke
         def contact(self, finger, stamp_ns):
             return PadContact(0.0, 0.0, 3.0) if finger == "index" and self.closure > 1.0 else None
 
-    fake = pytypes.ModuleType("prisma_hand_sim.hand_world")
-    fake.HandWorldContactSource = FakeHandWorld
-    monkeypatch.setitem(sys.modules, "prisma_hand_sim.hand_world", fake)
+    # the node module's own name for the contact source (imported at module level)
+    monkeypatch.setattr(sys.modules[node_cls.__module__], "HandWorldContactSource", FakeHandWorld)
     index = ros.collect(TaxelArray, "/prisma/index/taxels")
     ros.node(node_cls, params={"contact_source": "hand_world"}, sim_time=True)
     ros.advance(0.1, step=0.01)
