@@ -1,13 +1,14 @@
-"""Core data <-> ROS messages for prisma_manipulation.
+"""Core data <-> ROS messages for prisma_manipulation: ContactState, Grasp / Manipulate goals,
+feedback and results, JointState -> JointSample.
 
 Every function takes a message-class lookup `types(name)` (on the robot
-`rosidl_runtime_py.utilities.get_message`, off-robot `prisma_common.typestore.types`) and builds
+`prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
 messages by keyword with every field. Header helpers and `sequence_field` (the container each
-message class takes for a numeric sequence or a bool array) come from prisma_tactile_driver.
+message class takes for a numeric sequence or a bool array) come from prisma_common; the motor
+driver's converters (/joint_states, MoveMotors) from prisma_motor_driver.ros_conversions.
 
-/joint_states units: position rad (motor shaft, from the configured zero), velocity rad/s (the
-JointState convention; MoveMotors feedback keeps rpm), effort = motor current in A (the servos
-measure current, not torque).
+/joint_states units: position rad, velocity rad/s (the JointState convention), effort = motor
+current in A.
 """
 from __future__ import annotations
 
