@@ -12,10 +12,10 @@ import time
 
 import numpy as np
 
-from prisma_tactile_driver.contact_source import ScriptedContactSource
+from prisma_common.hand import counts_to_voltages
+from prisma_hand_sim.contact_source import ScriptedContactSource
 from prisma_tactile_driver.protocol import FrameParser, encode_frame
 from prisma_tactile_driver.sim_backend import SimHubBackend
-from prisma_tactile_driver.taxels import counts_to_voltages
 from run import Benchmark
 
 N_FRAMES = 20_000

@@ -601,7 +601,7 @@ def start_hand(kind: str, rate_hz: float, logdir: Path, launch: bool,
                                                      "-p", f"rate_hz:={rate_hz:.1f}"]),
         "force_estimator": ("prisma_force_estimator", ["-p", f"model_bundle:={config / 'models' / 'cnn2'}"]),
         "manipulation": ("prisma_manipulation", []),
-        "motor_driver": ("prisma_manipulation", ["-p", "backend:=sim"]),
+        "motor_driver": ("prisma_motor_driver", ["-p", "backend:=sim"]),
     }
     procs = {node: start(node, [_executable(package, node), "--ros-args", "-r", f"__node:={node}",
                                 "--params-file", str(config / f"{node}.yaml"), *extra], logdir)

@@ -87,13 +87,13 @@ def generate_launch_description():
         condition=on_robot,
     )
     motors_sim = Node(
-        package="prisma_manipulation", executable="motor_driver", name="motor_driver",
+        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
         condition=simulated,
     )
     motors_hardware = Node(
-        package="prisma_manipulation", executable="motor_driver", name="motor_driver",
+        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": LaunchConfiguration("motor_backend"),
@@ -116,7 +116,7 @@ def generate_launch_description():
         condition=emulated,
     )
     motors_emulated = Node(
-        package="prisma_manipulation", executable="motor_driver", name="motor_driver",
+        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": "dynamixel",

@@ -5,7 +5,7 @@ import os
 
 import pytest
 
-from prisma_tactile_driver.atomic import atomic_output, staging_dir
+from prisma_common.atomic import atomic_output, staging_dir
 
 
 def leftovers(directory):
@@ -115,7 +115,7 @@ def test_calibration_set_and_figures_are_written_atomically(tmp_path, monkeypatc
     """A failure while numpy writes the archive leaves no .npz behind (and none that loads)."""
     import numpy as np
 
-    from prisma_tactile_driver.calibration import CalibrationSet, generate_calibration_set
+    from prisma_hand_sim.calibration import CalibrationSet, generate_calibration_set
 
     cal = generate_calibration_set(300, seed=1)
     calls = []

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from prisma_bringup.bag import BagWriter, read_bag, stamp_ns
-from prisma_bringup.typestore import get_typestore, types
+from prisma_common.bag import BagWriter, read_bag, stamp_ns
+from prisma_common.typestore import get_typestore, types
 
 
 def header(ns: int, frame: str = "thumb_pad"):
@@ -165,7 +165,7 @@ def test_existing_bag_is_refused_unless_replacing(tmp_path):
 
 
 def test_missing_topics_are_named_with_what_the_bag_has(tmp_path):
-    from prisma_bringup.bag import BagError, MissingTopicsError, bag_topics, require_topics
+    from prisma_common.bag import BagError, MissingTopicsError, bag_topics, require_topics
 
     write(tmp_path / "bag", "mcap")
     present = {"/prisma/thumb/taxels": "prisma_msgs/msg/TaxelArray",

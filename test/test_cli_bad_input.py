@@ -71,8 +71,8 @@ def run(script: str, args: list[str], cwd: Path, timeout: float = 120) -> subpro
 # ------------------------------------------------------------------------------------------ inputs
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
-    from prisma_bringup.bag import BagWriter
-    from prisma_bringup.typestore import types
+    from prisma_common.bag import BagWriter
+    from prisma_common.typestore import types
     from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
     from prisma_tactile_driver.taxels import TaxelFrame
 
@@ -82,7 +82,7 @@ def data(tmp_path_factory) -> Path:
     (root / "garbage.mat").write_bytes(b"not MATLAB" + rng.integers(0, 256, 400, dtype=np.uint8).tobytes())
     (root / "notes.txt").write_text("a user's notes\n")
     # well-formed files that cannot serve: one calibration sample, one glove frame
-    from prisma_tactile_driver.calibration import generate_calibration_set
+    from prisma_hand_sim.calibration import generate_calibration_set
     from stag_glove.dataset import save_mat
     from stag_glove.synthetic import SyntheticConfig, SyntheticGlove
 

@@ -31,7 +31,8 @@ from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_tactile_driver.taxels import EDGES, FINGERS  # noqa: E402
+from prisma_common.hand import FINGERS
+from prisma_tactile_driver.taxels import EDGES  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNDLE = ROOT / "config" / "models" / "cnn2"
@@ -47,7 +48,7 @@ READINESS = ("MoveMotors action server", "no /joint_states", "no taxels/", "no w
 def graph(ros):
     from prisma_force_estimator.force_estimator_node import ForceEstimatorNode
     from prisma_manipulation.manipulation_node import ManipulationNode
-    from prisma_manipulation.motor_driver_node import MotorDriverNode
+    from prisma_motor_driver.motor_driver_node import MotorDriverNode
     from prisma_tactile_driver.tactile_driver_node import TactileDriverNode
 
     ros.capture_logs()

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from prisma_bringup.bag import BagWriter
-from prisma_bringup.typestore import types
+from prisma_common.bag import BagWriter
+from prisma_common.typestore import types
 from prisma_force_estimator.calibration_bag import load_calibration_bag, pair_by_stamp
 from prisma_force_estimator.ros_conversions import wrench_to_msg
 from prisma_force_estimator.wrench import WrenchSample

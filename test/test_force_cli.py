@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from prisma_bringup.bag import BagWriter, read_bag
-from prisma_bringup.typestore import get_typestore, types
+from prisma_common.bag import BagWriter, read_bag
+from prisma_common.typestore import get_typestore, types
 from prisma_force_estimator.bundle import load_bundle, save_untrained_bundle
 from prisma_force_estimator.cli import estimate_bag_main, eval_main, train_main
 from prisma_force_estimator.inference import ForceEstimator
@@ -55,7 +55,7 @@ def test_train_variance_options_reach_the_bundle(tmp_path, capsys):
 
 
 def test_train_on_a_calibration_bag(tmp_path, capsys):
-    from prisma_tactile_driver.calibration import generate_calibration_set
+    from prisma_hand_sim.calibration import generate_calibration_set
 
     cs = generate_calibration_set(n_samples=1500, seed=3)
     with BagWriter(tmp_path / "cal") as bag:

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from prisma_bringup.typestore import get_typestore, types
+from prisma_common.messages import ns_from_stamp
+from prisma_common.typestore import get_typestore, types
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg, wrench_from_msg, wrench_to_msg
 from prisma_force_estimator.wrench import WrenchSample, full_wrench
 from prisma_manipulation.ros_conversions import hand_wrench_samples
-from prisma_tactile_driver.ros_conversions import ns_from_stamp
 
 
 def _round_trip(msg):
@@ -34,11 +34,11 @@ def test_axes_a_model_lacks_travel_as_nan():
 
 
 def test_diagnostics_of_the_pipeline_round_trip(tmp_path):
+    from prisma_common.diagnostics import diagnostics_from_msg, diagnostics_to_msg
     from prisma_force_estimator.bundle import save_untrained_bundle
     from prisma_force_estimator.diagnostics import pipeline_diagnostics
     from prisma_force_estimator.inference import ForceEstimator
     from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
-    from prisma_tactile_driver.ros_conversions import diagnostics_from_msg, diagnostics_to_msg
 
     est = ForceEstimator.from_bundle(save_untrained_bundle(tmp_path / "b", "ann"))
     pipe = WrenchPipeline({"thumb": est, "index": est})

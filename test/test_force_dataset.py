@@ -65,7 +65,7 @@ def test_dataset_validates_shapes_and_selects_axes():
 
 
 def test_dataset_from_calibration_set_uses_trajectories_as_blocks():
-    from prisma_tactile_driver.calibration import generate_calibration_set
+    from prisma_hand_sim.calibration import generate_calibration_set
 
     cs = generate_calibration_set(n_samples=3000, seed=4)
     ds = ForceDataset.from_calibration_set(cs)

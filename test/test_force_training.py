@@ -13,7 +13,7 @@ from prisma_force_estimator.training import TrainConfig, train
 
 @pytest.fixture(scope="module")
 def small_set():
-    from prisma_tactile_driver.calibration import generate_calibration_set
+    from prisma_hand_sim.calibration import generate_calibration_set
 
     return ForceDataset.from_calibration_set(generate_calibration_set(n_samples=12_000, seed=7), "synthetic small")
 

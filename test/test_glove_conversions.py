@@ -2,15 +2,12 @@
 import numpy as np
 import pytest
 
-from prisma_bringup.typestore import get_typestore, types
+from prisma_common.diagnostics import ERROR, DiagnosticStatusData, diagnostics_from_msg, diagnostics_to_msg
+from prisma_common.typestore import get_typestore, types
 from stag_glove.processing import FrameProcessor
 from stag_glove.ros_conversions import (
-    ERROR,
-    DiagnosticData,
     Estimate,
     WeightResult,
-    diagnostics_from_msg,
-    diagnostics_to_msg,
     estimate_from_msg,
     estimate_to_msg,
     glove_frame_from_msg,
@@ -71,6 +68,6 @@ def test_estimates_round_trip():
 
 
 def test_diagnostics_round_trip():
-    status = DiagnosticData("glove_driver: readout", ERROR, "disconnected", "stag", {"crc_errors": "3"})
+    status = DiagnosticStatusData("glove_driver: readout", ERROR, "disconnected", "stag", {"crc_errors": "3"})
     back = diagnostics_from_msg(round_trip(diagnostics_to_msg(types, 9, [status])))
     assert back == [status]

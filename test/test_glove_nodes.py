@@ -22,10 +22,11 @@ from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate  # noqa: 
 from sensor_msgs.msg import Image  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from prisma_common.parameters import ParameterError
 from stag_glove.bundle import save_bundle  # noqa: E402
 from stag_glove.dataset import save_hdf5  # noqa: E402
 from stag_glove.models import TouchNet, WeightNet  # noqa: E402
-from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig, ParameterError  # noqa: E402
+from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig  # noqa: E402
 from stag_glove.processing import normalise  # noqa: E402
 from stag_glove.protocol import encode_frame  # noqa: E402
 from stag_glove.synthetic import SyntheticConfig, SyntheticGlove  # noqa: E402

@@ -23,15 +23,15 @@ import numpy as np
 import pytest
 
 from prisma_bringup.hand_emulator import FINGER_CHANNELS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
-from prisma_manipulation import control_table as ct
-from prisma_manipulation.dynamixel_bus import DynamixelBus
-from prisma_manipulation.motor_bus import BusError, MotorMap
-from prisma_manipulation.sim_motors import SimMotorParams
+from prisma_common.hand import FINGERS
+from prisma_motor_driver import control_table as ct
+from prisma_motor_driver.dynamixel_bus import DynamixelBus
+from prisma_motor_driver.motor_bus import BusError, MotorMap
+from prisma_motor_driver.sim_motors import SimMotorParams
 from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_socket import SocketSMBus
 from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size
 from prisma_tactile_driver.serial_backend import SerialHubBackend
-from prisma_tactile_driver.taxels import FINGERS
 
 TICK_S = 0.01  # the emulator's 100 Hz scan period
 RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV

@@ -9,8 +9,9 @@ import pytest
 from rosbags.serde import SerdeError
 from rosbags.typesys.store import Nodetype
 
-from prisma_bringup import typestore as ts_module
-from prisma_bringup.typestore import (
+from prisma_common import share_data
+from prisma_common import typestore as ts_module
+from prisma_common.typestore import (
     InterfaceParseError,
     get_typestore,
     parse_action_file,
@@ -18,7 +19,6 @@ from prisma_bringup.typestore import (
     registered_prisma_types,
     types,
 )
-from prisma_tactile_driver import share_data
 
 NUMPY_DTYPES = {
     "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,

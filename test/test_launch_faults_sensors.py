@@ -43,10 +43,10 @@ from prisma_msgs.action import Grasp  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_tactile_driver.pad_model import PadParams  # noqa: E402
+from prisma_common.hand import FINGERS  # noqa: E402
+from prisma_hand_sim.pad_model import PadParams  # noqa: E402
 from prisma_tactile_driver.protocol import encode_frame  # noqa: E402
 from prisma_tactile_driver.pty_hub import PtyHubPort  # noqa: E402
-from prisma_tactile_driver.taxels import FINGERS  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 HUB_DIR = Path(tempfile.gettempdir()) / f"prisma_fault_hub_{os.getpid()}"
@@ -175,7 +175,7 @@ class TestMissingParts(unittest.TestCase):
         self.assertIn(REJECTED_NO_DRIVER, ros.wait_for_log(name="manipulation", contains="Grasp goal rejected"))
 
         config = Path(get_package_share_directory("prisma_bringup")) / "config"
-        type(self).motor_driver = NodeProcess(["ros2", "run", "prisma_manipulation", "motor_driver", "--ros-args",
+        type(self).motor_driver = NodeProcess(["ros2", "run", "prisma_motor_driver", "motor_driver", "--ros-args",
                                                "--params-file", str(config / "motor_driver.yaml"),
                                                "-p", "backend:=sim"])
         handle = ros.send_until_accepted(self.grasp, goal, timeout_sec=60.0)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prisma_common.hand import MOTOR_NAMES
 from prisma_manipulation.contact_monitor import first_lost_index
-from prisma_manipulation.motor_bus import MOTOR_NAMES
 from prisma_manipulation.scenarios import DEFAULT_K, build
 
 REPO = Path(__file__).resolve().parents[1]
@@ -186,8 +186,8 @@ def test_combined_restores_force_and_orientation_after_a_slip():
 
 @pytest.mark.parametrize("obj, preset", [("power_ball", "power"), ("lateral_card", "lateral")])
 def test_power_and_lateral_presets_close_on_their_objects(obj, preset):
+    from prisma_hand_sim.hand_world import HandWorld
     from prisma_manipulation.closed_loop import ClosedLoop
-    from prisma_manipulation.hand_world import HandWorld
     from prisma_manipulation.manipulation_core import GraspRequest
 
     world = HandWorld(obj=obj)

@@ -10,6 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from prisma_hand_sim.contact_source import ContactSource
+from prisma_hand_sim.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource, released
 from prisma_manipulation.contact_monitor import ContactMonitor, first_lost_index
 from prisma_manipulation.controllers import (
     ControlInput,
@@ -18,12 +20,10 @@ from prisma_manipulation.controllers import (
     MotorCommand,
 )
 from prisma_manipulation.grasp_controller import GraspController
-from prisma_manipulation.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource, released
 from prisma_manipulation.motion_controllers import ForceKeeper, HoldController, HorizontalController
-from prisma_manipulation.motor_bus import default_motors
-from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
-from prisma_manipulation.sim_motors import SimMotorBus
-from prisma_tactile_driver.contact_source import ContactSource
+from prisma_motor_driver.motor_bus import default_motors
+from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner
+from prisma_motor_driver.sim_motors import SimMotorBus
 
 MS = 1_000_000
 

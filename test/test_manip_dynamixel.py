@@ -13,10 +13,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from prisma_manipulation import control_table as ct
-from prisma_manipulation.dynamixel_bus import DynamixelBus
-from prisma_manipulation.dynamixel_emulator import DynamixelEmulator, ManualClock
-from prisma_manipulation.dynamixel_packets import (
+from prisma_motor_driver import control_table as ct
+from prisma_motor_driver.dynamixel_bus import DynamixelBus
+from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ManualClock
+from prisma_motor_driver.dynamixel_packets import (
     INST_PING,
     INST_WRITE,
     PacketDecoder,
@@ -26,10 +26,10 @@ from prisma_manipulation.dynamixel_packets import (
     stuff,
     unstuff,
 )
-from prisma_manipulation.motor_bus import BusError, MotorMap
-from prisma_manipulation.motor_driver_core import MotorDriverCore
-from prisma_manipulation.motor_goals import MoveGoal, MoveGoalRunner
-from prisma_manipulation.node_config import MotorDriverConfig
+from prisma_motor_driver.motor_bus import BusError, MotorMap
+from prisma_motor_driver.motor_driver_core import MotorDriverCore
+from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner
+from prisma_motor_driver.node_config import MotorDriverConfig
 
 IDS = {"fingers": 1, "thumb_flexion": 2, "thumb_rotation": 3}
 

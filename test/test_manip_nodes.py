@@ -29,16 +29,20 @@ from rclpy.node import Node  # noqa: E402
 from rosidl_runtime_py.utilities import get_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from prisma_common.hand import (
+    FINGERS,  # noqa: E402
+    MOTOR_NAMES,  # noqa: E402
+)
+from prisma_common.messages import make_header
+from prisma_common.parameters import ParameterError  # noqa: E402
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
-from prisma_manipulation.hand_world import OBJECTS, HandWorld, released  # noqa: E402
+from prisma_hand_sim.hand_world import OBJECTS, HandWorld, released  # noqa: E402
+from prisma_hand_sim.pad_model import PadModel  # noqa: E402
 from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S  # noqa: E402
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
-from prisma_manipulation.motor_bus import MOTOR_NAMES  # noqa: E402
-from prisma_manipulation.motor_driver_node import MotorDriverNode  # noqa: E402
-from prisma_tactile_driver.driver_config import ParameterError  # noqa: E402
-from prisma_tactile_driver.pad_model import PadModel  # noqa: E402
-from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, make_header, taxel_frame_to_msg  # noqa: E402
-from prisma_tactile_driver.taxels import FINGERS, TaxelFrame  # noqa: E402
+from prisma_motor_driver.motor_driver_node import MotorDriverNode  # noqa: E402
+from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
+from prisma_tactile_driver.taxels import TaxelFrame
 
 MS = 1_000_000
 # every node of these tests runs in a namespace of this process (the topic and action names follow

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from prisma_bringup.typestore import get_typestore, types
+from prisma_common.messages import make_header, robot_types
+from prisma_common.typestore import get_typestore, types
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.controllers import JointSample
 from prisma_manipulation.manipulation_core import (
@@ -25,29 +26,30 @@ from prisma_manipulation.manipulation_core import (
     SendMove,
     StopMotors,
 )
-from prisma_manipulation.motor_bus import BusError, MotorState
-from prisma_manipulation.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
-from prisma_manipulation.motor_goals import MoveFeedback, MoveGoal, MoveResult
-from prisma_manipulation.node_config import ManipulationConfig, MotorDriverConfig
+from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.ros_conversions import (
     contact_state_from_msg,
     contact_state_to_msg,
     grasp_result_to_msg,
     hand_contact_to_msg,
     joint_sample_from_msg,
-    joint_state_to_msg,
     manipulate_feedback_to_msg,
     manipulate_result_to_msg,
+)
+from prisma_manipulation.sample_alignment import SampleAligner
+from prisma_manipulation.watchdog import SensorWatchdog
+from prisma_motor_driver.motor_bus import BusError, MotorState
+from prisma_motor_driver.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
+from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
+from prisma_motor_driver.node_config import MotorDriverConfig
+from prisma_motor_driver.ros_conversions import (
+    joint_state_to_msg,
     move_feedback_to_msg,
     move_goal_from_msg,
     move_goal_to_msg,
     move_result_from_msg,
     move_result_to_msg,
-    robot_types,
 )
-from prisma_manipulation.sample_alignment import SampleAligner
-from prisma_manipulation.watchdog import SensorWatchdog
-from prisma_tactile_driver.ros_conversions import make_header
 
 REPO = Path(__file__).resolve().parents[1]
 MS = 1_000_000
@@ -200,7 +202,7 @@ def test_one_goal_at_a_time_from_acceptance_to_the_end():
 def test_foreign_joint_states_change_no_decision():
     """An arm driver's /joint_states (other names, its own stamps) and empty or malformed messages
     between the hand's: the same actions as without them, and each is reported as ignored."""
-    from prisma_bringup.typestore import types as ts
+    from prisma_common.typestore import types as ts
 
     def hand(t):
         t_ms = t // MS  # the thumb turns out until 200 ms, then back
@@ -344,7 +346,7 @@ class FlakyBus:
     """Opens only after `failures` attempts; can lose the link."""
 
     def __init__(self, failures):
-        from prisma_manipulation.motor_bus import BusStats, default_motors
+        from prisma_motor_driver.motor_bus import BusStats, default_motors
 
         self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
         self.attempts, self.down = [], False

@@ -30,6 +30,7 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.task import Future  # noqa: E402
 from rosidl_runtime_py.utilities import get_message  # noqa: E402
 
+from prisma_common.messages import make_header
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
 from prisma_manipulation.contact_monitor import DEFAULT_K  # noqa: E402
 from prisma_manipulation.manipulation_core import (  # noqa: E402
@@ -40,9 +41,10 @@ from prisma_manipulation.manipulation_core import (  # noqa: E402
     StopMotors,
 )
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
-from prisma_manipulation.ros_conversions import contact_state_to_msg, joint_state_to_msg  # noqa: E402
+from prisma_manipulation.ros_conversions import contact_state_to_msg  # noqa: E402
 from prisma_manipulation.scenarios import build  # noqa: E402
-from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, make_header, taxel_frame_to_msg  # noqa: E402
+from prisma_motor_driver.ros_conversions import joint_state_to_msg
+from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
 
 NS = f"/route{os.getpid()}"
 CONFIG = Path(__file__).resolve().parents[1] / "config"

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import pytest
 
+from prisma_common import share_data
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
-from prisma_tactile_driver import share_data
 from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
 from stag_glove import paths as glove_paths
 
@@ -259,16 +259,16 @@ def test_wheel_carries_bundles_layout_and_message_definitions(wheel_names):
     assert {"config/models/cnn2/model.pt", "config/models/glove_object/metadata.json",
             "config/glove/layout.yaml"} <= WHEEL_SHARE["share/prisma_bringup/"]
     assert {"msg/TaxelArray.msg", "action/Grasp.action"} <= WHEEL_SHARE["share/prisma_msgs/"]
-    assert "prisma_tactile_driver/share_data.py" in wheel_names
+    assert "prisma_common/share_data.py" in wheel_names
 
 
 # ---------------------------------------------------------------------------------------------
 # share_data: source tree, colcon install, wheel prefix
 
 def test_share_data_recognises_the_source_tree(tmp_path):
-    assert share_data.source_root(SRC / "prisma_tactile_driver" / "prisma_tactile_driver" / "share_data.py") == ROOT
+    assert share_data.source_root(SRC / "prisma_common" / "prisma_common" / "share_data.py") == ROOT
     # a colcon install or a wheel: no repository around the module
-    site = tmp_path / "lib" / "python3" / "site-packages" / "prisma_tactile_driver" / "share_data.py"
+    site = tmp_path / "lib" / "python3" / "site-packages" / "prisma_common" / "share_data.py"
     assert share_data.source_root(site) is None
 
 
@@ -301,7 +301,7 @@ def installed(monkeypatch, tmp_path):
 
 
 def test_share_data_finds_a_wheel_install(installed):
-    from prisma_bringup.typestore import find_interface_dir
+    from prisma_common.typestore import find_interface_dir
 
     _, wheel = installed
     bundle = _install(wheel, "prisma_bringup", "config/models/cnn2/metadata.json").parent

@@ -16,24 +16,21 @@ require_ros()
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
-from prisma_bringup.typestore import get_typestore
-from prisma_bringup.typestore import types as typestore_types
+from prisma_common.messages import is_rosidl_class, robot_types, sequence_field
+from prisma_common.typestore import get_typestore
+from prisma_common.typestore import types as typestore_types
 from prisma_manipulation.contact_monitor import ContactMonitor
-from prisma_manipulation.motor_bus import MotorState
-from prisma_manipulation.motor_goals import MoveFeedback, MoveGoal, MoveResult
-from prisma_manipulation.ros_conversions import (
-    contact_state_from_msg,
-    contact_state_to_msg,
-    joint_sample_from_msg,
+from prisma_manipulation.ros_conversions import contact_state_from_msg, contact_state_to_msg, joint_sample_from_msg
+from prisma_motor_driver.motor_bus import MotorState
+from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
+from prisma_motor_driver.ros_conversions import (
     joint_state_to_msg,
     move_feedback_to_msg,
     move_goal_from_msg,
     move_goal_to_msg,
     move_result_from_msg,
     move_result_to_msg,
-    robot_types,
 )
-from prisma_tactile_driver.ros_conversions import is_rosidl_class, sequence_field
 from stag_glove.processing import FrameProcessor
 from stag_glove.ros_conversions import (
     Estimate,

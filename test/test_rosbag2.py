@@ -25,8 +25,8 @@ from ament_index_python.packages import get_package_share_directory  # noqa: E40
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 
-from prisma_bringup.bag import read_bag  # noqa: E402
-from prisma_bringup.bag import stamp_ns as bag_stamp_ns  # noqa: E402
+from prisma_common.bag import read_bag  # noqa: E402
+from prisma_common.bag import stamp_ns as bag_stamp_ns  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 # The README's "Record and replay" topic list: the sensor streams and what the nodes computed.
@@ -293,10 +293,10 @@ def emulator_reference(seconds: float, rate_hz: float = 100.0) -> dict[tuple[int
     pad centre of the scripted contact that produced them (the emulator's computation, repeated:
     the pad model is deterministic for its seed). The noise makes every frame's counts distinct;
     counts seen twice with different wrenches are left out (no reference for them)."""
-    from prisma_tactile_driver.calibration import wrench_from_contact
-    from prisma_tactile_driver.contact_source import ScriptedContactSource
+    from prisma_common.hand import FINGERS as HUB_FINGERS
+    from prisma_hand_sim.calibration import wrench_from_contact
+    from prisma_hand_sim.contact_source import ScriptedContactSource
     from prisma_tactile_driver.sim_backend import SimHubBackend
-    from prisma_tactile_driver.taxels import FINGERS as HUB_FINGERS
 
     source = ScriptedContactSource()
     hub = SimHubBackend(source, HUB_FINGERS)

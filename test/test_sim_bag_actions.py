@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from prisma_bringup.bag import BagWriter, read_bag
-from prisma_bringup.typestore import get_typestore, message_definition, types
+from prisma_common.bag import BagWriter, read_bag
+from prisma_common.typestore import get_typestore, message_definition, types
 
 
 def feedback(phase: str, force: float, goal: int):

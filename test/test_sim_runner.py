@@ -13,7 +13,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from prisma_bringup.sim_cli import main
-from prisma_bringup.typestore import get_typestore
+from prisma_common.typestore import get_typestore
 
 ROOT = Path(__file__).resolve().parents[1]
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -240,7 +240,7 @@ def test_glove_bag_topics_stamps_and_counts(run):
 def test_offline_estimator_reproduces_the_recorded_wrenches(run, tmp_path):
     """prisma-estimate-bag over a sim bag gives exactly the wrenches the run recorded (and the
     controller used): one pipeline, one converter."""
-    from prisma_bringup.bag import read_bag
+    from prisma_common.bag import read_bag
     from prisma_force_estimator.cli import estimate_bag_main
 
     bag = run.out / run.summaries["horizontal"]["bag"]

@@ -5,7 +5,7 @@ from sklearn.linear_model import Ridge
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import PolynomialFeatures
 
-from prisma_tactile_driver.calibration import CalibrationSet, generate_calibration_set, generate_trajectory
+from prisma_hand_sim.calibration import CalibrationSet, generate_calibration_set, generate_trajectory
 
 
 @pytest.fixture(scope="module")

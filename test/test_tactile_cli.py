@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from prisma_tactile_driver.calibration import CalibrationSet
+from prisma_hand_sim.calibration import CalibrationSet
 from prisma_tactile_driver.cli import calset_main, hub_emulator_main, pad_plot_main
 from prisma_tactile_driver.pty_hub import PtyHubPort, is_pty_link
 from prisma_tactile_driver.serial_backend import SerialHubBackend

@@ -4,7 +4,8 @@ import array
 import numpy as np
 import pytest
 
-from prisma_tactile_driver.driver_config import DriverConfig, ParameterError, make_backend
+from prisma_common.parameters import ParameterError
+from prisma_tactile_driver.driver_config import DriverConfig, make_backend
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
 from prisma_tactile_driver.i2c_socket import I2CSocketServer, SocketSMBus
 from prisma_tactile_driver.sim_backend import SimHubBackend

@@ -2,16 +2,12 @@
 import numpy as np
 import pytest
 
-from prisma_bringup.typestore import get_typestore, types
-from prisma_tactile_driver.hub import DiagnosticStatusData
+from prisma_common.diagnostics import DiagnosticStatusData, diagnostics_from_msg, diagnostics_to_msg
+from prisma_common.messages import make_header, ns_from_stamp, stamp_from_ns
+from prisma_common.typestore import get_typestore, types
 from prisma_tactile_driver.ros_conversions import (
-    diagnostics_from_msg,
-    diagnostics_to_msg,
     hand_taxels_samples,
     hand_taxels_to_msg,
-    make_header,
-    ns_from_stamp,
-    stamp_from_ns,
     taxel_frame_from_msg,
     taxel_frame_to_msg,
 )

@@ -2,12 +2,13 @@
 import numpy as np
 import pytest
 
+from prisma_common.diagnostics import ERROR, OK, STALE, WARN
+from prisma_common.hand import FINGERS
+from prisma_hand_sim.contact_source import ScriptedContactSource
+from prisma_hand_sim.pad_model import PadContact, PadParams
 from prisma_tactile_driver.backend import HubReading
-from prisma_tactile_driver.contact_source import ScriptedContactSource
-from prisma_tactile_driver.hub import ERROR, OK, STALE, WARN, TactileHub
-from prisma_tactile_driver.pad_model import PadContact, PadParams
+from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.sim_backend import SimHubBackend
-from prisma_tactile_driver.taxels import FINGERS
 
 MS = 1_000_000
 

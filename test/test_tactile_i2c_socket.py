@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 from smbus2 import i2c_msg
 
-from prisma_tactile_driver.hub import ERROR, OK, TactileHub
+from prisma_common.diagnostics import ERROR, OK
+from prisma_common.hand import FINGERS
+from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_emulator import EmulatedSMBus, five_finger_bus
 from prisma_tactile_driver.i2c_socket import (
@@ -25,7 +27,6 @@ from prisma_tactile_driver.i2c_socket import (
     encode_request,
     recv_frame,
 )
-from prisma_tactile_driver.taxels import FINGERS
 
 CHANNELS = {"thumb": 0, "index": 1, "middle": 2, "ring": 3, "little": 4}
 RNG = np.random.default_rng(11)

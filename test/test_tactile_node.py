@@ -3,7 +3,6 @@
 Sim-time tests drive the node's timers with a /clock the test publishes, so stamps are exact.
 """
 import sys
-import types as pytypes
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +17,13 @@ from prisma_msgs.msg import HandTaxels, TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from prisma_tactile_driver.contact_source import ScriptedContactSource
-from prisma_tactile_driver.driver_config import DriverConfig, ParameterError
-from prisma_tactile_driver.pad_model import PadContact, PadParams
+from prisma_common.hand import FINGERS
+from prisma_common.parameters import ParameterError
+from prisma_hand_sim.contact_source import ScriptedContactSource
+from prisma_hand_sim.pad_model import PadContact, PadParams
+from prisma_tactile_driver.driver_config import DriverConfig
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.sim_backend import SimHubBackend
-from prisma_tactile_driver.taxels import FINGERS
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "tactile_driver.yaml"
 
@@ -202,9 +202,8 @@ def test_hand_world_contact_source_is_fed_from_joint_states(ros, node_cls, monke
         def contact(self, finger, stamp_ns):
             return PadContact(0.0, 0.0, 3.0) if finger == "index" and self.closure > 1.0 else None
 
-    fake = pytypes.ModuleType("prisma_manipulation.hand_world")
-    fake.HandWorldContactSource = FakeHandWorld
-    monkeypatch.setitem(sys.modules, "prisma_manipulation.hand_world", fake)
+    # the node module's own name for the contact source (imported at module level)
+    monkeypatch.setattr(sys.modules[node_cls.__module__], "HandWorldContactSource", FakeHandWorld)
     index = ros.collect(TaxelArray, "/prisma/index/taxels")
     ros.node(node_cls, params={"contact_source": "hand_world"}, sim_time=True)
     ros.advance(0.1, step=0.01)

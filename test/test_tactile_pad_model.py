@@ -2,9 +2,10 @@
 import numpy as np
 import pytest
 
-from prisma_tactile_driver.contact_source import ContactSource, ScriptedContactSource
-from prisma_tactile_driver.pad_model import PadContact, PadModel, PadParams
-from prisma_tactile_driver.taxels import EDGES, FINGERS, TareBuffer, TaxelFrame, counts_to_voltages, voltages_to_counts
+from prisma_common.hand import FINGERS, counts_to_voltages, voltages_to_counts
+from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
+from prisma_hand_sim.pad_model import PadContact, PadModel, PadParams
+from prisma_tactile_driver.taxels import EDGES, TareBuffer, TaxelFrame
 
 
 def algorithm1(volts: np.ndarray, k: float) -> tuple[np.ndarray, list[str]]:

@@ -159,8 +159,9 @@ def test_absent_port_backs_off_exponentially(tmp_path):
 def test_open_failure_says_why_once_per_change(tmp_path):
     """The port and the OS reason reach /diagnostics (message and values) and, once per change,
     take_errors() (what the node logs)."""
-    from prisma_tactile_driver.hub import ERROR, OK, TactileHub
-    from prisma_tactile_driver.taxels import FINGERS
+    from prisma_common.diagnostics import ERROR, OK
+    from prisma_common.hand import FINGERS
+    from prisma_tactile_driver.hub import TactileHub
 
     link = tmp_path / "ttyHUB"
     now = [0.0]

@@ -9,13 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prisma_common.diagnostics import OK
+from prisma_common.hand import FINGERS
 from prisma_tactile_driver import hub_clock
-from prisma_tactile_driver.hub import OK, TactileHub
+from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.hub_clock import HubClockConfig, HubClockState, reanchor, update
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort
 from prisma_tactile_driver.serial_backend import SerialHubBackend
-from prisma_tactile_driver.taxels import FINGERS
 
 MS = 1_000_000
 PERIOD = 10 * MS

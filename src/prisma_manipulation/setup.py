@@ -14,11 +14,10 @@ setup(
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",
-    description="Dynamixel and simulated motors, contact monitor, grasp and in-hand manipulation controllers.",
+    description="Contact monitor, grasp and manipulation controllers, the manipulation node, the off-robot loop.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "motor_driver = prisma_manipulation.motor_driver_node:main",
             "manipulation = prisma_manipulation.manipulation_node:main",
             "prisma-manip-scenarios = prisma_manipulation.scenarios_cli:main",
         ],

@@ -21,6 +21,9 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.bag import BagWriter
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.typestore import types as typestore_types
 from stag_glove.backends import BackendFrame, BackendStatus
 from stag_glove.bundle import load_bundle
 from stag_glove.driver import GloveDriver
@@ -28,17 +31,8 @@ from stag_glove.layout import load_layout
 from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig
 from stag_glove.perception import GlovePerception, PerceptionConfig, limit_threads
 from stag_glove.processing import FrameProcessor, NormalisationConfig
-from stag_glove.ros_conversions import (
-    diagnostics_to_msg,
-    estimate_to_msg,
-    glove_frame_to_msg,
-    pressure_image_msg,
-    weight_to_msg,
-)
+from stag_glove.ros_conversions import estimate_to_msg, glove_frame_to_msg, pressure_image_msg, weight_to_msg
 from stag_glove.synthetic import EMPTY_HAND, SyntheticConfig, SyntheticGlove
-
-from .bag import BagWriter
-from .typestore import types as typestore_types
 
 NS = 1_000_000_000
 EMPTY_FIRST_FRAMES = 60  # the sim stream's empty-hand phase (SyntheticGlove.stream)

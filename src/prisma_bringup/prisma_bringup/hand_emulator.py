@@ -33,17 +33,17 @@ from typing import Any
 
 import numpy as np
 
-from prisma_manipulation import control_table as ct
-from prisma_manipulation.dynamixel_emulator import DynamixelEmulator, ServoPresent
-from prisma_manipulation.hand_world import Disturbance, HandWorld
-from prisma_manipulation.motor_bus import MOTOR_NAMES
+from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_hand_sim.hand_world import Disturbance, HandWorld
+from prisma_hand_sim.pad_model import PadModel
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
-from prisma_manipulation.sim_motors import SimMotorParams
+from prisma_motor_driver import control_table as ct
+from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ServoPresent
+from prisma_motor_driver.sim_motors import SimMotorParams
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
-from prisma_tactile_driver.pad_model import PadModel
+from prisma_tactile_driver.i2c_socket import I2CSocketServer
 from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort, PtyLink
-from prisma_tactile_driver.taxels import FINGERS
 
 # The hand's wiring as config/motor_driver.yaml and config/tactile_driver.yaml have it.
 MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
@@ -148,8 +148,6 @@ class EmulatedHand:
     def start(self) -> EmulatedHand:
         """Create the devices. FileExistsError (naming the path) if one of the paths holds something
         that is not an earlier emulator's link or socket; nothing is replaced then."""
-        from prisma_tactile_driver.i2c_socket import I2CSocketServer
-
         self.paths.root.mkdir(parents=True, exist_ok=True)
         started: list[Callable[[], None]] = []
         try:

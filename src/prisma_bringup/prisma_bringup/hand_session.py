@@ -27,6 +27,12 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.bag import BagWriter
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.hand import FINGERS
+from prisma_common.messages import stamp_from_ns
+from prisma_common.topics import CONTACT, DIAGNOSTICS, JOINT_STATES, MOVE_MOTORS, TAXELS, WRENCH
+from prisma_common.typestore import types as typestore_types
 from prisma_force_estimator.diagnostics import pipeline_diagnostics
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.ros_conversions import wrench_to_msg
@@ -35,17 +41,12 @@ from prisma_manipulation.manipulation_core import Feedback, Finished, GraspReque
 from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     grasp_feedback_to_msg,
-    joint_state_to_msg,
     manipulate_feedback_to_msg,
-    move_feedback_to_msg,
 )
 from prisma_manipulation.scenarios import Scenario, build, scenario_request
+from prisma_motor_driver.ros_conversions import joint_state_to_msg, move_feedback_to_msg
 from prisma_tactile_driver.driver_config import DriverConfig
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg, stamp_from_ns, taxel_frame_to_msg
-from prisma_tactile_driver.taxels import FINGERS
-
-from .bag import BagWriter
-from .typestore import types as typestore_types
+from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
 
 NS = 1_000_000_000
 DIAGNOSTICS_PERIOD_NS = NS  # every driver's diagnostics_period default (1 s)
@@ -54,9 +55,7 @@ DIAGNOSTICS_PERIOD_NS = NS  # every driver's diagnostics_period default (1 s)
 STATUS_EXECUTING, STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED = 2, 4, 5, 6
 
 # default topic names (docs/architecture.md, Topic table)
-TAXELS, WRENCH, CONTACT = "/prisma/{finger}/taxels", "/prisma/{finger}/wrench", "/prisma/{finger}/contact"
-JOINT_STATES, DIAGNOSTICS = "/joint_states", "/diagnostics"
-ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "move": "/prisma/motors/move"}
+ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "move": MOVE_MOTORS}
 ACTION_TYPES = {"grasp": "prisma_msgs/action/Grasp", "manipulate": "prisma_msgs/action/Manipulate",
                 "move": "prisma_msgs/action/MoveMotors"}
 

@@ -25,7 +25,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
+from prisma_common.bag import BagWriter
+from prisma_force_estimator.pipeline import load_estimator as load_bundle_estimator
+from prisma_manipulation.scenarios_cli import plot, summarise
 
 GLOVE = "glove"
 NS = 1_000_000_000
@@ -97,10 +100,7 @@ def check_out(out: Path) -> None:
 
 def load_estimator(bundle: str | Path):
     """The force estimator of a bundle path, as the node resolves it (BundleError if it is not one)."""
-    from prisma_force_estimator.bundle import resolve_bundle_path
-    from prisma_force_estimator.inference import ForceEstimator
-
-    return ForceEstimator.from_bundle(resolve_bundle_path(bundle), threads=1)
+    return load_bundle_estimator(bundle, threads=1)
 
 
 def _rel(path: Path, root: Path) -> str:
@@ -149,9 +149,7 @@ def force_errors(scenario, trace) -> dict[str, dict]:
 def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str], None],
              root: Path | None = None) -> dict:
     """One hand scenario into `root` (default options.out): its bag, plot and summary."""
-    from prisma_manipulation.scenarios_cli import plot, summarise
 
-    from .bag import BagWriter
     from .hand_session import HAND_SCENARIOS, HandRecorder
 
     root = options.out if root is None else root
@@ -207,7 +205,6 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
 
 
 def run_glove(options: SimOptions, progress: Callable[[str], None], root: Path | None = None) -> dict:
-    from .bag import BagWriter
     from .glove_session import plot, run_glove_session, summarise
 
     root = options.out if root is None else root

@@ -1,5 +1,8 @@
 """Model bundle: a directory with a TorchScript network (model.pt) and its metadata.json.
 
+torch is imported where a network is saved or loaded, not with this module: the bundle paths
+(`DEFAULT_BUNDLE`, `resolve_bundle_path`) serve the torch-free node configuration and CLIs.
+
 metadata.json carries everything needed to use the network without its training code:
 format name and version, model kind, output axes, input layout, input/output normalisation,
 training settings and per-axis validation MSE in physical units. `load_bundle` checks all of
@@ -13,14 +16,16 @@ import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import torch
+from prisma_common import share_data
+from prisma_common.atomic import atomic_output
 
-from prisma_tactile_driver import share_data
-
-from .networks import MODEL_SPECS, WRENCH_AXES, taxel_image
 from .normalisation import Normaliser
+from .wrench import WRENCH_AXES
+
+if TYPE_CHECKING:
+    import torch
 
 FORMAT = "prisma_force_bundle"
 FORMAT_VERSION = 1
@@ -79,7 +84,7 @@ def save_bundle(directory: str | Path, model: torch.nn.Module, metadata: BundleM
     Written whole or not at all: staged beside `directory` and renamed into place when both files
     are complete, replacing an earlier bundle there. A directory holding anything else is refused
     (BundleError) and left alone."""
-    from prisma_tactile_driver.atomic import atomic_output
+    import torch
 
     directory = Path(directory)
     if directory.is_symlink() or (directory.exists() and not directory.is_dir()):
@@ -110,6 +115,8 @@ def _require(data: dict, key: str, kind: type, path: Path) -> Any:
 
 
 def parse_metadata(data: Any, path: Path) -> BundleMetadata:
+    from .networks import MODEL_SPECS
+
     if not isinstance(data, dict):
         raise BundleError(path, f"{METADATA_FILE} must hold a JSON object")
     if data.get("format") != FORMAT:
@@ -146,6 +153,10 @@ def parse_metadata(data: Any, path: Path) -> BundleMetadata:
 
 def load_bundle(directory: str | Path) -> tuple[torch.jit.ScriptModule, BundleMetadata]:
     """Load and validate a bundle; every problem raises BundleError naming the path."""
+    import torch
+
+    from .networks import taxel_image
+
     directory = Path(directory)
     if not directory.is_dir():
         raise BundleError(directory, "directory does not exist" if not directory.exists() else "is not a directory")
@@ -201,7 +212,9 @@ def save_untrained_bundle(directory: str | Path, kind: str, seed: int = 0) -> Pa
     Its wrenches are meaningless; it exists for inference benchmarks and tests of the bundle
     plumbing, where only shapes and timing matter.
     """
-    from .networks import build_model
+    import torch
+
+    from .networks import MODEL_SPECS, build_model
 
     torch.manual_seed(seed)
     axes = list(MODEL_SPECS[kind].axes)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from prisma_common.bag import read_bag, require_topics
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
 from .dataset import ForceDataset
@@ -69,8 +70,6 @@ def load_calibration_bag(path: str | Path, taxel_topic: str = "/prisma/thumb/tax
     taxel_stamps, voltages, wrench_stamps, wrenches = [], [], [], []
     # prisma_bringup depends on this package; importing its bag layer here, not at module level,
     # keeps the ROS package graph acyclic (colcon refuses cycles).
-    from prisma_bringup.bag import read_bag, require_topics
-
     require_topics(path, [taxel_topic, wrench_topic])
     for record in read_bag(path, topics=[taxel_topic, wrench_topic]):
         if record.topic == taxel_topic:

@@ -11,7 +11,12 @@ import json
 import sys
 from pathlib import Path
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
+from prisma_common.bag import BagError, MissingTopicsError, require_topics
+from prisma_common.hand import FINGERS
+from prisma_common.topics import TAXELS, WRENCH
+from prisma_common.typestore import types
+from prisma_hand_sim.calibration import CalibrationSet
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,
     UserError,
@@ -29,14 +34,13 @@ from prisma_tactile_driver.cli_args import (
     positive_int,
     unit_interval,
 )
-from prisma_tactile_driver.taxels import FINGERS
 
 # networks.MODEL_KINDS, spelled out so that building the parser does not import torch
 # (test/test_cli_bad_input.py checks that they agree).
 MODEL_CHOICES = ("ann", "cnn", "cnn_t", "cnn2")
 BAG_SUFFIXES = (".mcap", ".db3")
 # The user errors of the loaders these commands call, counted once their module is loaded.
-LOADER_ERRORS = ("prisma_force_estimator.bundle:BundleError", "prisma_bringup.bag:BagError")
+LOADER_ERRORS = ("prisma_force_estimator.bundle:BundleError", "prisma_common.bag:BagError")
 
 
 def _is_bag(path: Path) -> bool:
@@ -61,15 +65,11 @@ def check_training_data(args: argparse.Namespace):
         return None
     path = Path(args.data)
     if path.suffix == ".npz":
-        from prisma_tactile_driver.calibration import CalibrationSet
-
         try:
             return CalibrationSet.load(path)
         except ValueError as exc:  # not a calibration set: the message names the file and why
             raise UserError(f"--data {exc}") from None
-    from prisma_bringup.bag import BagError, require_topics
-
-    taxel_topic = args.taxel_topic or f"/prisma/{args.finger}/taxels"
+    taxel_topic = args.taxel_topic or TAXELS.format(finger=args.finger)
     try:
         require_topics(path, [taxel_topic, args.wrench_topic])
     except BagError as exc:
@@ -93,7 +93,7 @@ def load_training_data(args: argparse.Namespace, calibration=None):
             raise UserError(f"--data {exc}") from None
     from .calibration_bag import load_calibration_bag
 
-    taxel_topic = args.taxel_topic or f"/prisma/{args.finger}/taxels"
+    taxel_topic = args.taxel_topic or TAXELS.format(finger=args.finger)
     try:
         dataset, report = load_calibration_bag(path, taxel_topic, args.wrench_topic,
                                                int(args.tolerance_ms * 1e6))
@@ -315,8 +315,8 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
                         help="comma-separated fingers (default all five)")
     parser.add_argument("--frame-id-template", type=finger_template, default="",
                         help="e.g. '{finger}_pad'; empty keeps the input's")
-    parser.add_argument("--taxel-topic", type=finger_template, default="/prisma/{finger}/taxels")
-    parser.add_argument("--wrench-topic", type=finger_template, default="/prisma/{finger}/wrench")
+    parser.add_argument("--taxel-topic", type=finger_template, default=TAXELS)
+    parser.add_argument("--wrench-topic", type=finger_template, default=WRENCH)
     parser.add_argument("--batch-window-ms", type=non_negative_float, default=5.0)
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--threads", type=positive_int, default=1)
@@ -327,15 +327,11 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
             check_bundle_dir(path)
     # the input must hold every requested finger's taxel topic: checked (and named) before any
     # bundle is loaded or anything is written
-    from prisma_bringup.bag import MissingTopicsError, require_topics
-
     try:
         require_topics(args.input, [args.taxel_topic.format(finger=f) for f in fingers])
     except MissingTopicsError as exc:
         raise UserError(f"{exc}; pick the fingers it has with --fingers or the topic name with --taxel-topic") \
             from None
-
-    from prisma_bringup.typestore import types
 
     from .bundle import DEFAULT_BUNDLE, resolve_bundle_path
     from .estimate_bag import estimate_bag

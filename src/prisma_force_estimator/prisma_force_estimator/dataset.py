@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .networks import WRENCH_AXES
+from prisma_hand_sim.calibration import CalibrationSet, generate_calibration_set
+
+from .wrench import WRENCH_AXES
 
 
 @dataclass
@@ -50,23 +52,19 @@ class ForceDataset:
 
     @classmethod
     def from_calibration_set(cls, calibration, source: str = "synthetic") -> ForceDataset:
-        """From a prisma_tactile_driver.calibration.CalibrationSet (trajectory ids become blocks)."""
+        """From a prisma_hand_sim.calibration.CalibrationSet (trajectory ids become blocks)."""
         return cls(calibration.voltages, calibration.wrench, calibration.stamp_ns,
                    calibration.trajectory, source)
 
 
 def synthetic_dataset(n_samples: int = 140_000, seed: int = 0) -> ForceDataset:
     """The tactile driver's default synthetic calibration set (push, slide and roll trajectories)."""
-    from prisma_tactile_driver.calibration import generate_calibration_set
-
     calibration = generate_calibration_set(n_samples=n_samples, seed=seed)
     return ForceDataset.from_calibration_set(calibration, f"synthetic(n={n_samples}, seed={seed})")
 
 
 def load_calibration_npz(path: str | Path) -> ForceDataset:
     """A CalibrationSet saved with CalibrationSet.save()."""
-    from prisma_tactile_driver.calibration import CalibrationSet
-
     return ForceDataset.from_calibration_set(CalibrationSet.load(path), str(path))
 
 

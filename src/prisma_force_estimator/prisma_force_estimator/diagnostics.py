@@ -3,11 +3,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from prisma_tactile_driver.hub import DiagnosticStatusData
+from prisma_common.diagnostics import OK, WARN, DiagnosticStatusData
 
 from .pipeline import WrenchPipeline
-
-OK, WARN = 0, 1
 
 
 def pipeline_diagnostics(pipeline: WrenchPipeline, name: str, bundles: Mapping[str, str]) -> list[DiagnosticStatusData]:

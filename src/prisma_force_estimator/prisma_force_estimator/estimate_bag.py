@@ -3,18 +3,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from prisma_common.bag import BagWriter, read_bag, require_topics
+from prisma_common.topics import TAXELS, WRENCH
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
 from .pipeline import TaxelSample, WrenchPipeline
 from .ros_conversions import MessageLookup, wrench_to_msg
 
-if TYPE_CHECKING:
-    from prisma_bringup.bag import BagWriter
-
-TAXEL_TOPIC = "/prisma/{finger}/taxels"
-WRENCH_TOPIC = "/prisma/{finger}/wrench"
+TAXEL_TOPIC = TAXELS
+WRENCH_TOPIC = WRENCH
 
 
 @dataclass
@@ -39,8 +37,6 @@ def estimate_bag(in_path: str | Path, out_path: str | Path, pipeline: WrenchPipe
     the fingers raises MissingTopicsError (a ValueError) naming them, before anything is written."""
     # prisma_bringup depends on this package; importing its bag layer here, not at module level,
     # keeps the ROS package graph acyclic (colcon refuses cycles).
-    from prisma_bringup.bag import BagWriter, read_bag, require_topics
-
     topics = {taxel_topic.format(finger=f): f for f in pipeline.fingers}
     require_topics(in_path, topics)
     report = EstimateBagReport({f: 0 for f in pipeline.fingers}, {f: 0 for f in pipeline.fingers},

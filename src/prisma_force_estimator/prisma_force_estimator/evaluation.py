@@ -11,9 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from prisma_common.atomic import atomic_output
+from prisma_hand_sim.calibration import generate_trajectory
+
 from .dataset import ForceDataset
 from .inference import ForceEstimator
-from .networks import WRENCH_AXES
+from .wrench import WRENCH_AXES
 
 # Seeds far from the training set's (generate_calibration_set(seed=0)).
 PUSH_SEED = 10_001
@@ -40,8 +43,6 @@ class HeldOutTests:
 
 def held_out_tests(push_samples: int = 30_000, slide_samples: int = 30_000,
                    push_seed: int = PUSH_SEED, slide_seed: int = SLIDE_SEED) -> HeldOutTests:
-    from prisma_tactile_driver.calibration import generate_trajectory
-
     push = ForceDataset.from_calibration_set(generate_trajectory("push", push_samples, push_seed),
                                              f"push(n={push_samples}, seed={push_seed})")
     slide = ForceDataset.from_calibration_set(generate_trajectory("slide", slide_samples, slide_seed),
@@ -143,8 +144,6 @@ def results_table(results: Sequence[EvalResult]) -> str:
 
 def _save(fig, path: Path) -> None:
     """savefig whole or not at all (staged, renamed when complete)."""
-    from prisma_tactile_driver.atomic import atomic_output
-
     with atomic_output(path) as staged:
         fig.savefig(staged, dpi=90)
 

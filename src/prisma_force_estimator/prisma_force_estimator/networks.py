@@ -12,10 +12,9 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from .wrench import WRENCH_AXES
+
 FORCE_AXES = ("fx", "fy", "fz")
-WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
-
-
 @dataclass(frozen=True)
 class ModelSpec:
     kind: str

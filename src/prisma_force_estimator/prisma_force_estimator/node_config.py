@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from prisma_tactile_driver.driver_config import ParameterError, check_fingers
-from prisma_tactile_driver.taxels import FINGERS
+from prisma_common.hand import FINGERS
+from prisma_common.parameters import ParameterError, check_fingers
 
 from .bundle import DEFAULT_BUNDLE
 

@@ -11,11 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .inference import ForceEstimator
+from .bundle import resolve_bundle_path
 from .wrench import WrenchSample, full_wrench
+
+if TYPE_CHECKING:
+    from .inference import ForceEstimator
 
 
 @dataclass
@@ -101,6 +106,8 @@ class WrenchPipeline:
 
 def build_estimators(bundles: Mapping[str, str], threads: int | None = None) -> dict[str, ForceEstimator]:
     """finger -> ForceEstimator, loading each distinct bundle path once."""
+    from .inference import ForceEstimator
+
     loaded: dict[str, ForceEstimator] = {}
     estimators = {}
     for finger, path in bundles.items():
@@ -108,3 +115,11 @@ def build_estimators(bundles: Mapping[str, str], threads: int | None = None) -> 
             loaded[path] = ForceEstimator.from_bundle(path, threads=threads)
         estimators[finger] = loaded[path]
     return estimators
+
+
+def load_estimator(bundle: str | Path, threads: int | None = None) -> ForceEstimator:
+    """The ForceEstimator of a bundle path as the node resolves it (BundleError if it is not one).
+    torch is imported here, when an estimator is loaded, not with this module."""
+    from .inference import ForceEstimator
+
+    return ForceEstimator.from_bundle(resolve_bundle_path(bundle), threads=threads)

@@ -1,7 +1,7 @@
 """Force estimator data <-> geometry_msgs/WrenchStamped.
 
 Every function takes the message-class lookup `types(name)`: rosidl's get_message on the robot,
-prisma_bringup.typestore.types off-robot, so the node and the bag tools share one converter.
+prisma_common.typestore.types off-robot, so the node and the bag tools share one converter.
 Header helpers and the /diagnostics converter are the tactile driver's (one of each in the
 workspace).
 """
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from prisma_tactile_driver.ros_conversions import make_header, newest_header, ns_from_stamp
+from prisma_common.messages import make_header, newest_header, ns_from_stamp
 
 from .wrench import WrenchSample
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .networks import WRENCH_AXES
+WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass

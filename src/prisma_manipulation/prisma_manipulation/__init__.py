@@ -1,1 +1,1 @@
-"""Dynamixel and simulated motors, contact monitor, grasp and in-hand manipulation controllers."""
+"""Contact monitor, grasp and in-hand manipulation controllers, the manipulation node and the off-robot closed loop."""

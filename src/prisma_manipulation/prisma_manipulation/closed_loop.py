@@ -24,21 +24,25 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_force_estimator.node_config import EstimatorConfig
+from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
+from prisma_hand_sim.hand_world import HandWorld
+from prisma_hand_sim.pad_model import PadModel, PadParams
+from prisma_motor_driver.motor_bus import MotorState
+from prisma_motor_driver.motor_driver_core import MotorDriverCore
+from prisma_motor_driver.motor_goals import MoveFeedback, MoveResult
+from prisma_motor_driver.node_config import MotorDriverConfig
+from prisma_motor_driver.ros_conversions import velocity_goal
+from prisma_motor_driver.sim_motors import SimMotorBus
 from prisma_tactile_driver.backend import HubReading
 from prisma_tactile_driver.hub import TactileHub
-from prisma_tactile_driver.pad_model import PadModel, PadParams
-from prisma_tactile_driver.taxels import FINGERS, TaxelFrame
+from prisma_tactile_driver.taxels import TaxelFrame
 
 from .contact_monitor import ContactEvaluation
 from .controllers import Controller, JointSample
-from .hand_world import HandWorld
 from .manipulation_core import Finished, GraspRequest, ManipulateRequest, ManipulationCore, SendMove, StopMotors
-from .motor_bus import MOTOR_NAMES, MotorState
-from .motor_driver_core import MotorDriverCore
-from .motor_goals import MoveFeedback, MoveResult
-from .node_config import ManipulationConfig, MotorDriverConfig
-from .ros_conversions import velocity_goal
-from .sim_motors import SimMotorBus
+from .node_config import ManipulationConfig
 
 if TYPE_CHECKING:
     from prisma_force_estimator.inference import ForceEstimator
@@ -139,9 +143,6 @@ class ClosedLoop:
         self.estimator = estimator
         self.pipeline = None
         if estimator is not None:
-            from prisma_force_estimator.node_config import EstimatorConfig
-            from prisma_force_estimator.pipeline import WrenchPipeline
-
             batch_window_ns = int(round(EstimatorConfig().batch_window * NS))
             self.pipeline = WrenchPipeline({f: estimator for f in FINGERS}, FRAME_ID_FORMAT, batch_window_ns)
         self.controller: Controller | None = None  # the goal's controller, kept after it ends
@@ -177,8 +178,6 @@ class ClosedLoop:
             truth = self.world.forces()
             forces = {(f.finger, f.stamp_ns): truth[f.finger] for f in scan.frames}
         else:
-            from prisma_force_estimator.pipeline import TaxelSample
-
             forces = {}
             for frame in scan.frames:
                 frame_id = FRAME_ID_FORMAT.format(finger=frame.finger)

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prisma_tactile_driver.taxels import EDGES, N_TAXELS
+from prisma_common.hand import N_TAXELS
+from prisma_tactile_driver.taxels import EDGES
 
 EDGE_NAMES = ("bottom", "top", "right", "left")  # ContactState order
 _EDGE_INDEX = np.array([EDGES[name] for name in EDGE_NAMES])  # (4, 3)

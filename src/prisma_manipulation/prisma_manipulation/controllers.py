@@ -15,8 +15,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from prisma_common.hand import MOTOR_NAMES
+from prisma_motor_driver.motor_bus import MotorConfig
+
 from .contact_monitor import ContactEvaluation
-from .motor_bus import MOTOR_NAMES, MotorConfig
 
 EDGE_LOST = "edge_lost"
 FORCE_REACHED = "force_reached"

@@ -27,9 +27,11 @@ from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
-from prisma_tactile_driver.driver_config import ParameterError
+from prisma_common.messages import ns_from_stamp, robot_types
+from prisma_common.parameters import ParameterError
+from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_from_msg, velocity_goal
 from prisma_tactile_driver.node_process import run_node
-from prisma_tactile_driver.ros_conversions import hand_taxels_samples, ns_from_stamp
+from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 from prisma_tactile_driver.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 
 from .contact_monitor import check_k
@@ -46,11 +48,7 @@ from .ros_conversions import (
     manipulate_feedback_to_msg,
     manipulate_request_from_msg,
     manipulate_result_to_msg,
-    move_goal_to_msg,
-    move_result_from_msg,
     normal_force_from_wrench,
-    robot_types,
-    velocity_goal,
 )
 
 

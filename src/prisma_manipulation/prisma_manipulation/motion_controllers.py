@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .control_table import rpm_to_rad_s
+from prisma_motor_driver.control_table import rpm_to_rad_s
+
 from .controllers import (
     EDGE_LOST,
     JOINT_LIMIT,

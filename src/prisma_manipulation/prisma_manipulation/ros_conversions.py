@@ -1,31 +1,29 @@
-"""Core data <-> ROS messages for prisma_manipulation.
+"""Core data <-> ROS messages for prisma_manipulation: ContactState, Grasp / Manipulate goals,
+feedback and results, JointState -> JointSample.
 
 Every function takes a message-class lookup `types(name)` (on the robot
-`rosidl_runtime_py.utilities.get_message`, off-robot `prisma_bringup.typestore.types`) and builds
+`prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
 messages by keyword with every field. Header helpers and `sequence_field` (the container each
-message class takes for a numeric sequence or a bool array) come from prisma_tactile_driver.
+message class takes for a numeric sequence or a bool array) come from prisma_common; the motor
+driver's converters (/joint_states, MoveMotors) from prisma_motor_driver.ros_conversions.
 
-/joint_states units: position rad (motor shaft, from the configured zero), velocity rad/s (the
-JointState convention; MoveMotors feedback keeps rpm), effort = motor current in A (the servos
-measure current, not torque).
+/joint_states units: position rad, velocity rad/s (the JointState convention), effort = motor
+current in A.
 """
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from prisma_tactile_driver.ros_conversions import make_header, newest_header, ns_from_stamp, sequence_field
+from prisma_common.messages import make_header, newest_header, ns_from_stamp, sequence_field
+from prisma_motor_driver.control_table import rad_s_to_rpm
 
 from .contact_monitor import EDGE_NAMES, ContactEvaluation
-from .control_table import rad_s_to_rpm, rpm_to_rad_s
 from .controllers import JointSample
 from .manipulation_core import Feedback, Finished, GraspRequest, ManipulateRequest
-from .motor_bus import MotorState
-from .motor_goals import MoveFeedback, MoveGoal, MoveResult
 
 Types = Callable[[str], Any]
 
@@ -57,18 +55,6 @@ def contact_state_from_msg(msg: Any) -> ContactEvaluation:
                              np.asarray(msg.safe, dtype=bool), lost, bool(msg.feasible))
 
 
-def joint_state_to_msg(types: Types, stamp_ns: int, states: Mapping[str, MotorState], frame_id: str = "") -> Any:
-    names = list(states)
-    cls = types("sensor_msgs/msg/JointState")
-    return cls(
-        header=make_header(types, stamp_ns, frame_id),
-        name=names,
-        position=sequence_field(cls, [states[n].position_rad for n in names], np.float64),
-        velocity=sequence_field(cls, [rpm_to_rad_s(states[n].velocity_rpm) for n in names], np.float64),
-        effort=sequence_field(cls, [states[n].current_ma / 1000.0 for n in names], np.float64),
-    )
-
-
 def joint_sample_from_msg(msg: Any) -> JointSample:
     """The joints a JointState message gives values for. Arrays that are empty or do not match
     `name` in length carry nothing (sensor_msgs/JointState allows empty arrays; another publisher
@@ -91,49 +77,6 @@ def joint_sample_from_msg(msg: Any) -> JointSample:
 def normal_force_from_wrench(msg: Any) -> tuple[int, float]:
     """(stamp_ns, Fz) of a geometry_msgs/WrenchStamped from the force estimator (+Fz presses)."""
     return ns_from_stamp(msg.header.stamp), float(msg.wrench.force.z)
-
-
-# ---- MoveMotors ---------------------------------------------------------------------------------
-def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
-    cls = types("prisma_msgs/action/MoveMotors_Goal")
-    return cls(
-        motors=list(goal.motors), mode=goal.mode,
-        targets=sequence_field(cls, goal.targets, np.float64),
-        position_limits=sequence_field(cls, goal.position_limits, np.float64),
-        timeout=float(goal.timeout_s),
-    )
-
-
-def move_goal_from_msg(msg: Any) -> MoveGoal:
-    # `timeout` is a float32: 0.3 arrives as 0.30000001192..., which would end a 0.3 s goal one
-    # 10 ms tick late; microseconds are far below a tick and far above float32's error
-    return MoveGoal(list(msg.motors), str(msg.mode), [float(t) for t in msg.targets],
-                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6))
-
-
-def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float) -> MoveGoal:
-    return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s)
-
-
-def move_feedback_to_msg(types: Types, fb: MoveFeedback) -> Any:
-    cls = types("prisma_msgs/action/MoveMotors_Feedback")
-    return cls(
-        positions=sequence_field(cls, fb.positions, np.float64),
-        velocities=sequence_field(cls, fb.velocities, np.float64),
-        currents=sequence_field(cls, fb.currents, np.float64),
-    )
-
-
-def move_result_to_msg(types: Types, result: MoveResult) -> Any:
-    cls = types("prisma_msgs/action/MoveMotors_Result")
-    return cls(
-        success=bool(result.success), final_positions=sequence_field(cls, result.final_positions, np.float64),
-        reason=result.reason,
-    )
-
-
-def move_result_from_msg(msg: Any) -> MoveResult:
-    return MoveResult(bool(msg.success), [float(p) for p in msg.final_positions], str(msg.reason))
 
 
 # ---- Grasp / Manipulate -------------------------------------------------------------------------
@@ -170,22 +113,6 @@ def manipulate_feedback_to_msg(types: Types, fb: Feedback) -> Any:
 def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
     return types("prisma_msgs/action/Manipulate_Result")(success=bool(done.success), stop_reason=done.reason,
                                                          stop_time=_f32(done.stop_time_s))
-
-
-def robot_types(get_message: Callable[[str], Any], get_action: Callable[[str], Any]) -> Types:
-    """A `types` lookup for nodes: generated ROS action modules expose `MoveMotors.Goal`, not
-    `MoveMotors_Goal`, so action parts are fetched from the action class. Cached: rosidl imports
-    the class on every lookup, and converters look types up per message."""
-
-    @functools.cache
-    def types(name: str) -> Any:
-        package, kind, typename = name.split("/")
-        if kind == "action" and "_" in typename:
-            base, part = typename.split("_", 1)
-            return getattr(get_action(f"{package}/action/{base}"), part)
-        return get_message(name)
-
-    return types
 
 
 def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:

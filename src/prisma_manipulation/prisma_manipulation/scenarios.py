@@ -20,10 +20,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+from prisma_hand_sim.hand_world import OBJECTS, Disturbance, HandWorld, released
+
 from .closed_loop import ClosedLoop, Trace
 from .contact_monitor import DEFAULT_K
 from .controllers import Controller
-from .hand_world import OBJECTS, Disturbance, HandWorld, released
 from .manipulation_core import GraspRequest, ManipulateRequest
 
 if TYPE_CHECKING:

@@ -16,14 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
+from prisma_common.hand import MOTOR_NAMES
+from prisma_force_estimator.pipeline import load_estimator
 from prisma_tactile_driver.cli_args import ArgumentParser, check_bundle_dir, command, output_dir
 from prisma_tactile_driver.taxels import EDGES
 
 from .closed_loop import Trace
 from .contact_monitor import DEFAULT_K, first_lost_index
 from .grasp_controller import GraspController
-from .motor_bus import MOTOR_NAMES
 from .scenarios import SCENARIO_NAMES, Scenario, build
 
 SETTLE_SAMPLES = 10  # 100 ms at 100 Hz: ten velocity-loop time constants
@@ -129,10 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     estimator = None
     if args.bundle:
         check_bundle_dir(args.bundle)
-        from prisma_force_estimator.bundle import resolve_bundle_path
-        from prisma_force_estimator.inference import ForceEstimator
-
-        estimator = ForceEstimator.from_bundle(resolve_bundle_path(args.bundle))
+        estimator = load_estimator(args.bundle)
     summaries = []
     for name in args.only or SCENARIO_NAMES:
         print(f"[{name}] running")

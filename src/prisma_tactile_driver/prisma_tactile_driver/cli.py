@@ -20,8 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output
-from .calibration import KINDS, CalibrationSet
+from prisma_common.atomic import atomic_output
+from prisma_common.hand import FINGERS
+from prisma_hand_sim.calibration import KINDS, CalibrationSet, generate_calibration_set
+from prisma_hand_sim.contact_source import ScriptedContactSource
+from prisma_hand_sim.pad_model import PadContact, PadModel
+
 from .cli_args import (
     ArgumentParser,
     UserError,
@@ -68,8 +72,6 @@ def plot_pad_response(path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .pad_model import PadContact, PadModel
-
     model = PadModel(seed=0)
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     # force sweep up and down at the centre: saturation and hysteresis, with noise and quantisation
@@ -107,8 +109,6 @@ def plot_pad_response(path: Path) -> None:
 
 @command("prisma-tactile-calset")
 def calset_main(argv: list[str] | None = None) -> int:
-    from .calibration import generate_calibration_set
-
     parser = ArgumentParser(prog="prisma-tactile-calset",
                             description="Generate a synthetic fingertip calibration set (.npz)")
     parser.add_argument("--samples", type=positive_int, default=140_000)
@@ -156,11 +156,10 @@ def hub_emulator_main(argv: list[str] | None = None) -> int:
                         help="stop after this long (0 = run until Ctrl-C)")
     args = parser.parse_args(argv)
 
-    from .contact_source import ScriptedContactSource
+
     from .protocol import encode_frame
     from .pty_hub import PtyHubPort
     from .sim_backend import SimHubBackend
-    from .taxels import FINGERS
 
     if not args.link.parent.is_dir():
         raise UserError(f"--link {args.link}: the directory {args.link.parent} does not exist; "

@@ -7,31 +7,14 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
+from prisma_common.hand import FINGERS
+from prisma_common.parameters import ParameterError, check_fingers
+from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
+
 from .backend import HubBackend
-from .contact_source import ContactSource, ScriptedContactSource
-from .taxels import FINGERS
 
 BACKENDS = ("serial", "i2c", "sim")
 CONTACT_SOURCES = ("scripted", "hand_world")
-
-
-class ParameterError(ValueError):
-    """An invalid parameter; the message names the parameter and the bad value."""
-
-    def __init__(self, name: str, value: Any, expected: str) -> None:
-        super().__init__(f"invalid parameter '{name}' = {value!r}: {expected}")
-        self.name, self.value = name, value
-
-
-def check_fingers(fingers: list[str], name: str = "fingers") -> None:
-    """A non-empty list of distinct finger names (ParameterError naming `name` otherwise)."""
-    if not fingers:
-        raise ParameterError(name, fingers, "at least one finger")
-    for finger in fingers:
-        if finger not in FINGERS:
-            raise ParameterError(name, fingers, f"{finger!r} is not one of {FINGERS}")
-    if len(set(fingers)) != len(fingers):
-        raise ParameterError(name, fingers, "each finger at most once")
 
 
 @dataclass

@@ -13,28 +13,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backend import HubBackend, LinkStatus
-from .taxels import DEFAULT_VREF, TareBuffer, TaxelFrame, check_finger
+from prisma_common.diagnostics import ERROR, OK, STALE, WARN, DiagnosticStatusData
+from prisma_common.hand import DEFAULT_VREF, check_finger
 
-# diagnostic_msgs/DiagnosticStatus levels
-OK, WARN, ERROR, STALE = 0, 1, 2, 3
+from .backend import HubBackend, LinkStatus
+from .taxels import TareBuffer, TaxelFrame
+
 # counters worth a word in an OK hub status: (key, what it counts)
 _LINK_EVENTS = (("missed_frames", "dropped frames"), ("crc_errors", "CRC errors"),
                 ("disconnects", "disconnects"))
 # a link error is reported again only after the link worked this long: a flapping finger on the
 # I2C bus fails and recovers scan after scan, and must not log 100 lines a second
 REPORT_AGAIN_AFTER_NS = 1_000_000_000
-
-
-@dataclass
-class DiagnosticStatusData:
-    """Plain form of diagnostic_msgs/DiagnosticStatus."""
-
-    name: str
-    level: int
-    message: str
-    hardware_id: str = ""
-    values: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.hand import FINGERS, N_TAXELS
+
 from .backend import HubReading, LinkStatus, describe_os_error
-from .taxels import FINGERS, N_TAXELS
 
 MAX11617_SETUP = 0x82  # setup byte: VDD reference, internal clock, unipolar, no reset
 MAX11617_CONFIG = 0x11  # configuration: SCAN 00 (AIN0..CS), CS = AIN8, single-ended

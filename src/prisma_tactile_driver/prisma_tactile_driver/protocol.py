@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .taxels import ADC_MAX, FINGERS, N_TAXELS
+from prisma_common.hand import ADC_MAX, FINGERS, N_TAXELS
 
 SYNC = b"\xa5\x5a"
 VERSION = 1

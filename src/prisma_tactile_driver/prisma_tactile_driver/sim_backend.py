@@ -3,10 +3,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from prisma_common.hand import FINGERS, check_finger
+from prisma_hand_sim.contact_source import ContactSource
+from prisma_hand_sim.pad_model import PadModel, PadParams
+
 from .backend import HubReading
-from .contact_source import ContactSource
-from .pad_model import PadModel, PadParams
-from .taxels import FINGERS, check_finger
 
 
 class SimHubBackend:

@@ -15,10 +15,15 @@ from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from .driver_config import DriverConfig, ParameterError, make_backend
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.messages import ns_from_stamp
+from prisma_common.parameters import ParameterError
+from prisma_hand_sim.hand_world import HandWorldContactSource
+
+from .driver_config import DriverConfig, make_backend
 from .hub import TactileHub
 from .node_process import run_node
-from .ros_conversions import diagnostics_to_msg, hand_taxels_to_msg, ns_from_stamp, taxel_frame_to_msg
+from .ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
 from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 
@@ -35,8 +40,6 @@ class TactileDriverNode(Node):
 
         source = None
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
-            # imported only when asked for: the hand/world model lives in prisma_manipulation
-            from prisma_manipulation.hand_world import HandWorldContactSource
             source = HandWorldContactSource()
             self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
         self._source = source

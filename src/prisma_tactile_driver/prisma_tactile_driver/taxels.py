@@ -11,12 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "little")
-N_TAXELS = 9
-ADC_BITS = 12
-ADC_LEVELS = 1 << ADC_BITS  # 4096: V = vref * counts / ADC_LEVELS
-ADC_MAX = ADC_LEVELS - 1
-DEFAULT_VREF = 3.3
+from prisma_common.hand import DEFAULT_VREF, N_TAXELS, counts_to_voltages
 
 # Taxel indices of each pad edge, as Algorithm 1 and the ContactState message name them.
 EDGES: dict[str, tuple[int, int, int]] = {
@@ -25,27 +20,6 @@ EDGES: dict[str, tuple[int, int, int]] = {
     "right": (0, 3, 6),
     "left": (2, 5, 8),
 }
-
-
-def check_finger(finger: str) -> str:
-    if finger not in FINGERS:
-        raise ValueError(f"unknown finger {finger!r}; expected one of {FINGERS}")
-    return finger
-
-
-def counts_to_voltages(counts: np.ndarray, vref: float = DEFAULT_VREF) -> np.ndarray:
-    """12-bit counts -> volts (float32), any shape."""
-    if vref <= 0:
-        raise ValueError(f"vref must be > 0, got {vref}")
-    return (np.asarray(counts, dtype=np.float32) * np.float32(vref / ADC_LEVELS)).astype(np.float32)
-
-
-def voltages_to_counts(voltages: np.ndarray, vref: float = DEFAULT_VREF) -> np.ndarray:
-    """Volts -> the 12-bit count an ideal ADC would report (rounded, clipped to 0..4095)."""
-    if vref <= 0:
-        raise ValueError(f"vref must be > 0, got {vref}")
-    counts = np.rint(np.asarray(voltages, dtype=np.float64) * (ADC_LEVELS / vref))
-    return np.clip(counts, 0, ADC_MAX).astype(np.uint16)
 
 
 @dataclass

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
 from prisma_tactile_driver.cli_args import (
     ArgumentParser,
     UserError,

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prisma_tactile_driver.atomic import atomic_output
+from prisma_common.atomic import atomic_output
 
 MAT73_SIGNATURE = b"MATLAB 7.3 MAT-file"
 SPLIT_TRAIN, SPLIT_TEST = 0, 1

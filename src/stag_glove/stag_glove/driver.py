@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
+
 from .backends import GloveBackend
 from .processing import EmptyHandCalibration, FrameProcessor, ProcessedFrame
-from .ros_conversions import ERROR, OK, WARN, DiagnosticData
 
 NS = 1_000_000_000
 
@@ -75,7 +76,7 @@ class GloveDriver:
             message += f"; saved to {self.calibration_file}"
         return CaptureResult(True, message)
 
-    def diagnostics(self, now_ns: int) -> list[DiagnosticData]:
+    def diagnostics(self, now_ns: int) -> list[DiagnosticStatusData]:
         status = self.backend.status()
         values = dict(status.values)
         values.update(frames_processed=str(self.stats.frames), shorted_frames=str(self.stats.shorted),
@@ -95,7 +96,7 @@ class GloveDriver:
             level, message = OK, f"{status.message}; no empty-hand calibration yet (call ~/capture_empty_hand)"
         else:
             level, message = OK, status.message
-        return [DiagnosticData(f"{self.name}: readout", level, message, self.hardware_id, values)]
+        return [DiagnosticStatusData(f"{self.name}: readout", level, message, self.hardware_id, values)]
 
     def close(self) -> None:
         self.backend.close()

@@ -15,13 +15,15 @@ from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.parameters import ParameterError
 from prisma_tactile_driver.node_process import run_node
 
 from .driver import GloveDriver
 from .layout import load_layout
-from .node_config import GloveDriverConfig, ParameterError
+from .node_config import GloveDriverConfig
 from .processing import FrameProcessor, NormalisationConfig
-from .ros_conversions import diagnostics_to_msg, glove_frame_to_msg, pressure_image_msg
+from .ros_conversions import glove_frame_to_msg, pressure_image_msg
 
 
 class GloveDriverNode(Node):

@@ -12,10 +12,11 @@ from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
+from prisma_common.parameters import ParameterError
 from prisma_tactile_driver.node_process import run_node
 
 from .bundle import BundleError, load_bundle
-from .node_config import GlovePerceptionConfig, ParameterError
+from .node_config import GlovePerceptionConfig
 from .perception import GlovePerception, PerceptionConfig, limit_threads
 from .ros_conversions import estimate_to_msg, glove_frame_from_msg, weight_to_msg
 

@@ -5,16 +5,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any, ClassVar
 
+from prisma_common.parameters import ParameterError
+
 from .backends import BACKENDS, GloveBackend, ReplayGloveBackend, SerialGloveBackend, SimGloveBackend
 from .selection import SELECTIONS
-
-
-class ParameterError(ValueError):
-    """An invalid parameter; the message names the parameter and the bad value."""
-
-    def __init__(self, name: str, value: Any, expected: str) -> None:
-        super().__init__(f"invalid parameter '{name}' = {value!r}: {expected}")
-        self.name, self.value = name, value
 
 
 def _positive(config: Any, *names: str) -> None:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prisma_tactile_driver import share_data
+from prisma_common import share_data
 
 # The layout ships in both packages' share directories, the glove model bundles in prisma_bringup's.
 SHARE_PACKAGES = ("stag_glove", "prisma_bringup")

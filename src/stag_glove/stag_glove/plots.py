@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from prisma_tactile_driver.atomic import atomic_output  # noqa: E402
+from prisma_common.atomic import atomic_output  # noqa: E402
 
 PAPER_CURVE = {1: 38.0, 7: 75.0}  # STAG paper, Fig. 2b anchors (top-1 %, their 26 objects + empty)
 

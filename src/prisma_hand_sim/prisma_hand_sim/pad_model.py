@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .taxels import ADC_LEVELS, ADC_MAX, N_TAXELS, counts_to_voltages
+from prisma_common.hand import ADC_LEVELS, ADC_MAX, N_TAXELS, counts_to_voltages
 
 # One physical sensor unit ("unit 0"): rest voltages and relative gains as measured on a pad.
 # Gains have a standard deviation of ~0.14 around 1 (the paper's ~15% taxel-to-taxel spread).

@@ -10,9 +10,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from .control_table import describe_hardware_error
+from prisma_common.hand import MOTOR_NAMES
 
-MOTOR_NAMES = ("fingers", "thumb_flexion", "thumb_rotation")
+from .control_table import describe_hardware_error
 
 # The hand's motor map (same values as config/motor_driver.yaml), in MOTOR_NAMES order.
 DEFAULT_IDS = (1, 2, 3)

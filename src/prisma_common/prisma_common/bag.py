@@ -2,23 +2,24 @@
 
 A bag is written whole or not at all: BagWriter records into `<bag>.partial-<pid>/<bag>/` and
 renames it to `<bag>` on close, and an exception (or ctrl-C) inside its `with` block deletes it,
-so nothing at `<bag>` ever looks complete while it is not.
+so nothing at `<bag>` ever looks complete while it is not. rosbags is imported when a bag is
+written or read, not with this module.
 """
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.rosbag2 import StoragePlugin, Writer
-
-from prisma_tactile_driver.atomic import atomic_output
-
+from .atomic import atomic_output
 from .typestore import get_typestore, message_definition
 
-STORAGE = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+if TYPE_CHECKING:
+    from rosbags.highlevel import AnyReader
+
+# storage name -> rosbags StoragePlugin member
+STORAGE = {"mcap": "MCAP", "sqlite3": "SQLITE3"}
 
 
 class BagError(ValueError):
@@ -67,7 +68,9 @@ class BagWriter:
         self._output = atomic_output(self.path, replace=replace)
         staged = self._output.open()
         try:
-            self._writer = Writer(staged, version=9, storage_plugin=STORAGE[storage])
+            from rosbags.rosbag2 import StoragePlugin, Writer
+
+            self._writer = Writer(staged, version=9, storage_plugin=getattr(StoragePlugin, STORAGE[storage]))
             self._writer.open()
         except BaseException:
             self._output.abort()
@@ -130,6 +133,8 @@ class BagWriter:
 
 
 def _reader(path: str | Path) -> AnyReader:
+    from rosbags.highlevel import AnyReader
+
     path = Path(path)
     if not path.exists():
         raise BagError(f"bag {path} does not exist")
@@ -138,6 +143,8 @@ def _reader(path: str | Path) -> AnyReader:
 
 def bag_topics(path: str | Path) -> dict[str, str]:
     """topic -> message type of every connection in the bag; BagError if it is not a readable bag."""
+    from rosbags.highlevel import AnyReaderError
+
     try:
         with _reader(path) as reader:
             return {c.topic: c.msgtype for c in reader.connections}

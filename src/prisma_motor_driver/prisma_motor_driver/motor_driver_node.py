@@ -1,7 +1,7 @@
 """motor_driver: the hand's three motors (Dynamixel or sim) behind /joint_states (rate_hz),
 the MoveMotors action /prisma/motors/move (cancel = stop) and /diagnostics.
 
-    ros2 run prisma_manipulation motor_driver --ros-args --params-file config/motor_driver.yaml
+    ros2 run prisma_motor_driver motor_driver --ros-args --params-file config/motor_driver.yaml
 """
 from __future__ import annotations
 
@@ -15,22 +15,17 @@ from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
-from prisma_tactile_driver.driver_config import ParameterError
+from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.messages import robot_types
+from prisma_common.parameters import ParameterError
 from prisma_tactile_driver.node_process import run_node
-from prisma_tactile_driver.ros_conversions import diagnostics_to_msg
 from prisma_tactile_driver.sample_streams import stream_publisher
 
 from .motor_bus import BusError
 from .motor_driver_core import MotorDriverCore, make_bus
 from .motor_goals import MoveResult
 from .node_config import MotorDriverConfig
-from .ros_conversions import (
-    joint_state_to_msg,
-    move_feedback_to_msg,
-    move_goal_from_msg,
-    move_result_to_msg,
-    robot_types,
-)
+from .ros_conversions import joint_state_to_msg, move_feedback_to_msg, move_goal_from_msg, move_result_to_msg
 
 
 class MotorDriverNode(Node):

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prisma_tactile_driver.hub import DiagnosticStatusData
+from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
 from .control_table import decode_hardware_error
 from .motor_bus import BusError, MotorBus, MotorState
 from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult
 from .node_config import MotorDriverConfig
-
-OK, WARN, ERROR = 0, 1, 2
 
 
 def make_bus(config: MotorDriverConfig, start_ns: int | None = 0) -> MotorBus:

@@ -24,7 +24,7 @@ What it models, along the grasp axis z (fingers push +z, the thumb pushes -z):
 - External disturbances: timed pushes (tangential slip and/or a narrower grip width that lowers the
   grasp force).
 
-Pad frames follow prisma_tactile_driver.pad_model: +x toward the pad's LEFT side, +y toward the TOP
+Pad frames follow prisma_hand_sim.pad_model: +x toward the pad's LEFT side, +y toward the TOP
 row. The finger pads face the thumb pad, so their x axis is mirrored with respect to the thumb's.
 Shear is not modelled (rolling without slip carries little tangential force): PadContact shear = 0.
 """
@@ -34,10 +34,9 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
-from prisma_tactile_driver.pad_model import PadContact, PadParams
-from prisma_tactile_driver.taxels import FINGERS, check_finger
+from prisma_common.hand import FINGERS, MOTOR_NAMES, check_finger
 
-from .motor_bus import MOTOR_NAMES
+from .pad_model import PadContact, PadParams
 
 FINGER_PADS = FINGERS[1:]  # index, middle, ring, little (driven by the "fingers" motor)
 

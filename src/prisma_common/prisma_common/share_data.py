@@ -13,8 +13,7 @@ They are kept once in the repository and installed the way ROS installs a packag
 - wheel (`pip install .`): `<prefix>/share/<package>/` of the Python environment, where
   pyproject.toml's [tool.setuptools.data-files] puts the same files.
 
-Imports nothing from ROS and no other workspace package: the tactile driver is the lowest package
-that every package needing shipped files already depends on.
+Imports nothing from ROS and no other workspace package (prisma_common is at the bottom of the graph).
 """
 from __future__ import annotations
 
@@ -31,7 +30,7 @@ SOURCE_DIRS = {"prisma_msgs": Path("src") / "prisma_msgs"}
 
 def source_root(module_file: str | Path = __file__) -> Path | None:
     """The repository root when `module_file` (this module) is in the source tree, else None."""
-    # src/prisma_tactile_driver/prisma_tactile_driver/share_data.py; resolve() follows the symlink
+    # src/prisma_common/prisma_common/share_data.py; resolve() follows the symlink
     # colcon --symlink-install puts in build/. Installed copies (site-packages, install/) have no
     # src/prisma_msgs/package.xml three levels up.
     parents = Path(module_file).resolve().parents

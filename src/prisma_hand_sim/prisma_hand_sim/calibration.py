@@ -21,9 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output
+from prisma_common.atomic import atomic_output
+from prisma_common.hand import counts_to_voltages
+
 from .pad_model import PadModel, PadParams
-from .taxels import counts_to_voltages
 
 KINDS = ("push", "slide", "roll")
 MAX_SHEAR_N = 1.5

@@ -10,8 +10,9 @@ import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
+from prisma_common.hand import FINGERS, check_finger
+
 from .pad_model import PadContact
-from .taxels import FINGERS, check_finger
 
 
 @runtime_checkable

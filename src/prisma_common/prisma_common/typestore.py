@@ -3,6 +3,8 @@
 The .msg/.action files are read from the directory named by PRISMA_MSGS_DIR, else from the
 source tree, share/prisma_msgs of a colcon install or of the wheel's prefix (share_data).
 `types(name)` is the message-class lookup the converters take (docs/architecture.md, Pure core, thin node).
+rosbags is imported when a typestore is built, not with this module, so that the CLIs importing
+the bag layer keep `--help` light.
 """
 from __future__ import annotations
 
@@ -12,12 +14,12 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rosbags.typesys import Stores, get_types_from_msg
-from rosbags.typesys import get_typestore as _rosbags_typestore
-from rosbags.typesys.store import Typestore
+from . import share_data
 
-from prisma_tactile_driver import share_data
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
 
 PACKAGE = "prisma_msgs"
 
@@ -72,6 +74,8 @@ def _check_lines(path: Path, lines: list[str], first_line: int) -> None:
 def _parse(text: str, typename: str, path: Path, first_line: int) -> dict:
     lines = text.splitlines()
     _check_lines(path, lines, first_line)
+    from rosbags.typesys import get_types_from_msg
+
     try:
         return get_types_from_msg(text, typename)
     except Exception as exc:  # rosbags raises several parser exception types
@@ -84,6 +88,8 @@ def parse_msg_file(path: Path) -> dict:
 
 def parse_action_file(path: Path) -> dict:
     """Goal, Result, Feedback, FeedbackMessage and the SendGoal/GetResult service parts."""
+    from rosbags.typesys import get_types_from_msg
+
     name = path.stem
     sections: list[tuple[int, list[str]]] = [(1, [])]
     for number, line in enumerate(path.read_text().splitlines(), start=1):
@@ -124,6 +130,9 @@ def prisma_types(root: Path | None = None) -> dict:
 @functools.cache
 def get_typestore() -> Typestore:
     """The Jazzy typestore with prisma_msgs registered (cached; do not mutate)."""
+    from rosbags.typesys import Stores
+    from rosbags.typesys import get_typestore as _rosbags_typestore
+
     store = _rosbags_typestore(Stores.ROS2_JAZZY)
     store.register(prisma_types())
     return store
@@ -155,6 +164,9 @@ def _as_msg_name(value):
 @functools.cache
 def _msg_alias_typestore() -> Typestore:
     """The typestore with action/service-derived types also registered under msg names."""
+    from rosbags.typesys import Stores
+    from rosbags.typesys import get_typestore as _rosbags_typestore
+
     store = _rosbags_typestore(Stores.ROS2_JAZZY)
     source = get_typestore().fielddefs
     store.register({_as_msg_name(name): _as_msg_name(definition) for name, definition in source.items()
@@ -170,6 +182,9 @@ def message_definition(msgtype: str) -> tuple[str, str]:
     `prisma_msgs/action/Grasp_FeedbackMessage`): nested action types are written here under
     `pkg/Name` like any message, so rosbags' AnyReader and mcap_ros2's reader can decode the topic.
     The hash is that of the definition as a reader rebuilds it from the text."""
+    from rosbags.typesys import Stores, get_types_from_msg
+    from rosbags.typesys import get_typestore as _rosbags_typestore
+
     store = get_typestore()
     if _as_msg_name(msgtype) == msgtype:
         return store.generate_msgdef(msgtype, ros_version=2)[0], store.hash_rihs01(msgtype)

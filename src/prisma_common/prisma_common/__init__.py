@@ -1,0 +1,1 @@
+"""Shared, ROS-free layer of the workspace: names, parameters, message helpers, diagnostics, typestore and bags."""

@@ -1,0 +1,1 @@
+"""ROS-free hand simulator: optical pad model, calibration sets, contact sources, hand/world model."""

@@ -1,0 +1,1 @@
+"""Dynamixel and simulated motors: codec, bus, emulator, motor driver core and node."""
