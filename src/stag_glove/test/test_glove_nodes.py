@@ -6,13 +6,13 @@ The sim and replay backends are paced by the node's clock: under sim time (a /cl
 publishes) their frames carry exact stamps, one every round(1e9 / rate) ns from the first poll.
 """
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import yaml
 
+from repo_paths import CONFIG
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()
@@ -31,9 +31,8 @@ from stag_glove.processing import normalise  # noqa: E402
 from stag_glove.protocol import encode_frame  # noqa: E402
 from stag_glove.synthetic import SyntheticConfig, SyntheticGlove  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-DRIVER_YAML = ROOT / "config" / "glove_driver.yaml"
-PERCEPTION_YAML = ROOT / "config" / "glove_perception.yaml"
+DRIVER_YAML = CONFIG / "glove_driver.yaml"
+PERCEPTION_YAML = CONFIG / "glove_perception.yaml"
 SIM_PERIOD_NS = round(1e9 / 7.3)  # 136_986_301: the simulated glove's frame period
 POLL_STEP = 0.02  # advance in the driver's poll period (50 Hz)
 

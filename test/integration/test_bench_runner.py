@@ -4,11 +4,12 @@ from __future__ import annotations
 import importlib.util
 import json
 import sys
-from pathlib import Path
 
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "run.py"
+from repo_paths import ROOT
+
+BENCH = ROOT / "bench" / "run.py"
 
 
 @pytest.fixture()

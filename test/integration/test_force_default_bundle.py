@@ -1,17 +1,15 @@
 """The shipped default bundle (config/models/cnn2): valid, small, and accurate on held-out data."""
-from pathlib import Path
 
 import numpy as np
 
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from prisma_force_estimator.evaluation import evaluate, held_out_tests
 from prisma_force_estimator.inference import ForceEstimator
-
-ROOT = Path(__file__).resolve().parents[1]
+from repo_paths import BRINGUP
 
 
 def test_default_bundle_is_the_cnn2_and_small():
-    path = ROOT / DEFAULT_BUNDLE
+    path = BRINGUP / DEFAULT_BUNDLE
     assert resolve_bundle_path(DEFAULT_BUNDLE) == path
     size = sum(p.stat().st_size for p in path.iterdir())
     assert size < 2_000_000
@@ -27,7 +25,7 @@ def test_default_bundle_is_the_cnn2_and_small():
 def test_default_bundle_on_held_out_push_and_slide():
     """The documented held-out sets (30,000 samples each; short sets vary a lot: a 4,000-sample
     slide test of this bundle gives Fx MSE 0.017 N^2 against 0.0085 over 30,000)."""
-    est = ForceEstimator.from_bundle(ROOT / DEFAULT_BUNDLE)
+    est = ForceEstimator.from_bundle(BRINGUP / DEFAULT_BUNDLE)
     result = evaluate(est, held_out_tests())
     assert result.push_fz_mse <= 0.19
     assert result.slide_fx_mse <= 0.015

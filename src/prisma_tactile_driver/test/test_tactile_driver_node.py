@@ -3,11 +3,11 @@
 Sim-time tests drive the node's timers with a /clock the test publishes, so stamps are exact.
 """
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from repo_paths import CONFIG
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -25,7 +25,7 @@ from prisma_tactile_driver.driver_config import DriverConfig
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.sim_backend import SimHubBackend
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "tactile_driver.yaml"
+CONFIG = CONFIG / "tactile_driver.yaml"
 
 
 @pytest.fixture

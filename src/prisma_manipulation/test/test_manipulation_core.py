@@ -1,18 +1,12 @@
-"""Node cores without ROS: watchdog, scan alignment, ManipulationCore decisions (goal admission and
-readiness, one goal at a time, foreign /joint_states, the MoveMotors lease), MotorDriverCore
-reconnect/diagnostics and preemption on a failing bus, parameter validation against config/*.yaml,
-and CDR round trips of the converters."""
+"""ManipulationCore without ROS: goal admission and readiness, one goal at a time, foreign
+/joint_states, stops, the MoveMotors lease."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from prisma_common.messages import make_header, robot_types
-from prisma_common.typestore import get_typestore, types
-from prisma_manipulation.contact_monitor import ContactMonitor
+from prisma_common.messages import make_header
+from prisma_common.typestore import get_typestore
 from prisma_manipulation.controllers import JointSample
 from prisma_manipulation.manipulation_core import (
     MOVE_LEASE_S,
@@ -28,30 +22,9 @@ from prisma_manipulation.manipulation_core import (
 )
 from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.ros_conversions import (
-    contact_state_from_msg,
-    contact_state_to_msg,
-    grasp_result_to_msg,
-    hand_contact_to_msg,
     joint_sample_from_msg,
-    manipulate_feedback_to_msg,
-    manipulate_result_to_msg,
-)
-from prisma_manipulation.sample_alignment import SampleAligner
-from prisma_manipulation.watchdog import SensorWatchdog
-from prisma_motor_driver.motor_bus import BusError, MotorState
-from prisma_motor_driver.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
-from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
-from prisma_motor_driver.node_config import MotorDriverConfig
-from prisma_motor_driver.ros_conversions import (
-    joint_state_to_msg,
-    move_feedback_to_msg,
-    move_goal_from_msg,
-    move_goal_to_msg,
-    move_result_from_msg,
-    move_result_to_msg,
 )
 
-REPO = Path(__file__).resolve().parents[1]
 MS = 1_000_000
 
 
@@ -60,57 +33,6 @@ def roundtrip(msg):
     return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
 
 
-# ---- watchdog -----------------------------------------------------------------------------------
-def test_watchdog_age_by_header_stamps_and_silence_by_receipt():
-    w = SensorWatchdog(100 * MS)
-    assert w.check(["taxels/thumb"], 10**9) is None  # not armed: no goal
-    w.arm(0)
-    assert w.check(["taxels/thumb"], 90 * MS) is None  # grace for a stream not seen yet
-    w.reference(100 * MS, 100 * MS)
-    assert "taxels/thumb silent for 110 ms" == w.check(["taxels/thumb"], 110 * MS)
-    w.arm(200 * MS)
-    w.reference(300 * MS, 300 * MS)
-    w.sample("taxels/thumb", 250 * MS, 300 * MS)
-    assert w.check(["taxels/thumb"], 300 * MS) is None  # 50 ms old
-    w.sample("taxels/thumb", 190 * MS, 310 * MS)  # delivered 120 ms late
-    assert w.check(["taxels/thumb"], 310 * MS) == "taxels/thumb 110 ms older than /joint_states"
-    w.sample("taxels/thumb", 305 * MS, 320 * MS)
-    assert w.check(["taxels/thumb"], 320 * MS) is None
-    assert w.check(["taxels/thumb"], 450 * MS) == "/joint_states silent for 150 ms"
-
-
-def test_watchdog_freshness_for_admission_has_no_grace():
-    w = SensorWatchdog(100 * MS)
-    assert w.fresh(["taxels/thumb"], 0) == "no /joint_states received yet"
-    w.reference(10 * MS, 10 * MS)
-    assert w.fresh(["taxels/thumb"], 10 * MS) == "no taxels/thumb received yet"  # no grace: never seen
-    w.sample("taxels/thumb", 10 * MS, 12 * MS)
-    assert w.fresh(["taxels/thumb"], 20 * MS) is None
-    assert w.fresh(["taxels/thumb", "wrench/thumb"], 20 * MS) == "no wrench/thumb received yet"
-    assert w.fresh(["taxels/thumb"], 113 * MS) == "/joint_states silent for 103 ms"
-    w.reference(120 * MS, 120 * MS)
-    assert w.fresh(["taxels/thumb"], 120 * MS) == "taxels/thumb silent for 108 ms"
-    w.sample("taxels/thumb", 15 * MS, 120 * MS)  # arrives now, 105 ms old
-    assert w.fresh(["taxels/thumb"], 120 * MS) == "taxels/thumb 105 ms older than /joint_states"
-    assert w.check(["taxels/thumb"], 120 * MS) is None  # admission only: nothing is armed
-
-
-def test_aligner_steps_once_per_complete_scan_and_drops_late_parts():
-    a = SampleAligner()
-    need = {("taxels", "thumb"), ("wrench", "thumb")}
-    a.add(("taxels", "thumb"), 10, "t10")
-    assert a.ready(need) is None
-    a.add(("taxels", "thumb"), 20, "t20")
-    a.add(("wrench", "thumb"), 10, "w10")
-    assert a.ready(need) == (10, {("taxels", "thumb"): "t10", ("wrench", "thumb"): "w10"})
-    assert a.ready(need) is None  # consumed
-    a.add(("wrench", "thumb"), 20, "w20")
-    assert a.ready(need)[0] == 20
-    a.add(("wrench", "thumb"), 15, "late")  # older than a consumed scan: ignored
-    assert a.ready({("wrench", "thumb")}) is None
-
-
-# ---- ManipulationCore ---------------------------------------------------------------------------
 def _core():
     core = ManipulationCore(ManipulationConfig())
     core.on_joints(JointSample(0, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 0)
@@ -339,184 +261,3 @@ def test_move_lease_decisions():
     assert lease.refresh(10**9) is None and lease.renew(10**9) is None
     with pytest.raises(ValueError, match="refresh 0.3 s must be > 0 and below the lease 0.3 s"):
         MoveLease(lease_s=0.3, refresh_s=0.3)
-
-
-# ---- MotorDriverCore ----------------------------------------------------------------------------
-class FlakyBus:
-    """Opens only after `failures` attempts; can lose the link."""
-
-    def __init__(self, failures):
-        from prisma_motor_driver.motor_bus import BusStats, default_motors
-
-        self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
-        self.attempts, self.down = [], False
-
-    def open(self):
-        self.attempts.append(self.now)
-        if len(self.attempts) <= self.failures:
-            raise BusError("cannot open Dynamixel port /dev/ttyUSB9")
-        self.down = False
-
-    def close(self):
-        pass
-
-    def read_state(self, stamp_ns):
-        if self.down:
-            raise BusError("sync read present state: There is no status packet! after 4 attempts")
-        return {n: MotorState(n, 0.0, 0.0, 0.0) for n in self.motors}
-
-    def set_velocities(self, rpm):
-        pass
-
-    def stop(self, names=None):
-        pass
-
-
-def test_driver_reconnects_with_exponential_backoff_and_reports_it():
-    bus = FlakyBus(failures=3)
-    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel"), bus=bus)
-    for t_ms in range(0, 5000, 10):
-        bus.now = t_ms * MS
-        core.tick(t_ms * MS)
-    assert bus.attempts == [0, 500 * MS, 1500 * MS, 3500 * MS]  # 0.5, 1, 2 s apart
-    assert core.connected
-    core.start(MoveGoal(["fingers"], "velocity", [10.0]), 5000 * MS)
-    bus.down = True
-    bus.now = 5010 * MS
-    tick = core.tick(5010 * MS)
-    assert tick.states is None and tick.result.reason.startswith("motor_fault: communication: sync read")
-    diag = core.diagnostics()
-    assert diag[0].level == ERROR and "disconnected" in diag[0].message and diag[0].values["reconnects"] == "1"
-    assert core.validate(MoveGoal(["fingers"], "velocity", [1.0])).startswith("motor bus not connected")
-
-
-def test_bus_error_while_preempting_ends_the_old_goal_and_the_new_one():
-    bus = FlakyBus(failures=0)
-    bus.now, stops, writes = 0, [], []
-    bus.fail_writes = False
-
-    def set_velocities(rpm):
-        if bus.fail_writes:
-            raise BusError("sync write goal velocity: There is no status packet! after 4 attempts")
-        writes.append(dict(rpm))
-
-    bus.set_velocities, bus.stop = set_velocities, lambda names=None: stops.append(list(names))
-    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel"), bus=bus)
-    core.tick(0)
-    assert core.start(MoveGoal(["fingers"], "velocity", [10.0]), 0) == StartOutcome()
-    core.tick(10 * MS)
-    bus.fail_writes = True
-    outcome = core.start(MoveGoal(["fingers", "thumb_flexion"], "velocity", [20.0, 5.0]), 20 * MS)
-    assert outcome.preempted.reason == "preempted" and outcome.preempted.final_positions == [0.0]
-    assert outcome.failed == MoveResult(
-        False, [], "motor_fault: communication: sync write goal velocity: There is no status packet! after 4 attempts")
-    assert not core.runner.active  # neither goal is left running
-    assert stops == [["fingers", "thumb_flexion"]]  # what either goal moved was told to stop
-    assert core.tick(30 * MS).result is None  # nothing to end later on
-    # an invalid goal changes nothing: the running goal goes on
-    bus.fail_writes = False
-    core.start(MoveGoal(["fingers"], "velocity", [10.0]), 40 * MS)
-    with pytest.raises(ValueError, match="velocity 90.0 rpm for fingers above the limit"):
-        core.start(MoveGoal(["fingers"], "velocity", [90.0]), 50 * MS)
-    assert core.runner.active and core.runner.goal.targets == [10.0]
-
-
-def test_driver_diagnostics_per_motor():
-    core = MotorDriverCore(MotorDriverConfig())
-    core.tick(10 * MS)
-    diag = {d.name: d for d in core.diagnostics()}
-    assert diag["motor_driver: bus"].level == OK
-    assert diag["motor_driver: thumb_rotation"].values["id"] == "3"
-
-
-# ---- parameters -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("cls, path, node", [
-    (MotorDriverConfig, "config/motor_driver.yaml", "motor_driver"),
-    (ManipulationConfig, "config/manipulation.yaml", "manipulation"),
-])
-def test_yaml_matches_the_declared_defaults(cls, path, node):
-    params = yaml.safe_load((REPO / path).read_text())[f"/**/{node}"]["ros__parameters"]
-    assert params == cls().as_parameters()
-    cls.from_parameters(params)
-
-
-def test_manipulation_limits_equal_the_motor_driver_limits():
-    driver = yaml.safe_load((REPO / "config/motor_driver.yaml").read_text())["/**/motor_driver"]["ros__parameters"]
-    manip = yaml.safe_load((REPO / "config/manipulation.yaml").read_text())["/**/manipulation"]["ros__parameters"]
-    for key in ("motor_names", "min_positions", "max_positions"):
-        assert manip[key] == driver[key]
-
-
-@pytest.mark.parametrize("cls, values, message", [
-    (MotorDriverConfig, {"backend": "can"}, "invalid parameter 'backend' = 'can'"),
-    (MotorDriverConfig, {"rate_hz": 0.0}, "invalid parameter 'rate_hz' = 0.0"),
-    (MotorDriverConfig, {"motor_ids": [1, 2]}, "invalid parameter 'motor_ids' = [1, 2]"),
-    (MotorDriverConfig, {"max_positions": [9.0, 7.0, -4.0]}, "position limits"),
-    (ManipulationConfig, {"grasp_speed_rpm": 80.0}, "invalid parameter 'grasp_speed_rpm' = 80.0: above max_speed_rpm"),
-    (ManipulationConfig, {"monitored_finger": "wrist"}, "invalid parameter 'monitored_finger' = 'wrist'"),
-    (ManipulationConfig, {"frame_id_format": "pad"}, "invalid parameter 'frame_id_format' = 'pad'"),
-])
-def test_bad_parameters_name_themselves(cls, values, message):
-    with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):
-        cls.from_parameters(values)
-
-
-# ---- converters (CDR round trip) ------------------------------------------------------------------
-def test_contact_state_round_trip():
-    e = ContactMonitor(0.8).evaluate("middle", 1_700_000_000_123_456_789, _volts(right_lost=True))
-    back = contact_state_from_msg(roundtrip(contact_state_to_msg(types, e, "prisma_middle_pad")))
-    assert back.finger == "middle" and back.stamp_ns == e.stamp_ns
-    assert np.array_equal(back.voltages, e.voltages) and np.array_equal(back.safe, e.safe)
-    assert back.lost_edges == ("right",) and back.feasible is False
-    assert back.threshold == pytest.approx(e.threshold, rel=1e-6) and back.k == pytest.approx(0.8)
-
-
-def test_hand_contact_holds_each_fingers_contact_state():
-    monitor = ContactMonitor(0.8)
-    evaluations = [monitor.evaluate("thumb", 3_000_000_000, _volts()),
-                   monitor.evaluate("index", 3_000_400_000, _volts(right_lost=True))]
-    msg = roundtrip(hand_contact_to_msg(types, [contact_state_to_msg(types, e, f"{e.finger}_pad")
-                                                for e in evaluations]))
-    assert msg.__msgtype__ == "prisma_msgs/msg/HandContact"
-    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (3, 400_000)  # the newest
-    back = [contact_state_from_msg(c) for c in msg.contacts]
-    assert [(b.finger, b.stamp_ns, b.lost_edges) for b in back] == [("thumb", 3_000_000_000, ()),
-                                                                    ("index", 3_000_400_000, ("right",))]
-    assert np.array_equal(back[1].safe, evaluations[1].safe)
-
-
-def test_joint_state_round_trip_units():
-    states = {"fingers": MotorState("fingers", 1.5, 60.0, 250.0),
-              "thumb_rotation": MotorState("thumb_rotation", -0.5, -20.0, 10.0)}
-    msg = roundtrip(joint_state_to_msg(types, 2_000_000_000, states))
-    assert list(msg.velocity) == pytest.approx([2 * np.pi, -2 * np.pi / 3])  # rad/s
-    assert list(msg.effort) == pytest.approx([0.25, 0.01])  # A
-    sample = joint_sample_from_msg(msg)
-    assert sample.stamp_ns == 2_000_000_000 and sample.positions == {"fingers": 1.5, "thumb_rotation": -0.5}
-    assert sample.velocities["fingers"] == pytest.approx(60.0) and sample.currents["fingers"] == pytest.approx(250.0)
-
-
-def test_action_message_round_trips():
-    goal = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, -5.0], [8.0, 0.5], 2.5)
-    assert move_goal_from_msg(roundtrip(move_goal_to_msg(types, goal))) == goal
-    result = MoveResult(False, [1.0, 2.0], "motor_fault: fingers (id 1) hardware error bit 5 overload")
-    assert move_result_from_msg(roundtrip(move_result_to_msg(types, result))) == result
-    fb = roundtrip(move_feedback_to_msg(types, MoveFeedback([1.0], [2.0], [3.0])))
-    assert list(fb.currents) == [3.0]
-    done = Finished("grasp", True, "force_reached", 1.25, 0.81, 1.02)
-    r = roundtrip(grasp_result_to_msg(types, done))
-    assert r.success and r.reason == "force_reached" and r.thumb_force == pytest.approx(1.02)
-    m = roundtrip(manipulate_result_to_msg(types, Finished("manipulate", True, "edge_lost", 0.42, 0, 0)))
-    assert m.stop_reason == "edge_lost" and m.stop_time == pytest.approx(0.42)
-    f = roundtrip(manipulate_feedback_to_msg(types, Feedback("manipulate", "rotate", 0, 0, True, 0.9)))
-    assert f.phase == "rotate" and f.feasible and f.threshold == pytest.approx(0.9)
-
-
-def test_robot_types_fetches_action_parts_from_the_action_class():
-    class Action:
-        Goal, Result, Feedback = "G", "R", "F"
-
-    lookup = robot_types(lambda name: f"msg:{name}",
-                         lambda name: Action if name == "prisma_msgs/action/MoveMotors" else None)
-    assert lookup("prisma_msgs/action/MoveMotors_Goal") == "G"
-    assert lookup("prisma_msgs/msg/ContactState") == "msg:prisma_msgs/msg/ContactState"

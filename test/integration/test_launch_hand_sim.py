@@ -42,7 +42,7 @@ from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from test_static_consistency import topic_table  # noqa: E402
+from topic_table import topic_table  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")

@@ -4,14 +4,14 @@ Skips when no C++ compiler is installed.
 """
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from prisma_tactile_driver.protocol import FrameParser
+from repo_paths import ROOT
 
-SKETCH = Path(__file__).resolve().parents[1] / "firmware" / "prisma_fingertip_hub" / "prisma_fingertip_hub.ino"
+SKETCH = ROOT / "firmware" / "prisma_fingertip_hub" / "prisma_fingertip_hub.ino"
 CXX = shutil.which("g++") or shutil.which("clang++")
 
 WIRE_STUB = r"""

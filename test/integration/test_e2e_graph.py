@@ -16,11 +16,11 @@ let go, a Manipulate goal (horizontal) rolls the ball until the thumb pad's righ
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from repo_paths import CONFIG
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -34,8 +34,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from prisma_common.hand import FINGERS
 from prisma_tactile_driver.taxels import EDGES  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-BUNDLE = ROOT / "config" / "models" / "cnn2"
+BUNDLE = CONFIG / "models" / "cnn2"
 pytestmark = pytest.mark.skipif(not (BUNDLE / "model.pt").exists(), reason=f"default bundle {BUNDLE} not built")
 
 K = 0.8  # config/manipulation.yaml
@@ -60,7 +59,7 @@ def graph(ros):
     )
 
     def node(cls, name, **params):
-        return ros.node(cls, params_files=[ROOT / "config" / f"{name}.yaml"], params=params, sim_time=True)
+        return ros.node(cls, params_files=[CONFIG / f"{name}.yaml"], params=params, sim_time=True)
 
     nodes = dict(motor=node(MotorDriverNode, "motor_driver", backend="sim"),
                  tactile=node(TactileDriverNode, "tactile_driver", backend="sim", contact_source="hand_world"),

@@ -14,11 +14,11 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from repo_paths import CONFIG
 from ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -47,7 +47,6 @@ from prisma_motor_driver.ros_conversions import joint_state_to_msg
 from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
 
 NS = f"/route{os.getpid()}"
-CONFIG = Path(__file__).resolve().parents[1] / "config"
 
 
 class MoveServer:

@@ -4,7 +4,6 @@ import re
 import threading
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,11 +16,12 @@ from prisma_tactile_driver.hub_clock import HubClockConfig, HubClockState, reanc
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort
 from prisma_tactile_driver.serial_backend import SerialHubBackend
+from repo_paths import ROOT
 
 MS = 1_000_000
 PERIOD = 10 * MS
 T0 = 1_700_000_000 * 1_000_000_000  # host time of the hub's first frame (a wall-clock epoch)
-FIRMWARE = Path(__file__).resolve().parents[1] / "firmware" / "prisma_fingertip_hub" / "prisma_fingertip_hub.ino"
+FIRMWARE = ROOT / "firmware" / "prisma_fingertip_hub" / "prisma_fingertip_hub.ino"
 
 
 def receive_times(n, *, skew=0.0, seed=0, latency_ms=1.0, flush_ms=None, first_seq=0):

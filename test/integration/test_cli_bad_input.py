@@ -26,8 +26,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-BUNDLE = str(ROOT / "config" / "models" / "cnn2")
+from repo_paths import CONFIG, ROOT
+
+BUNDLE = str(CONFIG / "models" / "cnn2")
 
 SCRIPTS = {
     "prisma-tactile-calset": "prisma_tactile_driver.cli:calset_main",

@@ -14,8 +14,8 @@ from rosbags.highlevel import AnyReader
 
 from prisma_bringup.sim_cli import main
 from prisma_common.typestore import get_typestore
+from repo_paths import CONFIG
 
-ROOT = Path(__file__).resolve().parents[1]
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 NS = 1_000_000_000
 PERIOD_NS = 10_000_000  # 100 Hz: tactile scan, motor ticks, controller steps
@@ -215,7 +215,7 @@ def test_glove_bag_topics_stamps_and_counts(run):
     contact = [f for f in good if f.contact]
     assert len(messages["/stag/hand_pose"]) == len(good)
     assert [header_ns(m) for _, m in messages["/stag/weight"]] == [header_ns(f) for f in contact]
-    n_frames = json.loads((ROOT / "config/models/glove_object/metadata.json").read_text())["n_frames"]
+    n_frames = json.loads((CONFIG / "models/glove_object/metadata.json").read_text())["n_frames"]
     buffered, quiet, expected_object = 0, 0, []
     for f in good:
         if not f.contact:
@@ -279,7 +279,7 @@ def test_scenario_names_match_the_hand_scenarios():
 
 
 def test_summaries_name_the_bundle_and_every_force_set_point(run):
-    bundle = str(ROOT / "config" / "models" / "cnn2")
+    bundle = str(CONFIG / "models" / "cnn2")
     md = (run.out / "summary.md").read_text()
     assert f"bundle `{bundle}`" in md and "default bundle" not in md
     checks = {name: set(s["force_set_points"]) for name, s in run.summaries.items() if name != "glove"}
@@ -309,7 +309,7 @@ def test_a_missed_set_point_fails_the_run_and_the_bundle_used_is_recorded(tmp_pa
     import shutil
 
     bundle = tmp_path / "my_bundle"
-    shutil.copytree(ROOT / "config" / "models" / "cnn2", bundle)
+    shutil.copytree(CONFIG / "models" / "cnn2", bundle)
     out = tmp_path / "out"
     assert main(["--scenarios", "pinch_grasp", "--no-plots", "--bundle", str(bundle), "--out", str(out),
                  "--force-tolerance", "0.05"]) == 1

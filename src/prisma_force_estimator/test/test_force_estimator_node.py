@@ -7,12 +7,12 @@ timer on a /clock the test publishes.
 """
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from repo_paths import CONFIG
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()
@@ -27,7 +27,7 @@ from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # 
 from prisma_force_estimator.inference import ForceEstimator  # noqa: E402
 from prisma_force_estimator.node_config import EstimatorConfig, ParameterError  # noqa: E402
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "force_estimator.yaml"
+CONFIG = CONFIG / "force_estimator.yaml"
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 
 

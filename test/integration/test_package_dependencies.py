@@ -10,11 +10,12 @@ from __future__ import annotations
 import ast
 import xml.etree.ElementTree as ET
 from graphlib import CycleError, TopologicalSorter
-from pathlib import Path
 
 import pytest
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+from repo_paths import ROOT
+
+SRC = ROOT / "src"
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").exists())
 PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / p).is_dir()]
 ROS_FREE = ("prisma_common", "prisma_hand_sim")

@@ -3,14 +3,13 @@ must produce exactly the bytes the Python parser expects."""
 import re
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from repo_paths import ROOT
 from stag_glove.protocol import SYNC, VERSION, GloveStreamParser, encode_frame
 
-ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "firmware" / "stag_readout"
 
 HARNESS = r"""

@@ -3,17 +3,15 @@ sim motors, no ROS). Every stop is checked against a reference computed independ
 recorded taxel stream, and against the physical cause in the world model."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from prisma_common.hand import MOTOR_NAMES
 from prisma_manipulation.contact_monitor import first_lost_index
 from prisma_manipulation.scenarios import DEFAULT_K, build
+from repo_paths import CONFIG
 
-REPO = Path(__file__).resolve().parents[1]
-BUNDLE = REPO / "config" / "models" / "cnn2"
+BUNDLE = CONFIG / "models" / "cnn2"
 THUMB = 0  # FINGERS index
 
 

@@ -5,7 +5,7 @@
   third-party module a package imports is declared by its key;
 - pyproject.toml's [project.scripts] and the setup.py console scripts are one list, and setup.cfg
   installs them where `ros2 run` looks (lib/<package>/);
-- prisma_bringup's setup.py installs all of launch/ and config/ under share/prisma_bringup;
+- prisma_bringup's setup.py installs all of its launch/ and config/ under share/prisma_bringup;
 - the wheel (`pip install .`) carries the model bundles, the glove layout and the message
   definitions under share/, where share_data finds them; share_data's lookup order;
 - with the workspace built and sourced: the scripts and data are where ROS looks.
@@ -29,10 +29,10 @@ import pytest
 
 from prisma_common import share_data
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
+from repo_paths import BRINGUP, ROOT
 from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
 from stag_glove import paths as glove_paths
 
-ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file())
 PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.py").is_file()]
@@ -181,7 +181,8 @@ def test_setup_cfg_installs_scripts_where_ros2_run_looks(package):
 # launch/ and config/ in prisma_bringup's colcon install
 
 def repo_files(*folders: str) -> set[str]:
-    return {str(p.relative_to(ROOT)) for folder in folders for p in (ROOT / folder).rglob("*")
+    """The files of prisma_bringup's `folders` (launch/, config/), relative to the package."""
+    return {str(p.relative_to(BRINGUP)) for folder in folders for p in (BRINGUP / folder).rglob("*")
             if p.is_file() and "__pycache__" not in p.parts}
 
 
@@ -203,7 +204,8 @@ def test_bringup_installs_all_of_launch_and_config(monkeypatch, tmp_path, where)
     # --symlink-install: the sources must be found from any working directory.
     cwd = SRC / "prisma_bringup" if where == "package directory" else tmp_path
     installed = bringup_data_files(monkeypatch, cwd)
-    expected = {f"share/prisma_bringup/{rel}": ROOT / rel for rel in repo_files("launch", "config")}
+    expected = {f"share/prisma_bringup/{rel}": BRINGUP / rel for rel in repo_files("launch", "config")}
+    assert "launch/hand.launch.py" in repo_files("launch") and "config/manipulation.yaml" in repo_files("config")
     assert {k: v for k, v in installed.items() if k in expected} == expected
     assert "share/prisma_bringup/config/glove/layout.yaml" in installed
     assert "share/prisma_bringup/config/models/cnn2/model.pt" in installed
@@ -236,8 +238,7 @@ def wheel_names(tmp_path_factory) -> set[str]:
     work = tmp_path_factory.mktemp("wheel")
     tree = work / "tree"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
-    for name in ("src", "config"):
-        shutil.copytree(ROOT / name, tree / name, ignore=ignore)
+    shutil.copytree(SRC, tree / "src", ignore=ignore)
     for name in ("pyproject.toml", "README.md"):
         shutil.copy2(ROOT / name, tree / name)
     cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(work / "dist"), str(tree)]
@@ -276,8 +277,8 @@ def test_share_data_looks_in_the_source_tree_first(monkeypatch):
     # (the module may be imported from a colcon install here, where SOURCE_ROOT is None)
     monkeypatch.setattr(share_data, "SOURCE_ROOT", ROOT)
     assert share_data.package_directories("prisma_msgs")[0] == SRC / "prisma_msgs"
-    assert share_data.package_directories("prisma_bringup")[0] == ROOT
-    assert share_data.find(DEFAULT_BUNDLE, ["prisma_bringup"]) == ROOT / DEFAULT_BUNDLE
+    assert share_data.package_directories("prisma_bringup")[0] == BRINGUP
+    assert share_data.find(DEFAULT_BUNDLE, ["prisma_bringup"]) == BRINGUP / DEFAULT_BUNDLE
     assert share_data.find("config/nothing_here", ["prisma_bringup"]) is None
 
 
@@ -363,7 +364,7 @@ def test_launch_config_and_definitions_are_installed(ament):
     for rel in sorted(repo_files("launch", "config")):
         installed = bringup / rel
         assert installed.is_file(), f"{installed} missing; rebuild prisma_bringup with colcon build"
-        assert installed.read_bytes() == (ROOT / rel).read_bytes(), f"{installed} differs from {rel}"
+        assert installed.read_bytes() == (BRINGUP / rel).read_bytes(), f"{installed} differs from {rel}"
     msgs = Path(ament.get_package_share_directory("prisma_msgs"))
     for rel in WHEEL_SHARE["share/prisma_msgs/"]:
         assert (msgs / rel).read_bytes() == (SRC / "prisma_msgs" / rel).read_bytes()

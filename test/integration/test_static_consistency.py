@@ -33,11 +33,11 @@ from pathlib import Path
 import pytest
 import yaml
 
+from repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
 from ros_harness import ROS_AVAILABLE, require_ros
+from topic_table import SHARED_TOPICS, TableRow, topic_table
 
-ROOT = Path(__file__).resolve().parents[1]
 FINGERS = ("thumb", "index", "middle", "ring", "little")
-SHARED_TOPICS = {"/diagnostics"}  # published by every driver
 
 
 # ------------------------------------------------------------------------------------------------
@@ -196,13 +196,13 @@ def launch_includes(launch_file: Path) -> list[Include]:
 
 
 def all_launched_nodes() -> list[LaunchedNode]:
-    return [n for path in sorted(ROOT.glob("launch/*.launch.py")) for n in launched_nodes(path)]
+    return [n for path in sorted(LAUNCH.glob("*.launch.py")) for n in launched_nodes(path)]
 
 
 def parameter_files() -> dict[str, dict]:
     """config YAML files in ros__parameters form: {relative path: {node key: {param: value}}}."""
     found = {}
-    for path in sorted(ROOT.glob("config/**/*.y*ml")):
+    for path in sorted(CONFIG.glob("**/*.y*ml")):
         document = yaml.safe_load(path.read_text())
         if not isinstance(document, dict) or not document:
             continue
@@ -213,7 +213,7 @@ def parameter_files() -> dict[str, dict]:
             flat: dict = {}
             _flatten("", body["ros__parameters"] or {}, flat)
             per_node[str(key)] = flat
-        found[str(path.relative_to(ROOT))] = per_node
+        found[str(path.relative_to(BRINGUP))] = per_node
     return found
 
 
@@ -224,32 +224,6 @@ def _flatten(prefix: str, values: dict, out: dict) -> None:
             _flatten(name, value, out)
         else:
             out[name] = value
-
-
-@dataclass(frozen=True)
-class TableRow:
-    name: str
-    type: str
-    source: str
-
-    @property
-    def is_action(self) -> bool:
-        return "/action/" in self.type
-
-
-def topic_table() -> list[TableRow]:
-    text = (ROOT / "docs" / "architecture.md").read_text()
-    match = re.search(r"^## Topic table\s*$(.*?)(?=^## |\Z)", text, re.S | re.M)
-    if not match:
-        return []
-    rows = []
-    for line in match.group(1).splitlines():
-        cells = [c.strip().strip("`").strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) < 3 or not cells[0].startswith("/"):
-            continue
-        names = [cells[0].replace("<finger>", f) for f in FINGERS] if "<finger>" in cells[0] else [cells[0]]
-        rows.extend(TableRow(name, cells[1], cells[2]) for name in names)
-    return rows
 
 
 # ------------------------------------------------------------------------------------------------
@@ -411,7 +385,7 @@ def test_launched_executable_is_a_console_script(entry: LaunchedNode):
 def test_launched_parameter_files_exist(entry: LaunchedNode):
     if (entry.package, entry.executable) not in all_console_scripts():
         pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
-    missing = [f for f in entry.parameter_files if not list(ROOT.glob(f"config/**/{f}"))]
+    missing = [f for f in entry.parameter_files if not list(CONFIG.glob(f"**/{f}"))]
     assert not missing, f"{entry.launch_file}:{entry.line}: parameter files missing from config/: {missing}"
 
 
@@ -461,25 +435,25 @@ def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
                 rclpy.shutdown()
 
 
-@pytest.mark.parametrize("launch_file", sorted(ROOT.glob("launch/*.launch.py")), ids=lambda p: p.name)
+@pytest.mark.parametrize("launch_file", sorted(LAUNCH.glob("*.launch.py")), ids=lambda p: p.name)
 def test_launch_configurations_are_declared_arguments(launch_file: Path):
     declared = declared_launch_arguments(launch_file)
     undeclared = [(line, name) for line, name in used_launch_configurations(launch_file) if name not in declared]
     assert not undeclared, f"{launch_file.name}: LaunchConfiguration without DeclareLaunchArgument: {undeclared}"
 
 
-@pytest.mark.parametrize("include", [i for p in sorted(ROOT.glob("launch/*.launch.py")) for i in launch_includes(p)],
+@pytest.mark.parametrize("include", [i for p in sorted(LAUNCH.glob("*.launch.py")) for i in launch_includes(p)],
                          ids=lambda i: f"{i.launch_file}:{i.line}")
 def test_included_launch_files_exist_and_declare_their_arguments(include: Include):
     assert include.target, f"{include.launch_file}:{include.line}: include names no *.launch.py literal"
-    target = ROOT / "launch" / include.target
+    target = LAUNCH / include.target
     assert target.exists(), f"{include.launch_file}:{include.line}: {include.target} is not in launch/"
     missing = sorted(set(include.arguments) - declared_launch_arguments(target))
     assert not missing, f"{include.launch_file}:{include.line}: {include.target} declares no argument(s) {missing}"
 
 
 def test_every_launch_file_starts_something():
-    files = sorted(ROOT.glob("launch/*.launch.py"))
+    files = sorted(LAUNCH.glob("*.launch.py"))
     assert {p.name for p in files} >= {"hand.launch.py", "glove.launch.py", "calibration.launch.py", "all.launch.py"}
     for path in files:
         tree = ast.parse(path.read_text())

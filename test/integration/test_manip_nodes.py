@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,7 +48,6 @@ MS = 1_000_000
 # it, as under hand.launch.py's `namespace`), so nothing else in the DDS domain reaches them
 NS = f"/hand{os.getpid()}"
 STEP = 0.01  # s: the motor driver's and the sensor side's period
-CONFIG = Path(__file__).resolve().parents[1] / "config"
 
 
 class SensorSide(Node):
