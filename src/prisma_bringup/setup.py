@@ -30,6 +30,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
     ] + share_tree("launch") + share_tree("config"),
     install_requires=["setuptools"],
+    tests_require=["pytest"],
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",

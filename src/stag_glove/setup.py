@@ -20,6 +20,7 @@ setup(
         ("share/" + package_name + "/config/glove", glob(os.path.join(BRINGUP, "config", "glove", "*.yaml"))),
     ],
     install_requires=["setuptools"],
+    tests_require=["pytest"],
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",

@@ -73,10 +73,11 @@ def dependencies(package: str, tags=DEPENDENCY_TAGS) -> set[str]:
     return {e.text.strip() for tag in tags for e in root.iter(tag) if e.text and e.text.strip()}
 
 
-def imported_roots(package: str) -> set[str]:
-    """Top-level names of every module a package's Python code imports (module or function level)."""
+def imported_roots(package: str, folder: str | None = None) -> set[str]:
+    """Top-level names of every module a package's Python code (or its `folder`, e.g. test/) imports,
+    at module or function level."""
     names = set()
-    for path in (SRC / package / package).rglob("*.py"):
+    for path in (SRC / package / (folder or package)).rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
             if isinstance(node, ast.Import):
                 names.update(alias.name.split(".")[0] for alias in node.names)
@@ -114,6 +115,38 @@ def test_every_third_party_import_is_declared(package):
             assert module in JAZZY_ROS_PACKAGES, (
                 f"{package} imports {module}: map it to its rosdep key in MODULE_DEPENDENCY")
             assert module in run_deps, f"{package} imports {module} but package.xml does not declare it"
+    check_test_imports_declared(package)
+
+
+# The shared test helpers (test/support, on pytest's pythonpath) and the test runners.
+TEST_SUPPORT = {p.stem for p in (ROOT / "test" / "support").glob("*.py")}
+TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis"}
+TEST_PIP_ONLY = {"mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
+
+
+def check_test_imports_declared(package: str) -> None:
+    """`colcon test` runs a package's pytest tests when its setup.py says tests_require pytest; what
+    src/<package>/test/ imports (workspace packages, ROS packages, third-party modules) is declared
+    in package.xml (as test_depend, or already as a run dependency)."""
+    setup = ast.parse((SRC / package / "setup.py").read_text())
+    tests_require = [ast.literal_eval(k.value) for k in ast.walk(setup)
+                     if isinstance(k, ast.keyword) and k.arg == "tests_require"]
+    assert tests_require == [["pytest"]], f"src/{package}/setup.py: tests_require=['pytest'] (colcon test)"
+    if not (SRC / package / "test").is_dir():
+        return
+    roots = imported_roots(package, "test") - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__", package}
+    declared = dependencies(package, ("depend", "exec_depend", "test_depend"))
+    xml_text = (SRC / package / "package.xml").read_text()
+    missing = []
+    for module in sorted(roots):
+        if module in PIP_ONLY | TEST_PIP_ONLY:
+            if module not in xml_text:
+                missing.append(f"{module} (pip only: say so in a comment)")
+        else:
+            key = {**MODULE_DEPENDENCY, **TEST_MODULES}.get(module, module)
+            if key not in declared:
+                missing.append(key)
+    assert not missing, f"src/{package}/test imports what src/{package}/package.xml does not declare: {missing}"
 
 
 def _robot_section() -> str:

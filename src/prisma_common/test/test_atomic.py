@@ -109,26 +109,3 @@ def test_a_leftover_of_a_killed_run_with_the_same_pid_is_cleared(tmp_path):
         assert not staged.exists()
         staged.write_bytes(b"whole")
     assert target.read_bytes() == b"whole" and not stale.exists()
-
-
-def test_calibration_set_and_figures_are_written_atomically(tmp_path, monkeypatch):
-    """A failure while numpy writes the archive leaves no .npz behind (and none that loads)."""
-    import numpy as np
-
-    from prisma_hand_sim.calibration import CalibrationSet, generate_calibration_set
-
-    cal = generate_calibration_set(300, seed=1)
-    calls = []
-
-    def failing(stream, **arrays):
-        calls.append(sorted(arrays))
-        stream.write(b"PK\x03\x04 partial")
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(np, "savez_compressed", failing)
-    with pytest.raises(KeyboardInterrupt):
-        cal.save(tmp_path / "cal.npz")
-    assert calls and not (tmp_path / "cal.npz").exists() and leftovers(tmp_path) == []
-    monkeypatch.undo()
-    cal.save(tmp_path / "cal.npz")
-    assert len(CalibrationSet.load(tmp_path / "cal.npz")) == 300

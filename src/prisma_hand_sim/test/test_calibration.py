@@ -108,3 +108,23 @@ def test_force_is_recoverable_but_not_linear(mixed):
     assert errors[3][0] < 0.05 and np.all(errors[3][1] < 0.04)
     assert errors[1][0] > 3 * errors[3][0]
     assert np.all(errors[1][1] > 1.3 * errors[3][1])
+
+
+def test_calibration_set_and_figures_are_written_atomically(tmp_path, monkeypatch):
+    """A failure while numpy writes the archive leaves no .npz behind (and none that loads)."""
+    cal = generate_calibration_set(300, seed=1)
+    calls = []
+
+    def failing(stream, **arrays):
+        calls.append(sorted(arrays))
+        stream.write(b"PK\x03\x04 partial")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez_compressed", failing)
+    with pytest.raises(KeyboardInterrupt):
+        cal.save(tmp_path / "cal.npz")
+    assert calls and not (tmp_path / "cal.npz").exists()
+    assert not [p.name for p in tmp_path.iterdir() if ".partial-" in p.name]  # no staging left
+    monkeypatch.undo()
+    cal.save(tmp_path / "cal.npz")
+    assert len(CalibrationSet.load(tmp_path / "cal.npz")) == 300
