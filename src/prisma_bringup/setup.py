@@ -30,7 +30,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
     ] + share_tree("launch") + share_tree("config"),
     install_requires=["setuptools"],
-    tests_require=["pytest"],
+    extras_require={"test": ["pytest"]},  # colcon test runs pytest (setuptools >= 72 ignores tests_require)
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",

@@ -125,13 +125,14 @@ TEST_PIP_ONLY = {"mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support)
 
 
 def check_test_imports_declared(package: str) -> None:
-    """`colcon test` runs a package's pytest tests when its setup.py says tests_require pytest; what
+    """`colcon test` runs a package's pytest tests when its setup.py names pytest as a test extra
+    (tests_require is gone from setuptools 72 on, so colcon would not see it there); what
     src/<package>/test/ imports (workspace packages, ROS packages, third-party modules) is declared
     in package.xml (as test_depend, or already as a run dependency)."""
     setup = ast.parse((SRC / package / "setup.py").read_text())
-    tests_require = [ast.literal_eval(k.value) for k in ast.walk(setup)
-                     if isinstance(k, ast.keyword) and k.arg == "tests_require"]
-    assert tests_require == [["pytest"]], f"src/{package}/setup.py: tests_require=['pytest'] (colcon test)"
+    extras = [ast.literal_eval(k.value) for k in ast.walk(setup)
+              if isinstance(k, ast.keyword) and k.arg == "extras_require"]
+    assert extras == [{"test": ["pytest"]}], f"src/{package}/setup.py: extras_require={{'test': ['pytest']}}"
     if not (SRC / package / "test").is_dir():
         return
     roots = imported_roots(package, "test") - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__", package}
