@@ -1,4 +1,6 @@
-"""Test setup.
+"""Test setup for every test: unit tests in src/<package>/test/, the rest in test/integration/
+(pytest finds this file above both, from the repository root and under `colcon test`, which runs
+pytest in src/<package>/ with this repository's pyproject.toml as its configuration).
 
 Fixture `ros`: a fresh rclpy context for one test on real ROS 2 (see ros_harness.py); tests using it
 skip with the reason where ROS 2 and the built workspace are not sourced.
@@ -6,6 +8,7 @@ skip with the reason where ROS 2 and the built workspace are not sourced.
 from __future__ import annotations
 
 import os
+import re
 
 # One BLAS/OpenMP thread per process, set before anything loads numpy or torch (they read these at
 # load time; subprocesses inherit them). On a busy 2-core machine multi-threaded OpenBLAS spins
@@ -24,6 +27,21 @@ from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, proces
 if ROS_AVAILABLE:
     # Before any rclpy.init and before launch tests start their processes (they inherit it).
     os.environ["ROS_DOMAIN_ID"] = str(process_domain_id())
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pycollect_makemodule(module_path, parent):
+    """Test modules that are not launch tests are collected here, in the import mode of
+    pyproject.toml (importlib: test files of different packages share names, e.g. test_cli.py).
+    launch_testing's collection hook (ROS sourced) imports every test module by its bare name to look
+    for generate_test_description, which fails on the second test_cli.py; only the launch tests go
+    to it."""
+    if module_path.name == "__init__.py" or _LAUNCH_TEST.search(module_path.read_text(errors="replace")):
+        return None
+    return pytest.Module.from_parent(parent, path=module_path)
+
+
+_LAUNCH_TEST = re.compile(r"^def generate_test_description\(", re.M)
 
 
 @pytest.fixture
