@@ -37,9 +37,6 @@ from repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
 from ros_harness import ROS_AVAILABLE, require_ros
 from topic_table import SHARED_TOPICS, TableRow, topic_table
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
-
-
 # ------------------------------------------------------------------------------------------------
 # Sources: setup.py, launch files, config files, topic table
 
