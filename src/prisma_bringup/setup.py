@@ -3,10 +3,10 @@ import os
 from setuptools import find_packages, setup
 
 package_name = "prisma_bringup"
-# launch/ and config/ live at the repository root, beside src/. colcon runs this file from the
-# package directory and, with --symlink-install, from a symlink to it in build/, so the root is
-# found from this file's real location and named relative to the working directory.
-ROOT = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
+# launch/ and config/ live beside this file. colcon runs it from the package directory and, with
+# --symlink-install, from a symlink to it in build/, so the folder is found from this file's real
+# location and named relative to the working directory.
+ROOT = os.path.relpath(os.path.dirname(os.path.realpath(__file__)))
 
 
 def share_tree(directory: str) -> list[tuple[str, list[str]]]:
@@ -30,6 +30,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
     ] + share_tree("launch") + share_tree("config"),
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs pytest (setuptools >= 72 ignores tests_require)
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",

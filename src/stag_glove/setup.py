@@ -4,11 +4,11 @@ from glob import glob
 from setuptools import find_packages, setup
 
 package_name = "stag_glove"
-# config/ lives at the repository root, beside src/ (prisma_bringup installs all of it; the glove
+# config/ lives in prisma_bringup (src/prisma_bringup/config, which it installs all of; the glove
 # layout is installed here too so the glove nodes find it without prisma_bringup). colcon runs this
 # file from the package directory and, with --symlink-install, from a symlink to it in build/, so
-# the root is found from this file's real location and named relative to the working directory.
-ROOT = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", ".."))
+# that folder is found from this file's real location and named relative to the working directory.
+BRINGUP = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "prisma_bringup"))
 
 setup(
     name=package_name,
@@ -17,9 +17,10 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/config/glove", glob(os.path.join(ROOT, "config", "glove", "*.yaml"))),
+        ("share/" + package_name + "/config/glove", glob(os.path.join(BRINGUP, "config", "glove", "*.yaml"))),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs pytest (setuptools >= 72 ignores tests_require)
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",

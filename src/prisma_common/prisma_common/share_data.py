@@ -4,9 +4,8 @@ and the prisma_msgs message definitions.
 They are kept once in the repository and installed the way ROS installs a package's data, under
 `share/<package>/` of an install prefix, so one lookup serves every way of running the suite:
 
-- source tree (`pip install -e .`, `colcon build --symlink-install`): the repository itself;
-  what `share/<package>/` holds is at its root (`config/`, `launch/`), for prisma_msgs in
-  `src/prisma_msgs/` (`msg/`, `action/`);
+- source tree (`pip install -e .`, `colcon build --symlink-install`): the package's source folder
+  `src/<package>/` (prisma_bringup: `config/`, `launch/`; prisma_msgs: `msg/`, `action/`);
 - colcon install (`ros2 run`, `ros2 launch`): `<prefix>/share/<package>/` of each prefix on
   AMENT_PREFIX_PATH, in order (the lookup of ament_index_python's get_package_share_directory,
   done here without importing it so that the ROS-free tools work in a plain venv);
@@ -24,8 +23,8 @@ import sysconfig
 from collections.abc import Iterable
 from pathlib import Path
 
-# What share/<package>/ holds lives at the repository root, except for these packages.
-SOURCE_DIRS = {"prisma_msgs": Path("src") / "prisma_msgs"}
+# What share/<package>/ holds lives in the package's source folder, src/<package>/.
+SOURCE_DIR = Path("src")
 
 
 def source_root(module_file: str | Path = __file__) -> Path | None:
@@ -67,7 +66,7 @@ def package_directories(package: str) -> list[Path]:
     tree's first, then share/<package> of each install prefix (existing or not)."""
     found = []
     if SOURCE_ROOT is not None:
-        found.append(SOURCE_ROOT / SOURCE_DIRS.get(package, Path()))
+        found.append(SOURCE_ROOT / SOURCE_DIR / package)
     found += [prefix / "share" / package for prefix in install_prefixes()]
     return _unique(found)
 

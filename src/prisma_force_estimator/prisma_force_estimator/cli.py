@@ -36,7 +36,7 @@ from prisma_tactile_driver.cli_args import (
 )
 
 # networks.MODEL_KINDS, spelled out so that building the parser does not import torch
-# (test/test_cli_bad_input.py checks that they agree).
+# (test/integration/test_cli_bad_input.py checks that they agree).
 MODEL_CHOICES = ("ann", "cnn", "cnn_t", "cnn2")
 BAG_SUFFIXES = (".mcap", ".db3")
 # The user errors of the loaders these commands call, counted once their module is loaded.

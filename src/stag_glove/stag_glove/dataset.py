@@ -7,7 +7,7 @@ major, so every array comes back with its axes reversed, and strings are cell ar
 references to uint16 character arrays), read with h5py. Our own HDF5 files keep the same field names,
 row-major, with plain string arrays.
 
-Edge cases the loader handles (test/test_glove_dataset.py):
+Edge cases the loader handles (src/stag_glove/test/test_dataset.py):
 - a v5 file with a single frame: MATLAB keeps the leading 1 of a 1x32x32 array, so the file is read
   without squeezing singleton axes (scipy's squeeze_me would drop the frame axis);
 - names stored as a char matrix (MATLAB `char({'cup', 'pen'})`, rows padded with blanks) instead

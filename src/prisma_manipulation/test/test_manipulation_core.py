@@ -1,0 +1,263 @@
+"""ManipulationCore without ROS: goal admission and readiness, one goal at a time, foreign
+/joint_states, stops, the MoveMotors lease."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prisma_common.messages import make_header
+from prisma_common.typestore import get_typestore
+from prisma_manipulation.controllers import JointSample
+from prisma_manipulation.manipulation_core import (
+    MOVE_LEASE_S,
+    Feedback,
+    Finished,
+    GraspRequest,
+    Ignored,
+    ManipulateRequest,
+    ManipulationCore,
+    MoveLease,
+    SendMove,
+    StopMotors,
+)
+from prisma_manipulation.node_config import ManipulationConfig
+from prisma_manipulation.ros_conversions import (
+    joint_sample_from_msg,
+)
+
+MS = 1_000_000
+
+
+def roundtrip(msg):
+    store = get_typestore()
+    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
+
+
+def _core():
+    core = ManipulationCore(ManipulationConfig())
+    core.on_joints(JointSample(0, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 0)
+    return core
+
+
+def _volts(right_lost=False):
+    v = np.array([0.8, 1.1, 0.8, 1.0, 1.5, 1.3, 0.8, 1.2, 0.8], dtype=np.float32)
+    if right_lost:
+        v[[0, 3, 6]] = 0.5
+    return v
+
+
+def test_core_validates_goals_with_defaults_and_limits():
+    core = _core()
+    resolved, reason = core.resolve_grasp(GraspRequest("pinch"))
+    assert reason is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
+    assert (core.resolve_grasp(GraspRequest("pinch", speed_rpm=71.0))[1]
+            == "speed_rpm 71.0 above the configured limit 70.0")
+    assert (core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1]
+            == "thumb_force 3.5 above the configured limit 3.0")
+    assert core.resolve_grasp(GraspRequest("pinch", finger_force=-1.0))[1] == "finger_force -1.0 must be > 0"
+    assert "k 0.55 too low for hold" in core.resolve_manipulate(ManipulateRequest("hold", k=0.55))[1]
+    assert "motion 'roll'" in core.resolve_manipulate(ManipulateRequest("roll"))[1]
+    resolved, _ = core.resolve_manipulate(ManipulateRequest("vertical"))
+    assert resolved.speed_rpm == 10.0 and resolved.k == 0.8
+    # a goal beyond the limits is refused for that, whatever else is missing
+    assert core.accept_grasp(GraspRequest("pinch", speed_rpm=71.0), False, 0) == \
+        "speed_rpm 71.0 above the configured limit 70.0"
+    thumb_only = ManipulationCore(ManipulationConfig(fingers=["thumb", "middle"]))
+    assert thumb_only.resolve_grasp(GraspRequest("pinch"))[1] == \
+        "grasp pinch needs the index pad(s), not in parameter fingers ['thumb', 'middle']"
+
+
+def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), joints=True, age_ms=0):
+    """One scan at t_ms received at t_ms: joint states, then the named streams stamped age_ms earlier."""
+    t = t_ms * MS
+    if joints:
+        core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), t)
+    for f in taxels:
+        core.on_taxels(f, t - age_ms * MS, _volts(), t)
+    for f in wrenches:
+        core.on_wrench(f, t - age_ms * MS, 0.0, t)
+
+
+def test_goals_are_rejected_until_every_stream_they_need_flows():
+    core = ManipulationCore(ManipulationConfig())
+    pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
+    assert core.accept_grasp(pinch, False, 0) == \
+        "MoveMotors action server prisma/motors/move not available (motor_driver not running?)"
+    assert core.accept_grasp(pinch, True, 0) == "no /joint_states received yet"
+    _feed(core, 0, taxels=("thumb",), wrenches=())
+    assert core.accept_grasp(pinch, True, 0) == "no taxels/index received yet"
+    # a horizontal manipulation steps on the thumb's taxels alone: it could run now
+    assert core.readiness(*core.manipulate_streams(horizontal), True, 0) is None
+    _feed(core, 10, wrenches=("thumb",))  # the force estimator is still warming up for the index
+    assert core.accept_grasp(pinch, True, 10 * MS) == "no wrench/index received yet"
+    use_force = ManipulateRequest("hold", use_force=True)
+    assert core.readiness(*core.manipulate_streams(use_force), True, 10 * MS) is None
+    _feed(core, 20, wrenches=("thumb",))
+    _feed(core, 130, taxels=(), wrenches=())  # joint states on; the hub went quiet at 20 ms
+    assert core.accept_grasp(pinch, True, 130 * MS) == "taxels/thumb silent for 110 ms"
+    _feed(core, 140, age_ms=120)  # every stream back, but 120 ms old
+    assert core.accept_grasp(pinch, True, 140 * MS) == "taxels/thumb 120 ms older than /joint_states"
+    _feed(core, 150)
+    assert core.accept_grasp(pinch, True, 150 * MS) is None
+    assert not core.busy  # accepted: held for this goal until it starts
+
+
+def test_one_goal_at_a_time_from_acceptance_to_the_end():
+    core = ManipulationCore(ManipulationConfig())
+    _feed(core, 0)
+    pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
+    assert core.accept_grasp(pinch, True, 0) is None
+    # a Manipulate goal sent together with the Grasp: its goal callback runs before the Grasp starts
+    assert core.accept_manipulate(horizontal, True, 0) == "a grasp goal was accepted and is starting"
+    assert core.accept_grasp(pinch, True, 0) == "a grasp goal was accepted and is starting"
+    with pytest.raises(ValueError, match="a grasp goal was accepted"):
+        core.start_manipulate(horizontal, 0)  # only the accepted goal may start
+    core.start_grasp(pinch, 0)
+    assert core.accept_manipulate(horizontal, True, 0) == "a grasp goal is running"
+    actions = core.cancel(10 * MS)
+    assert actions[-1].reason == "canceled" and not core.busy
+    assert core.accept_manipulate(horizontal, True, 0) is None  # serving again
+    core.start_manipulate(horizontal, 0)
+    assert core.busy and core.kind == "manipulate"
+
+
+def test_foreign_joint_states_change_no_decision():
+    """An arm driver's /joint_states (other names, its own stamps) and empty or malformed messages
+    between the hand's: the same actions as without them, and each is reported as ignored."""
+    from prisma_common.typestore import types as ts
+
+    def hand(t):
+        t_ms = t // MS  # the thumb turns out until 200 ms, then back
+        return JointSample(t, {"fingers": 1.0, "thumb_flexion": 2.0, "thumb_rotation": 0.01 * min(t_ms, 400 - t_ms)})
+
+    js = ts("sensor_msgs/msg/JointState")
+    foreign_msgs = [
+        js(header=make_header(ts, 10**12, ""), name=["shoulder", "elbow"], position=np.array([0.1, 0.2]),
+           velocity=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64)),
+        js(header=make_header(ts, 0, ""), name=[], position=np.array([], dtype=np.float64),
+           velocity=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64)),
+        js(header=make_header(ts, 10**12, ""), name=["fingers", "thumb_flexion", "thumb_rotation"],
+           position=np.array([], dtype=np.float64), velocity=np.array([], dtype=np.float64),
+           effort=np.array([], dtype=np.float64)),
+        js(header=make_header(ts, 10**12, ""), name=["fingers", "thumb_flexion", "thumb_rotation"],
+           position=np.array([5.0]), velocity=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64)),
+    ]
+    foreign = [joint_sample_from_msg(roundtrip(m)) for m in foreign_msgs]  # no ValueError: empty samples
+    assert [f.positions for f in foreign] == [{"shoulder": 0.1, "elbow": 0.2}, {}, {}, {}]
+
+    def run(with_foreign):
+        core = ManipulationCore(ManipulationConfig())
+        log = []
+        for t_ms in range(0, 400, 10):
+            t = t_ms * MS
+            log.append(core.on_joints(hand(t), t))
+            if with_foreign:
+                for sample in foreign:
+                    ignored = core.on_joints(sample, t + MS)
+                    assert len(ignored) == 1 and isinstance(ignored[0], Ignored)
+            if t_ms == 20:
+                log.append(core.accept_manipulate(ManipulateRequest("horizontal"), True, t))
+                log.append(core.start_manipulate(ManipulateRequest("horizontal"), t))
+            log.append(core.on_taxels("thumb", t, _volts(right_lost=t_ms >= 200), t + 2 * MS)[1])
+            log.append(core.check(t + 5 * MS))
+        return log, core
+
+    plain, _ = run(False)
+    mixed, core = run(True)
+    assert mixed == plain
+    assert core.ignored_joint_states == 4 * 40
+    assert "no position for fingers, thumb_flexion, thumb_rotation (joints ['elbow', 'shoulder'])" in \
+        core.on_joints(foreign[0], 0)[0].reason
+    finished = [a for actions in plain if isinstance(actions, list) for a in actions if isinstance(a, Finished)]
+    assert [f.reason for f in finished] == ["edge_lost"]
+
+
+def test_core_steps_on_each_complete_scan_and_stops_on_edge_lost():
+    core = _core()
+    actions = core.start_manipulate(ManipulateRequest("horizontal", k=0.9), 0)
+    assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}, MOVE_LEASE_S)
+    assert core.monitor.k == 0.9  # the goal's k for the goal's duration
+    ev, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
+    assert ev.k == 0.9 and [type(a) for a in actions] == [Feedback]
+    ev, actions = core.on_taxels("thumb", 20 * MS, _volts(right_lost=True), 20 * MS)
+    assert ev.lost_edges == ("right",)
+    assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}, MOVE_LEASE_S)
+    core.on_joints(JointSample(30 * MS, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 30 * MS)
+    _, actions = core.on_taxels("thumb", 30 * MS, _volts(), 30 * MS)
+    assert isinstance(actions[0], StopMotors)
+    done = actions[-1]
+    assert isinstance(done, Finished) and done.success and done.reason == "edge_lost"
+    assert done.stop_time_s == pytest.approx(0.02)
+    assert not core.busy and core.monitor.k == 0.8  # back to the parameter
+
+
+def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
+    core = _core()
+    core.start_grasp(GraspRequest("pinch"), 0)
+    _, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
+    assert actions == []
+    _, actions = core.on_taxels("index", 10 * MS, _volts(), 10 * MS)
+    assert actions == [] and core.on_wrench("thumb", 10 * MS, 0.0, 11 * MS) == []
+    actions = core.on_wrench("index", 10 * MS, 0.85, 12 * MS)
+    assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 60.0, "thumb_rotation": 0.0}, MOVE_LEASE_S)
+
+
+def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
+    for trigger, reason in (("stale", "sensor_stale"), ("cancel", "canceled"), ("fault", "motor_fault")):
+        core = _core()
+        core.start_grasp(GraspRequest("pinch"), 0)
+        if trigger == "stale":
+            actions = core.check(101 * MS)
+        elif trigger == "cancel":
+            actions = core.cancel(5 * MS)
+        else:
+            actions = core.on_move_result("motor_fault: fingers (id 1) hardware error bit 5 overload", 5 * MS)
+        assert isinstance(actions[0], StopMotors)
+        assert actions[-1].reason == reason and not actions[-1].success
+        assert not core.busy
+    assert core.on_move_result("joint_limit", 0) == []
+
+
+def test_motor_commands_are_leased_and_refreshed_while_they_hold():
+    """The motor driver stops a MoveMotors goal after MOVE_LEASE_S (0.3 s); the core re-sends the
+    running command every 0.1 s, so the motors stop within 0.3 s of the last refresh when it dies."""
+    core = _core()
+    rotate = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}
+    back = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}
+
+    def scan(t_ms, rotation=0.5, right_lost=False):
+        """Joint states (refreshes ride on their check) and a thumb sample at t_ms: what was sent."""
+        t = t_ms * MS
+        sent = core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": rotation}), t)
+        sent += core.on_taxels("thumb", t, _volts(right_lost), t)[1]
+        return [a for a in sent if not isinstance(a, Feedback)]
+
+    assert core.start_manipulate(ManipulateRequest("horizontal"), 0)[0] == SendMove(rotate, 0.3)
+    assert [scan(t) for t in range(10, 100, 10)] == [[]] * 9  # same command: nothing sent
+    assert scan(100) == [SendMove(rotate, 0.3)]  # the refresh
+    assert core.check(150 * MS) == [] and scan(190) == [] and scan(200) == [SendMove(rotate, 0.3)]
+    # the driver's goal timed out before a refresh reached it (this node stalled): sent again at once
+    assert core.on_move_result("timeout", 230 * MS) == [SendMove(rotate, 0.3)]
+    assert scan(240) == [] and scan(320) == [] and scan(330) == [SendMove(rotate, 0.3)]
+    # a new command restarts the lease period
+    assert scan(340, right_lost=True) == [SendMove(back, 0.3)]
+    assert [scan(t) for t in range(350, 440, 10)] == [[]] * 9 and scan(440) == [SendMove(back, 0.3)]
+    # the driver stopped the motors at its joint limit: no refresh drives them on
+    assert core.on_move_result("joint_limit", 450 * MS) == []
+    assert [scan(t) for t in range(450, 610, 10)] == [[]] * 16 and core.busy
+    # a stop is a cancel, and nothing is refreshed after the goal
+    core.on_joints(JointSample(610 * MS, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 610 * MS)
+    _, actions = core.on_taxels("thumb", 610 * MS, _volts(), 610 * MS)
+    assert isinstance(actions[0], StopMotors) and isinstance(actions[-1], Finished)
+    assert core.check(10**9) == [] and core.on_move_result("timeout", 10**9) == []
+
+
+def test_move_lease_decisions():
+    lease = MoveLease(lease_s=0.3, refresh_s=0.1)
+    assert lease.refresh(0) is None  # nothing to keep alive
+    assert lease.command({"fingers": 60.0}, 5 * MS) == SendMove({"fingers": 60.0}, 0.3)
+    assert lease.refresh(104 * MS) is None and lease.refresh(105 * MS) == SendMove({"fingers": 60.0}, 0.3)
+    assert lease.command({"fingers": 0.0, "thumb_flexion": 0.0}, 110 * MS) == StopMotors()
+    assert lease.refresh(10**9) is None and lease.renew(10**9) is None
+    with pytest.raises(ValueError, match="refresh 0.3 s must be > 0 and below the lease 0.3 s"):
+        MoveLease(lease_s=0.3, refresh_s=0.3)

@@ -1,0 +1,98 @@
+"""MotorDriverCore without ROS: reconnect with backoff, preemption on a failing bus, diagnostics."""
+from __future__ import annotations
+
+import pytest
+
+from prisma_motor_driver.motor_bus import BusError, MotorState
+from prisma_motor_driver.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
+from prisma_motor_driver.motor_goals import MoveGoal, MoveResult
+from prisma_motor_driver.node_config import MotorDriverConfig
+
+MS = 1_000_000
+
+
+class FlakyBus:
+    """Opens only after `failures` attempts; can lose the link."""
+
+    def __init__(self, failures):
+        from prisma_motor_driver.motor_bus import BusStats, default_motors
+
+        self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
+        self.attempts, self.down = [], False
+
+    def open(self):
+        self.attempts.append(self.now)
+        if len(self.attempts) <= self.failures:
+            raise BusError("cannot open Dynamixel port /dev/ttyUSB9")
+        self.down = False
+
+    def close(self):
+        pass
+
+    def read_state(self, stamp_ns):
+        if self.down:
+            raise BusError("sync read present state: There is no status packet! after 4 attempts")
+        return {n: MotorState(n, 0.0, 0.0, 0.0) for n in self.motors}
+
+    def set_velocities(self, rpm):
+        pass
+
+    def stop(self, names=None):
+        pass
+
+
+def test_driver_reconnects_with_exponential_backoff_and_reports_it():
+    bus = FlakyBus(failures=3)
+    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel"), bus=bus)
+    for t_ms in range(0, 5000, 10):
+        bus.now = t_ms * MS
+        core.tick(t_ms * MS)
+    assert bus.attempts == [0, 500 * MS, 1500 * MS, 3500 * MS]  # 0.5, 1, 2 s apart
+    assert core.connected
+    core.start(MoveGoal(["fingers"], "velocity", [10.0]), 5000 * MS)
+    bus.down = True
+    bus.now = 5010 * MS
+    tick = core.tick(5010 * MS)
+    assert tick.states is None and tick.result.reason.startswith("motor_fault: communication: sync read")
+    diag = core.diagnostics()
+    assert diag[0].level == ERROR and "disconnected" in diag[0].message and diag[0].values["reconnects"] == "1"
+    assert core.validate(MoveGoal(["fingers"], "velocity", [1.0])).startswith("motor bus not connected")
+
+
+def test_bus_error_while_preempting_ends_the_old_goal_and_the_new_one():
+    bus = FlakyBus(failures=0)
+    bus.now, stops, writes = 0, [], []
+    bus.fail_writes = False
+
+    def set_velocities(rpm):
+        if bus.fail_writes:
+            raise BusError("sync write goal velocity: There is no status packet! after 4 attempts")
+        writes.append(dict(rpm))
+
+    bus.set_velocities, bus.stop = set_velocities, lambda names=None: stops.append(list(names))
+    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel"), bus=bus)
+    core.tick(0)
+    assert core.start(MoveGoal(["fingers"], "velocity", [10.0]), 0) == StartOutcome()
+    core.tick(10 * MS)
+    bus.fail_writes = True
+    outcome = core.start(MoveGoal(["fingers", "thumb_flexion"], "velocity", [20.0, 5.0]), 20 * MS)
+    assert outcome.preempted.reason == "preempted" and outcome.preempted.final_positions == [0.0]
+    assert outcome.failed == MoveResult(
+        False, [], "motor_fault: communication: sync write goal velocity: There is no status packet! after 4 attempts")
+    assert not core.runner.active  # neither goal is left running
+    assert stops == [["fingers", "thumb_flexion"]]  # what either goal moved was told to stop
+    assert core.tick(30 * MS).result is None  # nothing to end later on
+    # an invalid goal changes nothing: the running goal goes on
+    bus.fail_writes = False
+    core.start(MoveGoal(["fingers"], "velocity", [10.0]), 40 * MS)
+    with pytest.raises(ValueError, match="velocity 90.0 rpm for fingers above the limit"):
+        core.start(MoveGoal(["fingers"], "velocity", [90.0]), 50 * MS)
+    assert core.runner.active and core.runner.goal.targets == [10.0]
+
+
+def test_driver_diagnostics_per_motor():
+    core = MotorDriverCore(MotorDriverConfig())
+    core.tick(10 * MS)
+    diag = {d.name: d for d in core.diagnostics()}
+    assert diag["motor_driver: bus"].level == OK
+    assert diag["motor_driver: thumb_rotation"].values["id"] == "3"

@@ -1,0 +1,102 @@
+"""MoveMotors goal runner on the simulated motors: validation, stop positions, timeout, cancel,
+preemption, resent goals, hardware errors."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from prisma_motor_driver.motor_bus import default_motors
+from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner
+from prisma_motor_driver.sim_motors import SimMotorBus
+
+MS = 1_000_000
+
+
+@pytest.mark.parametrize("goal, message", [
+    (MoveGoal(["wrist"], "velocity", [1.0]), "unknown motor"),
+    (MoveGoal(["fingers"], "velocity", [80.0]), "velocity 80.0 rpm for fingers above the limit 70.0"),
+    (MoveGoal(["fingers"], "position", [12.0]), "position 12.0 rad for fingers outside"),
+    (MoveGoal(["fingers"], "torque", [1.0]), "mode 'torque'"),
+    (MoveGoal(["fingers", "thumb_flexion"], "velocity", [1.0]), "1 targets for 2 motors"),
+    (MoveGoal(["fingers"], "velocity", [float("nan")]), "not finite"),
+    (MoveGoal(["fingers"], "velocity", [1.0], [1.0, 2.0, 3.0]), "position_limits has 3 entries"),
+])
+def test_goal_validation_names_the_bad_value(goal, message):
+    runner = MoveGoalRunner(SimMotorBus(default_motors()))
+    assert message in runner.validate(goal)
+    with pytest.raises(ValueError, match=message.split(" ")[0]):
+        runner.start(goal, 0)
+
+
+def _run(runner, bus, until_ns, step_ns=10 * MS, start_ns=0):
+    t = start_ns
+    while t < until_ns:
+        t += step_ns
+        feedback, result = runner.tick(bus.read_state(t), t)
+        if result:
+            return t, feedback, result
+    return t, None, None
+
+
+def test_velocity_goal_stops_at_its_stop_position_with_joint_limit():
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    runner.start(MoveGoal(["thumb_rotation"], "velocity", [30.0], position_limits=[1.0]), 0)
+    t, feedback, result = _run(runner, bus, 5000 * MS)
+    assert result.success and result.reason == "joint_limit"
+    assert 1.0 <= result.final_positions[0] < 1.0 + math.pi * 0.01 + 1e-9  # within one tick of travel
+    assert feedback.velocities[0] > 0
+    assert bus.read_state(t + 100 * MS)["thumb_rotation"].velocity_rpm == pytest.approx(0.0, abs=0.01)
+
+
+def test_velocity_goal_timeout_cancel_and_preempt_stop_or_hand_over():
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.2), 0)
+    t, _, result = _run(runner, bus, 1000 * MS)
+    assert result.reason == "timeout" and t == 200 * MS
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0]), t)
+    _run(runner, bus, t + 100 * MS, start_ns=t)
+    result = runner.cancel()
+    assert result.reason == "canceled" and not result.success
+    assert bus.read_state(t + 300 * MS)["fingers"].velocity_rpm == pytest.approx(0.0, abs=0.01)
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0]), t + 300 * MS)
+    preempted = runner.start(MoveGoal(["thumb_flexion"], "position", [1.0]), t + 310 * MS)
+    assert preempted.reason == "preempted"
+    _, _, result = _run(runner, bus, t + 5000 * MS, start_ns=t + 310 * MS)
+    assert result.success and result.reason == "reached"
+
+
+def test_a_resent_velocity_goal_continues_seamlessly_and_spares_a_motor_at_its_stop():
+    """The manipulation node keeps a command alive by re-sending it (with a short timeout each
+    time): the moving motor does not dip, a motor already stopped at its stop position is not driven
+    again, and the last goal times out its timeout after it started, stopping the motors."""
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    goal = MoveGoal(["fingers", "thumb_rotation"], "velocity", [30.0, 30.0], position_limits=[9.0, 0.5],
+                    timeout_s=0.4)
+    runner.start(goal, 0)
+    t, _, result = _run(runner, bus, 300 * MS)
+    assert result is None and t == 300 * MS  # fingers still moving
+    before = bus.read_state(t)["thumb_rotation"]
+    assert 0.5 <= before.position_rad < 0.54 and before.velocity_rpm < 1e-3  # stopped at 0.5 rad
+    assert runner.start(goal, t).reason == "preempted"  # the refresh
+    after = bus.read_state(t + 10 * MS)
+    assert after["fingers"].velocity_rpm == pytest.approx(30.0, abs=1e-6)  # no dip
+    assert after["thumb_rotation"].position_rad == pytest.approx(before.position_rad, abs=1e-7)
+    assert after["thumb_rotation"].velocity_rpm < 1e-3
+    end, _, result = _run(runner, bus, t + 1000 * MS, start_ns=t + 10 * MS)
+    assert result.reason == "timeout" and end == t + 400 * MS
+    assert bus.read_state(end + 100 * MS)["fingers"].velocity_rpm == pytest.approx(0.0, abs=0.01)
+
+
+def test_sim_hardware_error_aborts_naming_motor_and_bit():
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0]), 0)
+    bus.inject_hardware_error("thumb_flexion", 2)
+    _, _, result = _run(runner, bus, 100 * MS)
+    assert not result.success
+    assert result.reason == "motor_fault: thumb_flexion (id 2) hardware error bit 2 overheating"
+    assert not bus.read_state(200 * MS)["thumb_flexion"].torque_on

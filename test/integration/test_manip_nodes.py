@@ -1,0 +1,686 @@
+"""motor_driver and manipulation nodes on real rclpy over DDS, closed through a sensor side: the
+hand/world model fed by /joint_states, PadModel taxels and ground-truth Fz wrenches published every
+10 ms with the sim clock's stamps.
+
+Every node runs on a /clock the test publishes (`sim_time=True`); time moves in 10 ms steps, each
+settled (`ros.advance(..., settle=True)`: every message, goal and result of that instant handled
+before the clock moves on), so stamps, stop instants and stop times are exact.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ros_harness import require_ros, stamp_ns
+
+require_ros()
+
+from action_msgs.msg import GoalStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import Vector3, Wrench, WrenchStamped  # noqa: E402
+from prisma_msgs.action import Grasp, Manipulate, MoveMotors  # noqa: E402
+from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rosidl_runtime_py.utilities import get_message  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from prisma_common.hand import (
+    FINGERS,  # noqa: E402
+    MOTOR_NAMES,  # noqa: E402
+)
+from prisma_common.messages import make_header
+from prisma_common.parameters import ParameterError  # noqa: E402
+from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
+from prisma_hand_sim.hand_world import OBJECTS, HandWorld, released  # noqa: E402
+from prisma_hand_sim.pad_model import PadModel  # noqa: E402
+from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S  # noqa: E402
+from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
+from prisma_motor_driver.motor_driver_node import MotorDriverNode  # noqa: E402
+from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
+from prisma_tactile_driver.taxels import TaxelFrame
+
+MS = 1_000_000
+# every node of these tests runs in a namespace of this process (the topic and action names follow
+# it, as under hand.launch.py's `namespace`), so nothing else in the DDS domain reaches them
+NS = f"/hand{os.getpid()}"
+STEP = 0.01  # s: the motor driver's and the sensor side's period
+
+
+class SensorSide(Node):
+    """Fingertip hub + force estimator stand-ins driven by the hand/world model, on sim time.
+
+    `age_ns`: stamps this much older than the clock; `silent`: publishes nothing; `taxels_on` /
+    `wrenches_on`: which streams it publishes (a hub or an estimator still starting); `per_hand`:
+    each tick's samples also as one HandTaxels and one HandWrench, as the real drivers publish them."""
+
+    def __init__(self, world: HandWorld, publishing: bool = True, per_hand: bool = False, **kwargs) -> None:
+        super().__init__("sensor_side", **kwargs)
+        self.world = world
+        self.reseed()
+        self.age_ns = 0
+        self.silent = False
+        self.taxels_on, self.wrenches_on = publishing, publishing
+        self.published = 0
+        self.create_subscription(JointState, "joint_states", self._on_joints, 10)
+        self.taxels = {f: self.create_publisher(TaxelArray, f"prisma/{f}/taxels", 10) for f in FINGERS}
+        self.wrenches = {f: self.create_publisher(WrenchStamped, f"prisma/{f}/wrench", 10) for f in FINGERS}
+        self.per_hand = per_hand
+        self.hand_taxels = self.create_publisher(HandTaxels, "prisma/hand/taxels", 10)
+        self.hand_wrench = self.create_publisher(HandWrench, "prisma/hand/wrench", 10)
+        self.create_timer(STEP, self._tick)
+
+    def reseed(self) -> None:
+        """Pad noise from its first sample again (runs compared sample for sample start alike)."""
+        self.pads = {f: PadModel(seed=i) for i, f in enumerate(FINGERS)}
+
+    def _on_joints(self, msg) -> None:
+        positions = dict(zip(msg.name, (float(p) for p in msg.position)))
+        if set(MOTOR_NAMES) <= set(positions):  # the hand's motor driver, not another publisher
+            self.world.update_joints(positions, stamp_ns(msg))
+
+    def _tick(self) -> None:
+        if self.silent:
+            return
+        stamp = self.get_clock().now().nanoseconds - self.age_ns
+        taxels, wrenches = [], []
+        for f in FINGERS:
+            if self.taxels_on:
+                frame = TaxelFrame.from_counts(f, stamp, self.pads[f].sample(self.world.contact(f)))
+                taxels.append(taxel_frame_to_msg(frame, get_message, f"prisma_{f}_pad"))
+                self.taxels[f].publish(taxels[-1])
+            if self.wrenches_on:
+                force = Vector3(x=0.0, y=0.0, z=float(self.world.forces()[f]))
+                wrenches.append(WrenchStamped(header=make_header(get_message, stamp, f"prisma_{f}_pad"),
+                                              wrench=Wrench(force=force, torque=Vector3())))
+                self.wrenches[f].publish(wrenches[-1])
+        if self.per_hand and taxels:
+            self.hand_taxels.publish(hand_taxels_to_msg(get_message, taxels))
+        if self.per_hand and wrenches:
+            self.hand_wrench.publish(hand_wrench_to_msg(get_message, FINGERS, wrenches))
+        self.published += 1
+
+
+class ArmDriver(Node):
+    """Another publisher on /joint_states (an arm driver, joint_state_publisher) at 50 Hz: its own
+    joints, and every other message empty arrays."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("arm_driver", **kwargs)
+        self.pub = self.create_publisher(JointState, "joint_states", 10)
+        self.sent = 0
+        self.create_timer(0.02, self._tick)
+
+    def _tick(self) -> None:
+        msg = JointState()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        if self.sent % 2 == 0:
+            msg.name, msg.position = ["shoulder", "elbow"], [0.3, -1.2]
+        self.pub.publish(msg)
+        self.sent += 1
+
+
+def stand_world() -> HandWorld:
+    return HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
+
+
+def pinched_world() -> HandWorld:
+    world = HandWorld(obj=released("pinch_ball"))
+    world.set_positions(world.grasp_pose(1.0))
+    return world
+
+
+class Hand:
+    """Handles of one test's nodes and streams."""
+
+    def __init__(self, ros, world: HandWorld, motor: bool, sensors: bool, params: dict,
+                 publishing: bool = True, per_hand: bool = False) -> None:
+        self.ros, self.world = ros, world
+        self.move_goals: list[tuple[int, object]] = []  # (sim ns, MoveGoal) the driver started
+        self.joints = ros.collect(JointState, f"{NS}/joint_states")
+        self.motor = self.start_motor_driver() if motor else None
+        self.sensors = (ros.node(SensorSide, namespace=NS, sim_time=True, world=world, publishing=publishing,
+                                 per_hand=per_hand) if sensors else None)
+        self.manipulation = ros.node(ManipulationNode, namespace=NS, params=params, sim_time=True)
+
+    def start_motor_driver(self):
+        positions = [self.world.positions[m] for m in MOTOR_NAMES]
+        motor = self.ros.node(MotorDriverNode, namespace=NS, params={"sim_initial_positions": positions}, sim_time=True)
+        original = motor.core.start
+
+        def spy(goal, now_ns):  # record every MoveMotors goal the driver starts
+            self.move_goals.append((now_ns, goal))
+            return original(goal, now_ns)
+
+        motor.core.start = spy
+        self.motor = motor
+        return motor
+
+    def ready(self) -> bool:
+        """Every stream of every goal flowing and the MoveMotors server discovered."""
+        m = self.manipulation
+        streams = [f"taxels/{f}" for f in FINGERS] + [f"wrench/{f}" for f in FINGERS]
+        return m._move_client.server_is_ready() and m.core.watchdog.fresh(streams, m._now_ns()) is None
+
+    def wait_ready(self) -> None:
+        for _ in range(500):  # discovery runs on wall time: keep the sim clock moving meanwhile
+            self.ros.advance(STEP, step=STEP, settle=True)
+            if self.ready():
+                return
+        raise TimeoutError("the manipulation node never had every stream and the MoveMotors server")
+
+    def commands(self) -> list[dict[str, float]]:
+        """The distinct velocity commands in the order sent (refreshes of one command folded)."""
+        out: list[dict[str, float]] = []
+        for _, goal in self.move_goals:
+            command = dict(zip(goal.motors, goal.targets))
+            if not out or out[-1] != command:
+                out.append(command)
+        return out
+
+
+@pytest.fixture
+def hand(ros):
+    def make(world: HandWorld, motor: bool = True, sensors: bool = True, wait: bool = True,
+             publishing: bool = True, per_hand: bool = False, **params) -> Hand:
+        h = Hand(ros, world, motor, sensors, params, publishing, per_hand)
+        if wait:
+            h.wait_ready()
+        return h
+
+    return make
+
+
+def send(ros, name, action, goal, feedback=None):
+    """A goal through an ActionClient of the test; its handle once the server answered."""
+    return ros.send_goal(ros.action_client(action, name), goal, feedback)
+
+
+def finish(ros, handle, timeout_sec=120.0):
+    """Advance sim time in settled 10 ms steps until the goal's result arrives (None after the
+    timeout, in wall seconds)."""
+    future = handle.get_result_async()
+    deadline = time.monotonic() + timeout_sec
+    while not future.done() and time.monotonic() < deadline:
+        ros.advance(STEP, step=STEP, settle=True)
+    assert future.done(), f"no result within {timeout_sec} s"
+    return future.result()
+
+
+def joint(msg, field, motor):
+    return float(getattr(msg, field)[list(msg.name).index(motor)])
+
+
+def still(msg) -> bool:
+    """Every motor at rest in a /joint_states message."""
+    return all(abs(v) < 1e-3 for v in msg.velocity)
+
+
+def braking_ns(joints, after_ns, motor):
+    """Stamp of the first /joint_states after `after_ns` in which `motor` slows down (the stop
+    command reached it; the velocity loop then decays with its 10 ms time constant)."""
+    later = [m for m in joints if stamp_ns(m) > after_ns]
+    speeds = [abs(joint(m, "velocity", motor)) for m in later]
+    return next(stamp_ns(m) for m, v0, v1 in zip(later[1:], speeds, speeds[1:]) if v1 < 0.9 * v0)
+
+
+def velocity(joints, motor):
+    return joint(joints[-1], "velocity", motor)
+
+
+def position(joints, motor):
+    return joint(joints[-1], "position", motor)
+
+
+# ---- goals -----------------------------------------------------------------------------------------
+def test_grasp_goal_moves_the_motors_streams_feedback_and_returns_the_forces(ros, hand):
+    h = hand(stand_world())
+    feedback = []
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=1.0,
+                                                          speed_rpm=60.0, timeout=5.0), feedback)
+    assert handle.accepted
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED
+    r = outcome.result
+    assert r.success and r.reason == "force_reached"
+    assert 1.0 <= r.thumb_force <= 1.1 and 0.8 <= r.finger_force <= 0.95
+    # MoveMotors goals: fingers close at 60 rpm, then the thumb flexes at 60 rpm; each lasts 0.3 s
+    # on the driver and is re-sent on the first /joint_states or watchdog tick 0.1 s after the last
+    assert h.commands() == [{"fingers": 60.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0},
+                            {"fingers": 0.0, "thumb_flexion": 60.0, "thumb_rotation": 0.0}]
+    assert all(g.mode == "velocity" and g.timeout_s == pytest.approx(MOVE_LEASE_S) for _, g in h.move_goals)
+    gaps = np.diff([t for t, _ in h.move_goals])
+    assert len(h.move_goals) > 10 and gaps.max() <= MOVE_REFRESH_S * 1e9 + 10 * MS
+    phases = [f.feedback.phase for f in feedback]
+    assert phases[0] == "close_fingers" and "close_thumb" in phases and phases[-1] == "done"
+    assert max(f.feedback.finger_force for f in feedback) >= 0.8
+    ros.advance(0.1, step=STEP, settle=True)
+    assert abs(velocity(h.joints, "thumb_flexion")) < 0.01 and abs(velocity(h.joints, "fingers")) < 0.01
+    assert h.world.forces()["thumb"] == pytest.approx(1.0, abs=0.1)
+    assert not h.motor.core.runner.active  # the stop canceled the MoveMotors goal
+
+
+def test_per_hand_streams_give_each_sample_once_and_the_same_grasp(ros, hand):
+    """Sensors publishing both forms, as the tactile driver and the force estimator do: the node
+    switches to the per-hand topics and evaluates every sample once."""
+    h = hand(stand_world(), per_hand=True)
+    seen = {f: ros.collect(ContactState, f"{NS}/prisma/{f}/contact") for f in FINGERS}
+    together = ros.collect(HandContact, f"{NS}/prisma/hand/contact")
+    assert ros.spin_until(lambda: h.manipulation._hand_contact_pub.get_subscription_count() >= 1)
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=1.0,
+                                                          speed_rpm=60.0, timeout=5.0))
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.reason == "force_reached"
+    assert 1.0 <= outcome.result.thumb_force <= 1.1 and 0.8 <= outcome.result.finger_force <= 0.95
+    m = h.manipulation
+    assert m._taxels.state.switched and m._wrenches.state.switched
+    assert all(ros.probe.count_subscribers(f"{NS}/prisma/{f}/{kind}") == 0 for f in FINGERS
+               for kind in ("taxels", "wrench"))
+    ros.spin_for(0.1)
+    for f in FINGERS:
+        stamps = [stamp_ns(c) for c in seen[f]]
+        assert len(stamps) > 100 and np.all(np.diff(stamps) == 10 * MS), f  # one ContactState per sample
+    # the same ContactStates, one HandContact per scan with every finger
+    assert all([c.finger for c in scan.contacts] == list(FINGERS) for scan in together)
+    by_stamp = {stamp_ns(scan): scan for scan in together}
+    thumb = [c for c in seen["thumb"] if stamp_ns(c) in by_stamp]
+    assert len(thumb) > 100 and all(by_stamp[stamp_ns(c)].contacts[0] == c for c in thumb)
+
+
+def test_cancel_stops_the_motors(ros, hand):
+    h = hand(stand_world())
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))
+    ros.advance(0.3, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") > 6.0  # rad/s: closing at 60 rpm
+    canceled_at = ros.now_ns()
+    handle.cancel_goal_async()
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_CANCELED
+    assert outcome.result.reason == "canceled"
+    ros.advance(0.1, step=STEP, settle=True)
+    # the motors brake within 30 ms of the cancel request: the watchdog's 20 ms period sees it, the
+    # MoveMotors goal is canceled, the driver's next 10 ms tick stops them
+    assert braking_ns(h.joints, canceled_at, "fingers") - canceled_at <= 30 * MS
+    stopped_at = position(h.joints, "fingers")
+    ros.advance(0.3, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") == pytest.approx(0.0, abs=1e-3)
+    assert position(h.joints, "fingers") == pytest.approx(stopped_at, abs=1e-4)
+
+
+@pytest.mark.parametrize("action, name, goal, reason", [
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", speed_rpm=90.0),
+     "Grasp goal rejected: speed_rpm 90.0 above the configured limit 70.0"),
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", finger_force=5.0),
+     "Grasp goal rejected: finger_force 5.0 above the configured limit 3.0"),
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="hook"),
+     "Grasp goal rejected: grasp 'hook' is not one of ['lateral', 'pinch', 'power']"),
+    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="horizontal", speed_rpm=80.0),
+     "Manipulate goal rejected: speed_rpm 80.0 above the configured limit 70.0"),
+    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="hold", k=0.5),
+     "Manipulate goal rejected: k 0.5 too low for hold: needs k > 0.6"),
+    (MoveMotors, f"{NS}/prisma/motors/move", MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[71.0]),
+     "MoveMotors goal rejected: velocity 71.0 rpm for fingers above the limit 70.0 rpm"),
+], ids=["grasp-speed", "grasp-force", "grasp-hook", "manipulate-speed", "hold-k", "move-speed"])
+def test_goals_beyond_the_configured_limits_are_rejected(ros, hand, action, name, goal, reason):
+    ros.capture_logs()
+    h = hand(stand_world())
+    handle = send(ros, name, action, goal)
+    assert not handle.accepted
+    assert ros.wait_for_log(severity="warn", contains=reason) == [reason]
+    assert h.move_goals == []
+
+
+# ---- readiness: goals rejected until what they need flows ----------------------------------------
+def test_goals_are_rejected_until_every_stream_they_need_is_ready(ros, hand):
+    """Right after start-up: Grasp and Manipulate goals are REJECTED, each with the reason logged
+    as a warning, until the taxels and wrenches of the fingers the goal uses, /joint_states and the
+    MoveMotors server are all there (the force estimator warming up must not abort a goal later)."""
+    ros.capture_logs()
+    h = hand(pinched_world(), motor=False, wait=False, publishing=False)
+
+    def attempt(action, name, goal, expected):
+        handle = send(ros, name, action, goal)
+        if expected is None:
+            assert handle.accepted
+            return handle
+        assert not handle.accepted
+        line = f"{name.split('/')[-1].capitalize()} goal rejected: {expected}"
+        assert ros.wait_for_log(severity="warn", contains=line), ros.logs(name="manipulation")
+        return None
+
+    grasp = (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", timeout=5.0))
+    horizontal = (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="horizontal", timeout=5.0))
+    # a motor driver of an earlier test in this process may linger in the graph for a moment
+    assert ros.spin_until(lambda: not h.manipulation._move_client.server_is_ready(), 10.0)
+    ros.advance(0.05, step=STEP, settle=True)
+    # no motor driver at all: refused at once, not after a MoveMotors timeout
+    before = ros.now_ns()
+    attempt(*grasp, "MoveMotors action server prisma/motors/move not available (motor_driver not running?)")
+    attempt(*horizontal, "MoveMotors action server prisma/motors/move not available (motor_driver not running?)")
+    assert ros.now_ns() == before
+    h.start_motor_driver()
+    assert ros.spin_until(h.manipulation._move_client.server_is_ready, 30.0)
+    ros.advance(0.02, step=STEP, settle=True)
+    attempt(*grasp, "no taxels/thumb received yet")
+    attempt(*horizontal, "no taxels/thumb received yet")
+    h.sensors.taxels_on = True  # the hub runs; the force estimator is still loading its bundle
+    ros.advance(0.02, step=STEP, settle=True)
+    attempt(*grasp, "no wrench/thumb received yet")
+    h.sensors.wrenches_on = True
+    ros.advance(0.02, step=STEP, settle=True)
+    h.sensors.taxels_on = False  # the hub stalls: after 100 ms its silence rejects goals
+    ros.advance(0.15, step=STEP, settle=True)
+    attempt(*horizontal, "taxels/thumb silent for 1")
+    h.sensors.taxels_on = True
+    ros.advance(0.01, step=STEP, settle=True)
+    handle = attempt(*horizontal, None)  # needs only the thumb's taxels: runs
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.stop_reason == "edge_lost"
+    assert h.move_goals and all(t > before for t, _ in h.move_goals)
+
+
+def test_alternating_failing_and_succeeding_goals_keep_the_node_serving(ros, hand):
+    """A goal that fails (ABORTED), then one that succeeds, and again: every result delivered."""
+    ros.capture_logs()
+    hand(pinched_world())
+    failing = Manipulate.Goal(motion="vertical", timeout=0.05)  # ends unsuccessfully on its timeout
+    succeeding = Manipulate.Goal(motion="hold", timeout=0.1)  # a hold succeeds when its time is up
+    outcomes = []
+    for goal in (failing, succeeding, failing, succeeding):
+        handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, goal)
+        assert handle.accepted
+        outcome = finish(ros, handle)
+        outcomes.append((outcome.status, outcome.result.success, outcome.result.stop_reason))
+    aborted = (GoalStatus.STATUS_ABORTED, False, "timeout")
+    succeeded = (GoalStatus.STATUS_SUCCEEDED, True, "timeout")
+    assert outcomes == [aborted, succeeded, aborted, succeeded]
+    assert ros.wait_for_log(severity="warn", contains="manipulate goal ended: timeout")
+    assert len(ros.logs(severity="warn", name="manipulation", contains="manipulate goal ended: timeout")) == 2
+    assert len(ros.logs(severity="info", name="manipulation", contains="manipulate goal ended: timeout")) == 2
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))  # still serving
+    assert handle.accepted and finish(ros, handle).result.reason == "force_reached"
+
+
+def test_grasp_and_manipulate_sent_together_exactly_one_runs(ros, hand):
+    ros.capture_logs()
+    h = hand(pinched_world())
+    grasp_client = ros.action_client(Grasp, f"{NS}/prisma/grasp")
+    manipulate_client = ros.action_client(Manipulate, f"{NS}/prisma/manipulate")
+    futures = [grasp_client.send_goal_async(Grasp.Goal(grasp="pinch", timeout=5.0)),
+               manipulate_client.send_goal_async(Manipulate.Goal(motion="horizontal", timeout=5.0))]
+    assert ros.spin_until(lambda: all(f.done() for f in futures))
+    handles = [f.result() for f in futures]
+    assert sorted(h_.accepted for h_ in handles) == [False, True]
+    kind = ("grasp", "manipulate")[[h_.accepted for h_ in handles].index(True)]
+    other = "Manipulate" if kind == "grasp" else "Grasp"
+    reasons = ros.wait_for_log(severity="warn", contains=f"{other} goal rejected: a {kind} goal")
+    assert reasons and reasons[0] in (f"{other} goal rejected: a {kind} goal was accepted and is starting",
+                                      f"{other} goal rejected: a {kind} goal is running")
+    accepted = handles[[h_.accepted for h_ in handles].index(True)]
+    outcome = finish(ros, accepted)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED
+    # the node keeps serving: the other action runs now
+    if kind == "grasp":
+        handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=5.0))
+        assert handle.accepted and finish(ros, handle).result.stop_reason == "edge_lost"
+    else:
+        handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))
+        assert handle.accepted and finish(ros, handle).result.reason == "force_reached"
+    assert h.motor is not None
+
+
+# ---- faults ------------------------------------------------------------------------------------
+def test_stale_taxels_abort_with_sensor_stale_and_stop_the_motors(ros, hand):
+    ros.capture_logs()
+    h = hand(pinched_world())
+    handle = send(ros, f"{NS}/prisma/manipulate", Manipulate,
+                  Manipulate.Goal(motion="vertical", speed_rpm=10.0, timeout=10.0))
+    ros.advance(0.2, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") > 0.9  # rad/s: 10 rpm down phase
+    h.sensors.age_ns = 150 * MS  # the hub now delivers samples 150 ms old
+    old_from = ros.now_ns()
+    outcome = finish(ros, handle)
+    assert ros.now_ns() - old_from <= 20 * MS  # the first old sample (<= 10 ms) is caught at once
+    assert outcome.status == GoalStatus.STATUS_ABORTED
+    assert outcome.result.stop_reason == "sensor_stale" and not outcome.result.success
+    logged = ros.wait_for_log(severity="warn", contains="manipulate goal ended: sensor_stale (taxels/thumb 1")
+    assert logged and logged[0].endswith("ms older than /joint_states)")
+    ros.advance(0.1, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") == pytest.approx(0.0, abs=1e-3)
+    assert velocity(h.joints, "thumb_flexion") == pytest.approx(0.0, abs=1e-3)
+
+
+def test_silent_sensor_hub_aborts_with_sensor_stale(ros, hand):
+    h = hand(pinched_world())
+    handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=10.0))
+    ros.advance(0.05, step=STEP, settle=True)
+    h.sensors.silent = True
+    silent_from = ros.now_ns()
+    outcome = finish(ros, handle)
+    assert outcome.result.stop_reason == "sensor_stale"
+    assert 100 * MS < ros.now_ns() - silent_from <= 140 * MS  # 100 ms + one watchdog period
+    ros.advance(0.1, step=STEP, settle=True)
+    assert velocity(h.joints, "thumb_rotation") == pytest.approx(0.0, abs=1e-3)
+
+
+def test_motor_fault_aborts_move_and_grasp_naming_motor_and_bit(ros, hand):
+    ros.capture_logs()
+    h = hand(stand_world())
+    diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))
+    ros.advance(0.2, step=STEP, settle=True)
+    h.motor.core.bus.inject_hardware_error("fingers", 5)
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_ABORTED
+    assert outcome.result.reason == "motor_fault"
+    reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
+    assert ros.wait_for_log(severity="warn", name="motor_driver", contains=f"MoveMotors goal ended: {reason}")
+    assert ros.wait_for_log(severity="warn", name="manipulation",
+                            contains=f"grasp goal ended: motor_fault ({reason}")
+    faulted_at = ros.now_ns()
+    ros.advance(0.05, step=STEP, settle=True)
+    assert not h.motor.core.bus.read_state(ros.now_ns())["fingers"].torque_on
+    ros.advance(1.0, step=STEP, settle=True)  # /diagnostics every second
+    assert ros.spin_until(lambda: diagnostics and stamp_ns(diagnostics[-1]) > faulted_at)
+    status = {s.name: s for s in diagnostics[-1].status}
+    assert "overload" in status["motor_driver: fingers"].message
+    assert "bit 5 overload" in status["motor_driver: bus"].message
+
+
+# ---- control lost, foreign publishers ----------------------------------------------------------
+def test_manipulation_node_destroyed_mid_goal_stops_the_motors_within_half_a_second(ros, hand):
+    """The MoveMotors goal the node keeps re-sending expires 0.3 s after the last refresh: the
+    motor driver stops the motors and drops the goal by itself."""
+    ros.capture_logs()
+    h = hand(stand_world())
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))
+    assert handle.accepted
+    ros.advance(0.35, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") > 6.0  # rad/s: closing at 60 rpm
+    last_refresh = h.move_goals[-1][0]
+    ros.destroy_node(h.manipulation)  # as if its process died: no refresh, no cancel
+    lost_at = ros.now_ns()
+    ros.advance(0.6, step=STEP, settle=True)
+    stopped = next(m for m in h.joints if stamp_ns(m) > lost_at and still(m))
+    assert stamp_ns(stopped) - lost_at <= 500 * MS
+    # the goal's 0.3 s lease from its last refresh ends on the driver's tick at that instant; the
+    # next /joint_states shows the motors braking
+    assert braking_ns(h.joints, lost_at, "fingers") - last_refresh == MOVE_LEASE_S * 1e9 + 10 * MS
+    assert all(still(m) for m in h.joints if stamp_ns(m) >= stamp_ns(stopped))
+    assert not h.motor.core.runner.active  # the goal was dropped
+    assert ros.wait_for_log(name="motor_driver", contains="MoveMotors goal ended: timeout")
+    assert all(t <= last_refresh for t, _ in h.move_goals)
+
+
+def test_foreign_joint_states_during_a_goal_change_nothing(ros, hand):
+    """An arm driver on /joint_states at 50 Hz (its own joints, then empty arrays) during a
+    horizontal manipulation: the same result, stop time and motor commands as without it."""
+    ros.capture_logs()
+
+    def run(foreign: bool):
+        h = hand(pinched_world())
+        arm = ros.node(ArmDriver, namespace=NS, sim_time=True) if foreign else None
+        h.sensors.reseed()  # the same pad noise from the goal on, however long discovery took
+        feedback = []
+        handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=10.0),
+                      feedback)
+        outcome = finish(ros, handle)
+        phases = [p for i, p in enumerate(f.feedback.phase for f in feedback)
+                  if i == 0 or p != feedback[i - 1].feedback.phase]  # the sequence of phases
+        # (the instant a refresh or the return's end lands may slip by a tick on a loaded machine;
+        # the stop time, from sample stamps, may not)
+        ignored = h.manipulation.core.ignored_joint_states
+        for node in (h.manipulation, h.motor, h.sensors, arm):
+            if node is not None:
+                ros.destroy_node(node)
+        return (outcome.status, outcome.result.stop_reason, outcome.result.stop_time, phases, h.commands()), \
+            arm, ignored
+
+    plain, _, _ = run(foreign=False)
+    mixed, arm, ignored = run(foreign=True)
+    assert arm.sent >= 20 and ignored >= arm.sent - 2  # 50 Hz through the whole goal, each one set aside
+    assert plain[:2] == (GoalStatus.STATUS_SUCCEEDED, "edge_lost") and plain[3] == ["rotate", "return", "done"]
+    assert plain[4] == [{"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0},
+                        {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}]
+    assert mixed == plain
+    assert ros.wait_for_log(severity="warn", name="manipulation", contains="ignoring /joint_states: no position for")
+
+
+# ---- topics and parameters -----------------------------------------------------------------------
+def test_horizontal_goal_reports_edge_lost_with_stop_time(ros, hand):
+    h = hand(pinched_world())
+    feedback = []
+    handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=10.0),
+                  feedback)
+    outcome = finish(ros, handle)
+    r = outcome.result
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED and r.stop_reason == "edge_lost"
+    assert 0.1 < r.stop_time < 1.0
+    assert {"rotate", "return"} <= {f.feedback.phase for f in feedback}
+    assert all(f.feedback.threshold > 0 for f in feedback[1:])  # from the first sample on
+    ros.advance(0.1, step=STEP, settle=True)
+    assert position(h.joints, "thumb_rotation") == pytest.approx(0.0, abs=0.03)
+
+
+def test_contact_state_on_every_sample_when_idle_and_k_at_run_time(ros, hand):
+    h = hand(pinched_world())
+    seen = {f: ros.collect(ContactState, f"{NS}/prisma/{f}/contact") for f in FINGERS}
+    assert ros.spin_until(lambda: all(p.get_subscription_count() >= 1
+                                      for p in h.manipulation._contact_pubs.values()))
+    before = h.sensors.published
+    ros.advance(0.1, step=STEP, settle=True)
+    samples = h.sensors.published - before
+    assert samples == 10
+    assert ros.spin_until(lambda: all(len(seen[f]) == samples for f in FINGERS))
+    ros.spin_for(0.05)
+    assert all(len(seen[f]) == samples for f in FINGERS)
+    thumb = seen["thumb"][-1]
+    assert thumb.k == pytest.approx(0.8) and thumb.threshold == pytest.approx(0.8 * thumb.mean_voltage, rel=1e-5)
+    assert thumb.feasible and list(thumb.lost_edges) == []
+    assert not seen["ring"][-1].feasible  # untouched pad: below min_mean_voltage
+    # through the node's set_parameters service, as `ros2 param set /manipulation k 0.95` does
+    assert [r.successful for r in ros.set_parameters(f"{NS}/manipulation", k=0.95)] == [True]
+    ros.advance(0.02, step=STEP, settle=True)
+    assert ros.spin_until(lambda: len(seen["thumb"]) == samples + 2)
+    assert seen["thumb"][-1].k == pytest.approx(0.95)
+    assert seen["thumb"][-1].threshold == pytest.approx(0.95 * seen["thumb"][-1].mean_voltage, rel=1e-5)
+    (bad,) = ros.set_parameters(f"{NS}/manipulation", k=2.0)
+    assert not bad.successful and bad.reason.startswith("parameter k: ") and "2.0" in bad.reason
+    (fixed,) = ros.set_parameters(f"{NS}/manipulation", max_force_n=9.0)
+    assert not fixed.successful and fixed.reason == "max_force_n cannot change at run time; only k"
+    assert h.manipulation.core.k_parameter == 0.95
+
+
+def test_joint_states_at_100_hz_in_si_units(ros, hand):
+    h = hand(pinched_world())
+    ros.spin_for(0.05)
+    start = len(h.joints)
+    ros.advance(0.1, step=STEP, settle=True)
+    assert ros.spin_until(lambda: len(h.joints) - start == 10)
+    ros.spin_for(0.05)
+    assert len(h.joints) - start == 10
+    msg = h.joints[-1]
+    assert list(msg.name) == ["fingers", "thumb_flexion", "thumb_rotation"]
+    assert msg.position[0] == pytest.approx(h.world.grasp_pose(1.0)["fingers"])
+    assert stamp_ns(msg) == ros.now_ns()
+    assert np.all(np.diff([stamp_ns(m) for m in h.joints[start:]]) == 10 * MS)
+    # velocities in rad/s: a 60 rpm MoveMotors goal reads 2 pi rad/s
+    move = ros.action_client(MoveMotors, f"{NS}/prisma/motors/move")
+    handle = ros.send_goal(move, MoveMotors.Goal(motors=["thumb_rotation"], mode="velocity", targets=[60.0],
+                                                 timeout=0.1))
+    assert handle.accepted
+    ros.advance(0.06, step=STEP, settle=True)  # six time constants of the velocity loop
+    assert velocity(h.joints, "thumb_rotation") == pytest.approx(2 * np.pi, rel=0.005)
+
+
+def test_invalid_parameters_fail_at_start_naming_them(ros):
+    with pytest.raises(ParameterError, match=r"invalid parameter 'k' = 2.0"):
+        ros.node(ManipulationNode, namespace=NS, params={"k": 2.0})
+    with pytest.raises(ParameterError, match=r"motor_ids \[1, 1, 3\] are not unique"):
+        ros.node(MotorDriverNode, namespace=NS, params={"motor_ids": [1, 1, 3]})
+
+
+def test_sim_stack_tactile_driver_fed_by_motor_driver_through_hand_world(ros):
+    """The ROS sim mode end to end: motor_driver (sim) -> /joint_states -> tactile_driver
+    (contact_source hand_world) -> taxels -> manipulation -> MoveMotors -> motor_driver."""
+    from prisma_tactile_driver.tactile_driver_node import TactileDriverNode
+
+    pose = HandWorld().grasp_pose(1.0)
+    contacts = ros.collect(ContactState, f"{NS}/prisma/thumb/contact")
+    joints = ros.collect(JointState, f"{NS}/joint_states")
+    ros.node(MotorDriverNode, namespace=NS,
+             params={"sim_initial_positions": [pose["fingers"], pose["thumb_flexion"], 0.0]}, sim_time=True)
+    tactile = ros.node(TactileDriverNode, namespace=NS, params={"backend": "sim", "contact_source": "hand_world"},
+                       sim_time=True)
+    manipulation = ros.node(ManipulationNode, namespace=NS, sim_time=True)
+    ros.advance(0.6, step=STEP, settle=True)  # the presenting hand lets go of the ball once the pinch holds it
+    assert tactile._source.world.forces()["thumb"] == pytest.approx(1.0, abs=0.05)
+    assert ros.spin_until(lambda: contacts and contacts[-1].feasible)
+    assert contacts[-1].mean_voltage > 0.9
+    assert ros.spin_until(manipulation._move_client.server_is_ready, 30.0)
+    goal_sent = ros.now_ns()
+    handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=10.0))
+    assert handle.accepted  # no force goal: the thumb's taxels and /joint_states suffice
+    r = finish(ros, handle).result
+    assert r.success and r.stop_reason == "edge_lost"
+    # the stop time is the first published ContactState with the right side lost
+    lost_ns = next(stamp_ns(c) for c in contacts if stamp_ns(c) >= goal_sent and "right" in list(c.lost_edges))
+    assert (lost_ns - goal_sent) * 1e-9 == pytest.approx(r.stop_time, abs=1e-6)
+    ros.advance(0.2, step=STEP, settle=True)
+    rotation = joint(joints[-1], "position", "thumb_rotation")
+    assert rotation == pytest.approx(0.0, abs=0.03)  # back at the start angle
+
+
+def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
+    """A client keeping its motion alive sends a MoveMotors goal every 0.1 s; each preempts the
+    last. The driver forgets a finished goal 10 s after it ended (result_timeout), so it tracks at
+    most ~101 goals and its status topic lists as many, however long the motion runs. (Wall time:
+    rcl's goal expiry timer does not settle at a sim-time instant.)"""
+    from action_msgs.msg import GoalStatusArray
+    from rclpy.serialization import serialize_message
+
+    motor = ros.node(MotorDriverNode, namespace=NS)
+    status = ros.collect(GoalStatusArray, f"{NS}/prisma/motors/move/_action/status")
+    move = ros.action_client(MoveMotors, f"{NS}/prisma/motors/move")
+    tracked = []
+    start = time.monotonic()
+    for k in range(130):  # 13 s of 10 goals/s, the thumb rocking at +-1 rpm
+        goal = MoveMotors.Goal(motors=["thumb_rotation"], mode="velocity", targets=[1.0 if k % 20 < 10 else -1.0],
+                               timeout=MOVE_LEASE_S)
+        assert ros.send_goal(move, goal).accepted
+        ros.spin_for(max(0.0, start + 0.1 * (k + 1) - time.monotonic()))
+        tracked.append(len(motor._server._goal_handles))
+    ros.spin_for(0.1)
+    # +1 each 0.1 s until the first goals expire 10 s after they ended (a loaded machine may send
+    # a few goals late, never more than 10 s' worth)
+    assert tracked[:5] == [1, 2, 3, 4, 5]
+    assert 90 <= tracked[-1] <= max(tracked) <= 102
+    final = status[-1]  # as the last goal started: every goal kept (expiry itself publishes nothing)
+    assert 90 <= len(final.status_list) <= 102
+    assert sum(s.status == GoalStatus.STATUS_EXECUTING for s in final.status_list) == 1
+    size = len(serialize_message(final))
+    assert size <= 4 + 4 + 28 * 102  # CDR: header, length, 28 bytes a goal (uuid, stamp, status)
+    assert len(status) <= 2 * 130 + 10  # a status message as each goal starts and as each ends

@@ -1,0 +1,97 @@
+"""The ROS package graph: declared dependencies cover imports, and colcon can order it.
+
+Every import of another workspace package is at module level (a `TYPE_CHECKING` block counts as
+module level) and declared in package.xml; none hides inside a function. The declared graph is
+acyclic, so it has no back-edges: prisma_common and prisma_hand_sim, the ROS-free layers, sit
+below every driver and import no ROS.
+"""
+from __future__ import annotations
+
+import ast
+import xml.etree.ElementTree as ET
+from graphlib import CycleError, TopologicalSorter
+
+import pytest
+
+from repo_paths import ROOT
+
+SRC = ROOT / "src"
+PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").exists())
+PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / p).is_dir()]
+ROS_FREE = ("prisma_common", "prisma_hand_sim")
+
+
+def declared(package: str) -> set[str]:
+    root = ET.parse(SRC / package / "package.xml").getroot()
+    tags = ("depend", "build_depend", "exec_depend", "build_export_depend")
+    return {e.text.strip() for tag in tags for e in root.iter(tag) if e.text}
+
+
+def imported_modules(node: ast.AST) -> list[str]:
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        return [node.module]
+    return []
+
+
+def imports(package: str) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
+    """(module-level, function-level) imports of `package`: top-level name -> the modules importing it."""
+    top: dict[str, set[str]] = {}
+    nested: dict[str, set[str]] = {}
+
+    def visit(node: ast.AST, in_function: bool, where: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            for name in imported_modules(child):
+                (nested if in_function else top).setdefault(name.split(".")[0], set()).add(where)
+            visit(child, in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)),
+                  where)
+
+    for path in sorted((SRC / package / package).rglob("*.py")):
+        visit(ast.parse(path.read_text()), False, str(path.relative_to(SRC)))
+    return top, nested
+
+
+def workspace(found: dict[str, set[str]], package: str) -> dict[str, set[str]]:
+    return {name: where for name, where in found.items() if name in PACKAGES and name != package}
+
+
+def test_packages_found():
+    assert {"prisma_msgs", "prisma_common", "prisma_hand_sim", "prisma_tactile_driver", "prisma_motor_driver",
+            "prisma_force_estimator", "prisma_manipulation", "stag_glove", "prisma_bringup"} <= set(PACKAGES)
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_module_level_imports_are_declared(package):
+    top, _ = imports(package)
+    missing = {name: sorted(where) for name, where in workspace(top, package).items() if name not in declared(package)}
+    assert not missing, f"{package} imports these workspace packages but package.xml does not declare them: {missing}"
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_no_function_level_imports_of_other_workspace_packages(package):
+    _, nested = imports(package)
+    found = {name: sorted(where) for name, where in workspace(nested, package).items()}
+    assert not found, (f"{package} imports other workspace packages inside functions: {found}; "
+                       "import them at module level")
+
+
+def test_declared_graph_is_acyclic():
+    graph = {p: declared(p) & set(PACKAGES) for p in PACKAGES}
+    try:
+        order = list(TopologicalSorter(graph).static_order())
+    except CycleError as exc:
+        pytest.fail(f"package.xml dependencies form a cycle: {exc.args[1]}")
+    assert order.index("prisma_common") < order.index("prisma_hand_sim") < order.index("prisma_tactile_driver")
+    assert order.index("prisma_tactile_driver") < order.index("prisma_motor_driver") < order.index("prisma_bringup")
+
+
+def test_the_ros_free_layers_are_at_the_bottom():
+    # prisma_common's only workspace dependency is the interface package whose .msg files its typestore reads
+    assert declared("prisma_common") & set(PACKAGES) <= {"prisma_msgs"}
+    assert declared("prisma_hand_sim") & set(PACKAGES) == {"prisma_common"}
+    for package in ROS_FREE:
+        top, nested = imports(package)
+        ros = {name: sorted(where) for name, where in {**top, **nested}.items()
+               if name in ("rclpy", "rosidl_runtime_py") or name.endswith("_msgs")}
+        assert not ros, f"{package} must stay ROS-free, imports {ros}"

@@ -1,0 +1,404 @@
+"""Packaging: rosdep keys, console scripts, installed data and the wheel.
+
+- every package.xml dependency is a workspace package, a ROS package released for Jazzy or a
+  rosdep key with an Ubuntu 24.04 entry (lists below, checked against ros/rosdistro), and every
+  third-party module a package imports is declared by its key;
+- pyproject.toml's [project.scripts] and the setup.py console scripts are one list, and setup.cfg
+  installs them where `ros2 run` looks (lib/<package>/);
+- prisma_bringup's setup.py installs all of its launch/ and config/ under share/prisma_bringup;
+- the wheel (`pip install .`) carries the model bundles, the glove layout and the message
+  definitions under share/, where share_data finds them; share_data's lookup order;
+- with the workspace built and sourced: the scripts and data are where ROS looks.
+No test here needs the network.
+"""
+from __future__ import annotations
+
+import ast
+import configparser
+import os
+import re
+import runpy
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from prisma_common import share_data
+from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
+from repo_paths import BRINGUP, ROOT
+from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
+from stag_glove import paths as glove_paths
+
+SRC = ROOT / "src"
+PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file())
+PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.py").is_file()]
+
+# ros/rosdistro jazzy/distribution.yaml (commit 59a60b4): packages released for Jazzy that a
+# package.xml here names. apt: ros-jazzy-<name with - for _>.
+JAZZY_ROS_PACKAGES = {
+    "action_msgs", "ament_cmake", "builtin_interfaces", "diagnostic_msgs", "dynamixel_sdk",
+    "geometry_msgs", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "rcl_interfaces",
+    "rclpy", "ros2bag", "rosbag2_storage_mcap", "rosidl_default_generators", "rosidl_default_runtime",
+    "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs",
+}
+# ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
+# (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
+# (use the ROS package dynamixel_sdk), python3-rosbags (only python3-rosbags-pip, which PEP 668
+# refuses on noble: rosbags is pip-installed in the venv, see the README).
+NOBLE_ROSDEP_KEYS = {
+    "python3-h5py", "python3-hypothesis", "python3-matplotlib", "python3-numpy", "python3-pytest",
+    "python3-scipy", "python3-serial", "python3-sklearn", "python3-smbus2", "python3-torch",
+    "python3-yaml",
+}
+# Third-party Python modules the packages import -> the dependency that provides them.
+MODULE_DEPENDENCY = {
+    "numpy": "python3-numpy", "yaml": "python3-yaml", "serial": "python3-serial",
+    "smbus2": "python3-smbus2", "torch": "python3-torch", "scipy": "python3-scipy",
+    "sklearn": "python3-sklearn", "threadpoolctl": "python3-sklearn",  # a dependency of scikit-learn
+    "h5py": "python3-h5py", "matplotlib": "python3-matplotlib", "dynamixel_sdk": "dynamixel_sdk",
+}
+# Modules with no rosdep key usable on noble: the README's venv installs them with pip, and the
+# package.xml of a package importing one says so in a comment naming it.
+PIP_ONLY = {"rosbags"}
+DEPENDENCY_TAGS = ("depend", "build_depend", "buildtool_depend", "build_export_depend", "exec_depend",
+                   "test_depend")
+
+
+def dependencies(package: str, tags=DEPENDENCY_TAGS) -> set[str]:
+    root = ET.parse(SRC / package / "package.xml").getroot()
+    return {e.text.strip() for tag in tags for e in root.iter(tag) if e.text and e.text.strip()}
+
+
+def imported_roots(package: str, folder: str | None = None) -> set[str]:
+    """Top-level names of every module a package's Python code (or its `folder`, e.g. test/) imports,
+    at module or function level."""
+    names = set()
+    for path in (SRC / package / (folder or package)).rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names.add(node.module.split(".")[0])
+    return names
+
+
+# ---------------------------------------------------------------------------------------------
+# rosdep keys
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_dependency_resolves_in_rosdep_for_jazzy_on_noble(package):
+    unknown = dependencies(package) - set(PACKAGES) - JAZZY_ROS_PACKAGES - NOBLE_ROSDEP_KEYS
+    assert not unknown, (
+        f"src/{package}/package.xml names {sorted(unknown)}: neither a workspace package, a ROS package "
+        f"released for Jazzy nor a rosdep key with a noble entry. Check it in ros/rosdistro "
+        f"(jazzy/distribution.yaml, rosdep/python.yaml, rosdep/base.yaml) and add it to the list in "
+        f"this test, or drop it and document the pip install in the README")
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_every_third_party_import_is_declared(package):
+    roots = imported_roots(package) - set(sys.stdlib_module_names) - set(PACKAGES) - {"__future__"}
+    run_deps = dependencies(package, ("depend", "exec_depend"))
+    xml_text = (SRC / package / "package.xml").read_text()
+    for module in sorted(roots):
+        if module in PIP_ONLY:
+            assert module in xml_text, f"{package} imports {module} (pip only): say so in package.xml"
+        elif module in MODULE_DEPENDENCY:
+            assert MODULE_DEPENDENCY[module] in run_deps, (
+                f"{package} imports {module} but package.xml does not exec_depend on "
+                f"{MODULE_DEPENDENCY[module]}")
+        else:  # a ROS package imported by its own name (rclpy, *_msgs, rosidl_runtime_py, ...)
+            assert module in JAZZY_ROS_PACKAGES, (
+                f"{package} imports {module}: map it to its rosdep key in MODULE_DEPENDENCY")
+            assert module in run_deps, f"{package} imports {module} but package.xml does not declare it"
+    check_test_imports_declared(package)
+
+
+# The shared test helpers (test/support, on pytest's pythonpath) and the test runners.
+TEST_SUPPORT = {p.stem for p in (ROOT / "test" / "support").glob("*.py")}
+TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis"}
+TEST_PIP_ONLY = {"mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
+
+
+def check_test_imports_declared(package: str) -> None:
+    """`colcon test` runs a package's pytest tests when its setup.py names pytest as a test extra
+    (tests_require is gone from setuptools 72 on, so colcon would not see it there); what
+    src/<package>/test/ imports (workspace packages, ROS packages, third-party modules) is declared
+    in package.xml (as test_depend, or already as a run dependency)."""
+    setup = ast.parse((SRC / package / "setup.py").read_text())
+    extras = [ast.literal_eval(k.value) for k in ast.walk(setup)
+              if isinstance(k, ast.keyword) and k.arg == "extras_require"]
+    assert extras == [{"test": ["pytest"]}], f"src/{package}/setup.py: extras_require={{'test': ['pytest']}}"
+    if not (SRC / package / "test").is_dir():
+        return
+    roots = imported_roots(package, "test") - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__", package}
+    declared = dependencies(package, ("depend", "exec_depend", "test_depend"))
+    xml_text = (SRC / package / "package.xml").read_text()
+    missing = []
+    for module in sorted(roots):
+        if module in PIP_ONLY | TEST_PIP_ONLY:
+            if module not in xml_text:
+                missing.append(f"{module} (pip only: say so in a comment)")
+        else:
+            key = {**MODULE_DEPENDENCY, **TEST_MODULES}.get(module, module)
+            if key not in declared:
+                missing.append(key)
+    assert not missing, f"src/{package}/test imports what src/{package}/package.xml does not declare: {missing}"
+
+
+def _robot_section() -> str:
+    text = (ROOT / "README.md").read_text()
+    start = text.index("## On the robot (ROS 2)")
+    return text[start:text.index("\n### ", start)]
+
+
+def test_readme_robot_setup_matches_the_declared_keys():
+    section = _robot_section()
+    rosdep = next(line for line in section.splitlines() if line.lstrip().startswith("rosdep install"))
+    skipped = set(re.search(r"--skip-keys\s+\"?([\w\- ]+)\"?", rosdep).group(1).split())
+    declared = set().union(*(dependencies(p) for p in PACKAGES))
+    # one torch: the pip one in the venv, not apt's python3-torch as well
+    assert skipped == {"python3-torch"} and skipped <= declared
+    pip = " ".join(line for line in section.splitlines() if re.match(r"\s*(python3 -m )?pip install", line))
+    # setuptools<80: torch pulls a newer one, whose `develop` has no --editable (--symlink-install)
+    for requirement in ("numpy<2", "setuptools<80", "torch==", *PIP_ONLY):
+        assert requirement in pip, f"the README's robot venv does not pip install {requirement}"
+    assert "--system-site-packages" in section and "python3 -m colcon build" in section
+
+
+# ---------------------------------------------------------------------------------------------
+# console scripts
+
+def setup_console_scripts(package: str) -> dict[str, str]:
+    """name -> 'module:function' from src/<package>/setup.py, read with ast (not run)."""
+    tree = ast.parse((SRC / package / "setup.py").read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.keyword) and node.arg == "entry_points":
+            entries = ast.literal_eval(node.value)["console_scripts"]
+            return {name.strip(): target.strip() for name, target in (e.split("=", 1) for e in entries)}
+    return {}
+
+
+def pyproject_scripts() -> dict[str, str]:
+    tomllib = pytest.importorskip("tomllib", reason="tomllib is in the standard library from Python 3.11")
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+
+
+def test_pyproject_scripts_are_the_setup_py_scripts_less_the_nodes():
+    union: dict[str, str] = {}
+    for package in PYTHON_PACKAGES:
+        for name, target in setup_console_scripts(package).items():
+            assert name not in union, f"console script {name} is in two setup.py files"
+            union[name] = target
+            # ros2 run <package> <name>: the script must be in the setup.py of its module's package
+            assert target.split(".")[0] == package, f"{name} -> {target} is in src/{package}/setup.py"
+    nodes = {name for name, target in union.items() if target.split(":")[0].endswith("_node")}
+    assert {name: union[name] for name in sorted(set(union) - nodes)} == dict(sorted(pyproject_scripts().items()))
+    # the three tactile CLIs that once were only in pyproject.toml
+    assert {"prisma-tactile-calset", "prisma-tactile-pad-plot", "prisma-tactile-hub-emulator"} <= set(
+        setup_console_scripts("prisma_tactile_driver"))
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_setup_cfg_installs_scripts_where_ros2_run_looks(package):
+    cfg = configparser.ConfigParser()
+    cfg.read(SRC / package / "setup.cfg")
+    assert cfg.get("develop", "script_dir") == f"$base/lib/{package}"  # colcon --symlink-install
+    assert cfg.get("install", "install_scripts") == f"$base/lib/{package}"  # colcon build
+
+
+# ---------------------------------------------------------------------------------------------
+# launch/ and config/ in prisma_bringup's colcon install
+
+def repo_files(*folders: str) -> set[str]:
+    """The files of prisma_bringup's `folders` (launch/, config/), relative to the package."""
+    return {str(p.relative_to(BRINGUP)) for folder in folders for p in (BRINGUP / folder).rglob("*")
+            if p.is_file() and "__pycache__" not in p.parts}
+
+
+def bringup_data_files(monkeypatch, cwd: Path) -> dict[str, Path]:
+    """share path -> source file of prisma_bringup's setup.py data_files, run from `cwd`."""
+    import setuptools
+
+    captured: dict = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: captured.update(kw))
+    monkeypatch.chdir(cwd)
+    runpy.run_path(str(SRC / "prisma_bringup" / "setup.py"))
+    return {os.path.join(dest, os.path.basename(src)): (cwd / src).resolve()
+            for dest, sources in captured["data_files"] for src in sources}
+
+
+@pytest.mark.parametrize("where", ["package directory", "elsewhere"])
+def test_bringup_installs_all_of_launch_and_config(monkeypatch, tmp_path, where):
+    # colcon runs setup.py in the package directory, and through a symlink in build/ with
+    # --symlink-install: the sources must be found from any working directory.
+    cwd = SRC / "prisma_bringup" if where == "package directory" else tmp_path
+    installed = bringup_data_files(monkeypatch, cwd)
+    expected = {f"share/prisma_bringup/{rel}": BRINGUP / rel for rel in repo_files("launch", "config")}
+    assert "launch/hand.launch.py" in repo_files("launch") and "config/manipulation.yaml" in repo_files("config")
+    assert {k: v for k, v in installed.items() if k in expected} == expected
+    assert "share/prisma_bringup/config/glove/layout.yaml" in installed
+    assert "share/prisma_bringup/config/models/cnn2/model.pt" in installed
+
+
+# ---------------------------------------------------------------------------------------------
+# the wheel
+
+WHEEL_SHARE = {  # share path in the wheel -> files of the repository
+    "share/prisma_bringup/": repo_files("config"),
+    "share/prisma_msgs/": {str(p.relative_to(SRC / "prisma_msgs")) for p in
+                           [*(SRC / "prisma_msgs" / "msg").glob("*.msg"),
+                            *(SRC / "prisma_msgs" / "action").glob("*.action")]},
+}
+
+
+def _bdist_wheel_builtin() -> bool:
+    try:
+        import setuptools
+    except ImportError:
+        return False
+    major, minor = (int(x) for x in setuptools.__version__.split(".")[:2])
+    return (major, minor) >= (70, 1)
+
+
+@pytest.fixture(scope="module")
+def wheel_names(tmp_path_factory) -> set[str]:
+    """Names in the wheel `pip wheel .` builds, from a copy of the sources (setuptools writes
+    build/ and *.egg-info beside pyproject.toml, where colcon keeps its build/)."""
+    work = tmp_path_factory.mktemp("wheel")
+    tree = work / "tree"
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
+    shutil.copytree(SRC, tree / "src", ignore=ignore)
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(ROOT / name, tree / name)
+    cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(work / "dist"), str(tree)]
+    # setuptools >= 70.1 builds wheels itself: no isolated build env, so no download
+    if _bdist_wheel_builtin():
+        cmd.insert(cmd.index("--no-deps"), "--no-build-isolation")
+    result = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    (wheel,) = (work / "dist").glob("prisma_hand_suite-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        return set(zf.namelist())
+
+
+def test_wheel_carries_bundles_layout_and_message_definitions(wheel_names):
+    data = {n.split(".data/data/", 1)[1] for n in wheel_names if ".data/data/" in n}
+    for prefix, files in WHEEL_SHARE.items():
+        shipped = {n[len(prefix):] for n in data if n.startswith(prefix)}
+        assert shipped == files, f"{prefix}: missing {sorted(files - shipped)}, extra {sorted(shipped - files)}"
+    assert {"config/models/cnn2/model.pt", "config/models/glove_object/metadata.json",
+            "config/glove/layout.yaml"} <= WHEEL_SHARE["share/prisma_bringup/"]
+    assert {"msg/TaxelArray.msg", "action/Grasp.action"} <= WHEEL_SHARE["share/prisma_msgs/"]
+    assert "prisma_common/share_data.py" in wheel_names
+
+
+# ---------------------------------------------------------------------------------------------
+# share_data: source tree, colcon install, wheel prefix
+
+def test_share_data_recognises_the_source_tree(tmp_path):
+    assert share_data.source_root(SRC / "prisma_common" / "prisma_common" / "share_data.py") == ROOT
+    # a colcon install or a wheel: no repository around the module
+    site = tmp_path / "lib" / "python3" / "site-packages" / "prisma_common" / "share_data.py"
+    assert share_data.source_root(site) is None
+
+
+def test_share_data_looks_in_the_source_tree_first(monkeypatch):
+    # (the module may be imported from a colcon install here, where SOURCE_ROOT is None)
+    monkeypatch.setattr(share_data, "SOURCE_ROOT", ROOT)
+    assert share_data.package_directories("prisma_msgs")[0] == SRC / "prisma_msgs"
+    assert share_data.package_directories("prisma_bringup")[0] == BRINGUP
+    assert share_data.find(DEFAULT_BUNDLE, ["prisma_bringup"]) == BRINGUP / DEFAULT_BUNDLE
+    assert share_data.find("config/nothing_here", ["prisma_bringup"]) is None
+
+
+def _install(prefix: Path, package: str, relative: str, text: str = "x") -> Path:
+    path = prefix / "share" / package / relative
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def installed(monkeypatch, tmp_path):
+    """No source tree; a colcon install prefix and a Python (wheel) prefix under tmp_path."""
+    colcon, wheel = tmp_path / "install" / "prisma_bringup", tmp_path / "venv"
+    monkeypatch.setattr(share_data, "SOURCE_ROOT", None)
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(colcon))
+    monkeypatch.delenv("PRISMA_MSGS_DIR", raising=False)
+    monkeypatch.setattr(sys, "prefix", str(wheel))
+    monkeypatch.chdir(tmp_path)
+    return colcon, wheel
+
+
+def test_share_data_finds_a_wheel_install(installed):
+    from prisma_common.typestore import find_interface_dir
+
+    _, wheel = installed
+    bundle = _install(wheel, "prisma_bringup", "config/models/cnn2/metadata.json").parent
+    layout = _install(wheel, "prisma_bringup", "config/glove/layout.yaml")
+    _install(wheel, "prisma_msgs", "msg/TaxelArray.msg")
+    assert resolve_bundle_path(DEFAULT_BUNDLE) == bundle
+    assert glove_paths.resolve("config/glove/layout.yaml") == layout
+    assert find_interface_dir() == wheel / "share" / "prisma_msgs"
+
+
+def test_share_data_prefers_the_colcon_install_to_the_wheel(installed):
+    colcon, wheel = installed
+    _install(wheel, "prisma_bringup", "config/models/cnn2/metadata.json")
+    bundle = _install(colcon, "prisma_bringup", "config/models/cnn2/metadata.json").parent
+    assert resolve_bundle_path(DEFAULT_BUNDLE) == bundle
+    # the glove package's own share comes before prisma_bringup's
+    _install(colcon, "prisma_bringup", "config/glove/layout.yaml")
+    own = _install(colcon, "stag_glove", "config/glove/layout.yaml")
+    assert glove_paths.resolve("config/glove/layout.yaml") == own
+
+
+def test_missing_shipped_file_names_every_place_looked(installed):
+    colcon, wheel = installed
+    with pytest.raises(FileNotFoundError) as err:
+        glove_paths.resolve("config/glove/layout.yaml")
+    message = str(err.value)
+    for place in (colcon / "share" / "stag_glove", colcon / "share" / "prisma_bringup",
+                  wheel / "share" / "prisma_bringup"):
+        assert str(place / "config" / "glove" / "layout.yaml") in message
+    # a bundle that is nowhere comes back as given, for load_bundle to report
+    assert resolve_bundle_path(DEFAULT_BUNDLE) == Path(DEFAULT_BUNDLE)
+
+
+# ---------------------------------------------------------------------------------------------
+# the built and sourced workspace (ROS only)
+
+@pytest.fixture
+def ament():
+    if not ROS_AVAILABLE:
+        if os.environ.get("PRISMA_REQUIRE_ROS") == "1":
+            pytest.fail(f"PRISMA_REQUIRE_ROS=1 but {ROS_IMPORT_ERROR}")
+        pytest.skip(f"{ROS_SKIP_REASON} [{ROS_IMPORT_ERROR}]")
+    from ament_index_python import packages
+
+    return packages
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_every_console_script_is_where_ros2_run_finds_it(ament, package):
+    lib = Path(ament.get_package_prefix(package)) / "lib" / package
+    for name in setup_console_scripts(package):
+        script = lib / name
+        assert script.is_file() and os.access(script, os.X_OK), (
+            f"ros2 run {package} {name}: {script} missing; rebuild with colcon build")
+
+
+def test_launch_config_and_definitions_are_installed(ament):
+    bringup = Path(ament.get_package_share_directory("prisma_bringup"))
+    for rel in sorted(repo_files("launch", "config")):
+        installed = bringup / rel
+        assert installed.is_file(), f"{installed} missing; rebuild prisma_bringup with colcon build"
+        assert installed.read_bytes() == (BRINGUP / rel).read_bytes(), f"{installed} differs from {rel}"
+    msgs = Path(ament.get_package_share_directory("prisma_msgs"))
+    for rel in WHEEL_SHARE["share/prisma_msgs/"]:
+        assert (msgs / rel).read_bytes() == (SRC / "prisma_msgs" / rel).read_bytes()

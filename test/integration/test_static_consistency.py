@@ -1,0 +1,666 @@
+"""Static cross-check of launch files, setup.py entry points, config YAML, nodes and the topic table.
+
+Data-driven: adding a node (console script in src/<pkg>/setup.py), a launch file, a config file or
+a topic-table row needs no change here.
+
+1. every executable a launch file starts is a console script of the package the launch file names;
+   its parameter files exist in config/ and address that node by name; every parameter given inline
+   in the launch file is declared by the node, literal values with the declared type (and the node
+   starts with them); every LaunchConfiguration is a declared launch argument; every included
+   launch file exists and declares the arguments passed to it;
+2. every parameter in a config file (ros__parameters form, top key = node name, `/**/<node>`) is declared by that
+   node, with the same type and the same value as its default; every node name there is a node;
+3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
+   publishing node, the one in its 'from' column; every action there exactly one action server.
+
+Nodes are found by instantiating the rclpy Node subclass of every console-script module (real
+rclpy; those checks skip where ROS is absent) with default parameters and reading what they
+declared, published and served (rclpy's own /rosout, /parameter_events and the action servers'
+hidden topics left out). Rows and entries whose node has no console script yet skip, naming the node.
+"""
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import re
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+import yaml
+
+from repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
+from ros_harness import ROS_AVAILABLE, require_ros
+from topic_table import SHARED_TOPICS, TableRow, topic_table
+
+# ------------------------------------------------------------------------------------------------
+# Sources: setup.py, launch files, config files, topic table
+
+
+@dataclass(frozen=True)
+class ConsoleScript:
+    package: str
+    executable: str
+    module: str
+    function: str
+
+
+class _Evaluator(ast.NodeVisitor):
+    """Evaluates the literal parts of a setup.py: constants, names bound to them, f-strings, +."""
+
+    def __init__(self, names: dict) -> None:
+        self.names = names
+
+    def value(self, node):
+        if isinstance(node, ast.Constant):
+            return node.value
+        if isinstance(node, ast.Name):
+            return self.names[node.id]
+        if isinstance(node, ast.JoinedStr):
+            return "".join(str(self.value(v.value if isinstance(v, ast.FormattedValue) else v)) for v in node.values)
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+            return self.value(node.left) + self.value(node.right)
+        if isinstance(node, (ast.List, ast.Tuple)):
+            return [self.value(v) for v in node.elts]
+        if isinstance(node, ast.Dict):
+            return {self.value(k): self.value(v) for k, v in zip(node.keys, node.values)}
+        raise ValueError(f"not a literal: {ast.dump(node)[:80]}")
+
+
+def console_scripts(setup_py: Path) -> list[ConsoleScript]:
+    tree = ast.parse(setup_py.read_text(), filename=str(setup_py))
+    names: dict = {}
+    evaluator = _Evaluator(names)
+    for statement in tree.body:
+        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
+                and isinstance(statement.targets[0], ast.Name)):
+            try:
+                names[statement.targets[0].id] = evaluator.value(statement.value)
+            except (ValueError, KeyError):
+                pass
+    package = setup_py.parent.name
+    scripts = []
+    for call in ast.walk(tree):
+        if not (isinstance(call, ast.Call) and getattr(call.func, "id", getattr(call.func, "attr", None)) == "setup"):
+            continue
+        for keyword in call.keywords:
+            if keyword.arg == "name":
+                package = evaluator.value(keyword.value)
+            if keyword.arg == "entry_points":
+                entries = evaluator.value(keyword.value).get("console_scripts", [])
+                for entry in entries:
+                    executable, _, target = (part.strip() for part in entry.partition("="))
+                    module, _, function = target.partition(":")
+                    scripts.append(ConsoleScript(package, executable, module.strip(), function.strip()))
+    return [ConsoleScript(package, s.executable, s.module, s.function) for s in scripts]
+
+
+def all_console_scripts() -> dict[tuple[str, str], ConsoleScript]:
+    scripts = {}
+    for setup_py in sorted(ROOT.glob("src/*/setup.py")):
+        for script in console_scripts(setup_py):
+            scripts[(script.package, script.executable)] = script
+    return scripts
+
+
+_NOT_LITERAL = object()  # an inline parameter value given by a substitution (LaunchConfiguration...)
+
+
+@dataclass(frozen=True)
+class LaunchedNode:
+    launch_file: str
+    line: int
+    package: str | None
+    executable: str | None
+    name: str | None
+    parameter_files: tuple[str, ...]
+    inline_parameters: tuple[tuple[str, object], ...] = ()  # (name, literal value or _NOT_LITERAL)
+
+
+def _literal(node):
+    return node.value if isinstance(node, ast.Constant) and isinstance(node.value, str) else None
+
+
+def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    found = []
+    for call in ast.walk(tree):
+        if not isinstance(call, ast.Call):
+            continue
+        func = call.func
+        if getattr(func, "id", getattr(func, "attr", None)) not in ("Node", "LifecycleNode"):
+            continue
+        keywords = {k.arg: k.value for k in call.keywords}
+        files = tuple(
+            c.value for c in ast.walk(keywords["parameters"])
+            if isinstance(c, ast.Constant) and isinstance(c.value, str) and c.value.endswith((".yaml", ".yml"))
+        ) if "parameters" in keywords else ()
+        inline = []
+        for mapping in (ast.walk(keywords["parameters"]) if "parameters" in keywords else ()):
+            if isinstance(mapping, ast.Dict):
+                for key, value in zip(mapping.keys, mapping.values):
+                    try:
+                        literal = ast.literal_eval(value)
+                    except ValueError:
+                        literal = _NOT_LITERAL
+                    inline.append((_literal(key) or f"<not a literal at line {key.lineno}>", literal))
+        found.append(LaunchedNode(
+            launch_file.name, call.lineno, _literal(keywords.get("package")), _literal(keywords.get("executable")),
+            _literal(keywords.get("name")), files, tuple(inline)))
+    return found
+
+
+def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
+    return [c for c in ast.walk(tree) if isinstance(c, ast.Call)
+            and getattr(c.func, "id", getattr(c.func, "attr", None)) == name]
+
+
+def declared_launch_arguments(launch_file: Path) -> set[str]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    return {_literal(c.args[0]) for c in _calls(tree, "DeclareLaunchArgument") if c.args and _literal(c.args[0])}
+
+
+def used_launch_configurations(launch_file: Path) -> list[tuple[int, str | None]]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    return sorted((c.lineno, _literal(c.args[0]) if c.args else None) for c in _calls(tree, "LaunchConfiguration"))
+
+
+@dataclass(frozen=True)
+class Include:
+    launch_file: str
+    line: int
+    target: str | None  # the *.launch.py file name named in the include
+    arguments: tuple[str, ...]
+
+
+def launch_includes(launch_file: Path) -> list[Include]:
+    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
+    found = []
+    for call in _calls(tree, "IncludeLaunchDescription"):
+        names = [c.value for c in ast.walk(call.args[0]) if isinstance(c, ast.Constant)
+                 and isinstance(c.value, str) and c.value.endswith(".launch.py")] if call.args else []
+        arguments = ()
+        for keyword in call.keywords:
+            if keyword.arg == "launch_arguments":
+                mapping = next((d for d in ast.walk(keyword.value) if isinstance(d, ast.Dict)), None)
+                arguments = tuple(_literal(k) or "<not a literal>" for k in mapping.keys) if mapping else ()
+        found.append(Include(launch_file.name, call.lineno, names[0] if len(names) == 1 else None, arguments))
+    return found
+
+
+def all_launched_nodes() -> list[LaunchedNode]:
+    return [n for path in sorted(LAUNCH.glob("*.launch.py")) for n in launched_nodes(path)]
+
+
+def parameter_files() -> dict[str, dict]:
+    """config YAML files in ros__parameters form: {relative path: {node key: {param: value}}}."""
+    found = {}
+    for path in sorted(CONFIG.glob("**/*.y*ml")):
+        document = yaml.safe_load(path.read_text())
+        if not isinstance(document, dict) or not document:
+            continue
+        if not all(isinstance(body, dict) and "ros__parameters" in body for body in document.values()):
+            continue  # hardware maps and other data files
+        per_node = {}
+        for key, body in document.items():
+            flat: dict = {}
+            _flatten("", body["ros__parameters"] or {}, flat)
+            per_node[str(key)] = flat
+        found[str(path.relative_to(BRINGUP))] = per_node
+    return found
+
+
+def _flatten(prefix: str, values: dict, out: dict) -> None:
+    for key, value in values.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, dict):
+            _flatten(name, value, out)
+        else:
+            out[name] = value
+
+
+# ------------------------------------------------------------------------------------------------
+# Nodes, instantiated
+
+
+@dataclass
+class NodeInfo:
+    script: ConsoleScript
+    class_name: str = ""
+    name: str = ""
+    error: str = ""
+    parameters: dict = field(default_factory=dict)  # name -> Parameter (default value)
+    parameter_types: dict = field(default_factory=dict)  # name -> declared Parameter.Type
+    publishers: dict = field(default_factory=dict)  # topic -> [types]
+    action_servers: dict = field(default_factory=dict)  # action -> [types]
+
+
+def _node_class(module) -> type | None:
+    from rclpy.node import Node
+
+    classes = [c for _, c in inspect.getmembers(module, inspect.isclass)
+               if issubclass(c, Node) and c is not Node and c.__module__ == module.__name__]
+    if len(classes) > 1 and hasattr(module, "main"):
+        used = inspect.getsource(module.main)
+        classes = [c for c in classes if re.search(rf"\b{c.__name__}\s*\(", used)] or classes
+    return classes[0] if classes else None
+
+
+@contextmanager
+def _thread_settings_kept() -> Iterator[None]:
+    """A node started here must not change process-wide settings for the tests that follow:
+    glove_perception sets torch's and the BLAS pools' thread counts for its process."""
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    torch_threads = torch.get_num_threads()
+    with threadpool_limits(limits=None):  # sets nothing; on exit restores every pool's thread count
+        try:
+            yield
+        finally:
+            torch.set_num_threads(torch_threads)
+
+
+# every rclpy node publishes these, and an action server its hidden feedback and status topics
+RCLPY_OWN_TOPICS = {"/rosout", "/parameter_events"}
+
+
+def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    info = NodeInfo(script)
+    try:
+        module = importlib.import_module(script.module)
+    except Exception as exc:  # noqa: BLE001 - reported by the test
+        info.error = f"import {script.module} failed: {exc!r}"
+        return info
+    cls = _node_class(module)
+    if cls is None:
+        return None  # a ROS-free console script, not a node
+    info.class_name = cls.__name__
+    with _thread_settings_kept():
+        rclpy.init()
+        try:
+            node = cls()
+        except Exception as exc:  # noqa: BLE001
+            info.error = f"{cls.__name__}() with default parameters failed: {exc!r}"
+            rclpy.shutdown()
+            return info
+        try:
+            from rclpy.action import get_action_server_names_and_types_by_node
+
+            info.name = node.get_name()
+            names = node.list_parameters([], 0).names
+            for name, descriptor in zip(names, node.describe_parameters(names)):
+                info.parameters[name] = node.get_parameter_or(name)
+                info.parameter_types[name] = Parameter.Type(descriptor.type)
+            fqn = (node.get_name(), node.get_namespace())
+            # the graph learns of the node's own endpoints through discovery, one by one: read until
+            # /rosout is there and nothing changed for 0.2 s
+            seen, stable_since, deadline = None, time.monotonic(), time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                now = (dict(node.get_publisher_names_and_types_by_node(*fqn)),
+                       dict(get_action_server_names_and_types_by_node(node, *fqn)))
+                if now != seen:
+                    seen, stable_since = now, time.monotonic()
+                elif "/rosout" in now[0] and time.monotonic() - stable_since > 0.2:
+                    break
+                time.sleep(0.02)
+            publishers, info.action_servers = seen
+            info.publishers = {name: types for name, types in publishers.items()
+                               if name not in RCLPY_OWN_TOPICS and "/_action/" not in name}
+        finally:
+            node.destroy_node()
+            rclpy.shutdown()
+    return info
+
+
+@pytest.fixture(scope="module")
+def nodes() -> dict[tuple[str, str], NodeInfo]:
+    """(package, executable) -> NodeInfo for every console script that is a node."""
+    if not ROS_AVAILABLE:
+        require_ros()  # skips (or fails under PRISMA_REQUIRE_ROS=1): nodes start only on real rclpy
+    import rclpy
+
+    if rclpy.ok():
+        rclpy.shutdown()
+    found = {}
+    for key, script in all_console_scripts().items():
+        info = _inspect_node(script)
+        if info is not None:
+            found[key] = info
+    return found
+
+
+def _launch_names() -> dict[str, tuple[str, str]]:
+    """Node names given in launch files -> (package, executable)."""
+    return {n.name: (n.package, n.executable) for n in all_launched_nodes() if n.name and n.package and n.executable}
+
+
+def _node_named(nodes: dict, node_name: str) -> NodeInfo | None:
+    name = node_name.strip("/").rsplit("/", 1)[-1]
+    launched = _launch_names().get(name)
+    if launched in nodes:
+        return nodes[launched]
+    return next((info for info in nodes.values() if info.name == name), None)
+
+
+def _require_started(info: NodeInfo) -> None:
+    assert not info.error, f"{info.script.package}/{info.script.executable}: {info.error}"
+
+
+# ------------------------------------------------------------------------------------------------
+# 1. launch files -> console scripts
+
+
+def _launch_id(entry: LaunchedNode) -> str:
+    return f"{entry.launch_file}:{entry.line}:{entry.package}/{entry.executable}"
+
+
+@pytest.mark.parametrize("entry", all_launched_nodes(), ids=_launch_id)
+def test_launched_executable_is_a_console_script(entry: LaunchedNode):
+    assert entry.package and entry.executable, (
+        f"{entry.launch_file}:{entry.line}: package and executable must be string literals")
+    scripts = all_console_scripts()
+    if (entry.package, entry.executable) in scripts:
+        return
+    package_dir = ROOT / "src" / entry.package
+    assert package_dir.is_dir(), f"{entry.launch_file}:{entry.line}: no package src/{entry.package}"
+    module_file = package_dir / entry.package / f"{entry.executable}_node.py"
+    assert not module_file.exists(), (
+        f"{entry.launch_file}:{entry.line}: {module_file.relative_to(ROOT)} exists but "
+        f"'{entry.executable}' is not a console script in src/{entry.package}/setup.py")
+    pytest.skip(f"node {entry.package}/{entry.executable} not written yet (no console script, no module)")
+
+
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
+def test_launched_parameter_files_exist(entry: LaunchedNode):
+    if (entry.package, entry.executable) not in all_console_scripts():
+        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    missing = [f for f in entry.parameter_files if not list(CONFIG.glob(f"**/{f}"))]
+    assert not missing, f"{entry.launch_file}:{entry.line}: parameter files missing from config/: {missing}"
+
+
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
+def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
+    """A params file whose top key is not the node's name is silently ignored by ROS."""
+    files = parameter_files()
+    for name in entry.parameter_files:
+        matches = [path for path in files if Path(path).name == name]
+        if not matches:
+            continue  # reported by test_launched_parameter_files_exist
+        keys = {key.strip("/").rsplit("/", 1)[-1] for path in matches for key in files[path]}  # /**/<node> too
+        assert entry.name in keys or "**" in keys, (
+            f"{entry.launch_file}:{entry.line}: {name} has node key(s) {sorted(keys)}, "
+            f"the node is named '{entry.name}'")
+
+
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters], ids=_launch_id)
+def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    info = nodes.get((entry.package, entry.executable))
+    if info is None:
+        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    _require_started(info)
+    problems = []
+    for name, value in entry.inline_parameters:
+        if name not in info.parameters:
+            problems.append(f"'{name}' is not declared by {info.class_name}")
+        elif value is not _NOT_LITERAL:
+            problems += config_problems(info, {name: value})[:1] if Parameter.Type.from_parameter_value(value) \
+                != info.parameter_types[name] else []
+    assert not problems, f"{entry.launch_file}:{entry.line}: " + "; ".join(problems)
+    literals = [(n, v) for n, v in entry.inline_parameters if v is not _NOT_LITERAL]
+    if literals:  # the node starts with exactly these values (e.g. the sim backends of hand.launch.py)
+        module = importlib.import_module(info.script.module)
+        if rclpy.ok():
+            rclpy.shutdown()
+        with _thread_settings_kept():
+            rclpy.init()
+            try:
+                node = getattr(module, info.class_name)(
+                    parameter_overrides=[Parameter(n, value=v) for n, v in literals])
+                node.destroy_node()
+            finally:
+                rclpy.shutdown()
+
+
+@pytest.mark.parametrize("launch_file", sorted(LAUNCH.glob("*.launch.py")), ids=lambda p: p.name)
+def test_launch_configurations_are_declared_arguments(launch_file: Path):
+    declared = declared_launch_arguments(launch_file)
+    undeclared = [(line, name) for line, name in used_launch_configurations(launch_file) if name not in declared]
+    assert not undeclared, f"{launch_file.name}: LaunchConfiguration without DeclareLaunchArgument: {undeclared}"
+
+
+@pytest.mark.parametrize("include", [i for p in sorted(LAUNCH.glob("*.launch.py")) for i in launch_includes(p)],
+                         ids=lambda i: f"{i.launch_file}:{i.line}")
+def test_included_launch_files_exist_and_declare_their_arguments(include: Include):
+    assert include.target, f"{include.launch_file}:{include.line}: include names no *.launch.py literal"
+    target = LAUNCH / include.target
+    assert target.exists(), f"{include.launch_file}:{include.line}: {include.target} is not in launch/"
+    missing = sorted(set(include.arguments) - declared_launch_arguments(target))
+    assert not missing, f"{include.launch_file}:{include.line}: {include.target} declares no argument(s) {missing}"
+
+
+def test_every_launch_file_starts_something():
+    files = sorted(LAUNCH.glob("*.launch.py"))
+    assert {p.name for p in files} >= {"hand.launch.py", "glove.launch.py", "calibration.launch.py", "all.launch.py"}
+    for path in files:
+        tree = ast.parse(path.read_text())
+        assert _calls(tree, "Node") or _calls(tree, "IncludeLaunchDescription"), path.name
+
+
+def test_console_scripts_point_at_modules_with_main():
+    for (package, executable), script in all_console_scripts().items():
+        module_file = ROOT / "src" / package / (script.module.replace(".", "/") + ".py")
+        assert module_file.exists(), f"{package}/{executable}: no module {script.module}"
+        tree = ast.parse(module_file.read_text())
+        functions = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
+        assert script.function in functions, f"{package}/{executable}: {script.module} has no {script.function}()"
+
+
+def test_every_node_starts_with_default_parameters(nodes):
+    failures = [f"{k[0]}/{k[1]}: {info.error}" for k, info in nodes.items() if info.error]
+    assert not failures, "\n".join(failures)
+
+
+def config_problems(info: NodeInfo, values: dict) -> list[str]:
+    from rclpy.parameter import Parameter
+
+    """What is wrong with giving `values` (from a config file) to the node `info`."""
+    problems = []
+    for name, value in values.items():
+        declared = info.parameters.get(name)
+        if declared is None:
+            problems.append(f"'{name}' is not declared by {info.class_name} ({info.name})")
+            continue
+        try:
+            config_type = Parameter.Type.from_parameter_value(value)
+        except TypeError as exc:
+            problems.append(f"'{name}': {exc}")
+            continue
+        declared_type = info.parameter_types[name]
+        if config_type != declared_type:
+            problems.append(f"'{name}': config {value!r} is {config_type.name}, node declares "
+                            f"{declared_type.name} (default {declared.value!r})")
+        elif name != "use_sim_time" and _plain(declared.value) != _plain(value):
+            problems.append(f"'{name}': config {value!r} != node default {declared.value!r}")
+    return problems
+
+
+def _plain(value):
+    return list(value) if isinstance(value, (list, tuple)) or hasattr(value, "tolist") else value
+
+
+# ------------------------------------------------------------------------------------------------
+# 2. config parameters -> declared by the node, defaults agree
+
+
+def _config_entries() -> list[tuple[str, str]]:
+    return [(path, key) for path, per_node in parameter_files().items() for key in per_node]
+
+
+@pytest.mark.parametrize("path,node_key", _config_entries(), ids=lambda v: str(v))
+def test_config_parameters_are_declared_with_matching_defaults(nodes, path: str, node_key: str):
+    values = parameter_files()[path][node_key]
+    if node_key.strip("/") == "**":
+        targets = [info for info in nodes.values() if not info.error]
+    else:
+        info = _node_named(nodes, node_key)
+        if info is None:
+            launched = _launch_names().get(node_key.strip("/").rsplit("/", 1)[-1])
+            assert launched is not None, (
+                f"{path}: node '{node_key}' is neither a node of a console script nor named in a launch file")
+            pytest.skip(f"node {launched[0]}/{launched[1]} ('{node_key}') has no console script yet")
+        _require_started(info)
+        targets = [info]
+    problems = [problem for info in targets for problem in config_problems(info, values)]
+    assert not problems, f"{path} [{node_key}]:\n  " + "\n  ".join(problems)
+
+
+# ------------------------------------------------------------------------------------------------
+# 3. topic table -> exactly one publisher / action server
+
+
+def _table_id(row: TableRow) -> str:
+    return row.name
+
+
+@pytest.mark.parametrize("row", [r for r in topic_table() if r.name not in SHARED_TOPICS], ids=_table_id)
+def test_topic_table_row_has_exactly_one_source(nodes, row: TableRow):
+    source = _node_named(nodes, row.source)
+    if source is None:
+        pytest.skip(f"node '{row.source}' has no console script yet")
+    _require_started(source)
+    kind = "action servers" if row.is_action else "publishers"
+    providers = []
+    for info in nodes.values():
+        endpoints = info.action_servers if row.is_action else info.publishers
+        if row.name in endpoints:
+            providers.append((info.name, endpoints[row.name]))
+    assert [name for name, _ in providers] == [source.name], (
+        f"{row.name}: expected exactly one of {kind}, node '{source.name}'; found {providers or 'none'}")
+    assert providers[0][1] == [row.type], f"{row.name}: {source.name} offers {providers[0][1]}, table says {row.type}"
+
+
+def test_topic_table_parses():
+    rows = topic_table()
+    assert rows, "docs/architecture.md has no '## Topic table' rows"
+    assert {"/diagnostics"} <= {r.name for r in rows}
+    assert all(re.fullmatch(r"[a-z_0-9]+/(msg|action|srv)/[A-Za-z0-9]+", r.type) for r in rows), rows
+
+
+# ------------------------------------------------------------------------------------------------
+# The checks themselves, on synthetic sources (so a green run above means something)
+
+_SETUP = """
+from setuptools import setup
+package_name = "demo_pkg"
+setup(
+    name=package_name,
+    entry_points={"console_scripts": [
+        f"talker = {package_name}.talker_node:main",
+        "cli = " + package_name + ".cli:main",
+    ]},
+)
+"""
+
+_LAUNCH = """
+from launch import LaunchDescription
+from launch_ros.actions import Node
+from launch.substitutions import LaunchConfiguration
+
+def generate_launch_description():
+    return LaunchDescription([
+        Node(package="demo_pkg", executable="talker", name="chatty",
+             parameters=["talker.yaml", {"rate": LaunchConfiguration("rate")}]),
+        Node(package=LaunchConfiguration("pkg"), executable="x"),
+    ])
+"""
+
+_INCLUDE = """
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
+from launch.launch_description_sources import PythonLaunchDescriptionSource
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+
+
+def generate_launch_description():
+    return LaunchDescription([
+        DeclareLaunchArgument("sim", default_value="true"),
+        IncludeLaunchDescription(
+            PythonLaunchDescriptionSource(PathJoinSubstitution(["launch", "demo.launch.py"])),
+            launch_arguments={"sim": LaunchConfiguration("sim"), "rate": "10"}.items()),
+    ])
+"""
+
+_NODE = """
+import rclpy
+from rclpy.node import Node
+from rclpy.action import ActionServer
+from std_msgs.msg import String
+from prisma_msgs.action import Grasp
+
+
+class TalkerNode(Node):
+    def __init__(self):
+        super().__init__("talker")
+        self.declare_parameter("rate_hz", 10.0)
+        self.declare_parameter("fingers", ["thumb", "index"])
+        self.create_publisher(String, "chatter", 10)
+        ActionServer(self, Grasp, "/prisma/grasp", lambda goal_handle: Grasp.Result())
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    rclpy.spin(TalkerNode())
+"""
+
+
+def test_checks_parse_setup_and_launch_sources(tmp_path):
+    (tmp_path / "demo_pkg").mkdir()
+    (tmp_path / "demo_pkg" / "setup.py").write_text(_SETUP)
+    scripts = console_scripts(tmp_path / "demo_pkg" / "setup.py")
+    assert scripts == [ConsoleScript("demo_pkg", "talker", "demo_pkg.talker_node", "main"),
+                       ConsoleScript("demo_pkg", "cli", "demo_pkg.cli", "main")]
+    (tmp_path / "demo.launch.py").write_text(_LAUNCH)
+    first, second = launched_nodes(tmp_path / "demo.launch.py")
+    assert (first.package, first.executable, first.name, first.parameter_files) == (
+        "demo_pkg", "talker", "chatty", ("talker.yaml",))
+    assert first.inline_parameters == (("rate", _NOT_LITERAL),)
+    assert second.package is None  # not a literal: reported by the launch test
+    assert used_launch_configurations(tmp_path / "demo.launch.py") == [(9, "rate"), (10, "pkg")]
+    assert declared_launch_arguments(tmp_path / "demo.launch.py") == set()  # both undeclared: a test fails
+    (tmp_path / "outer.launch.py").write_text(_INCLUDE)
+    (include,) = launch_includes(tmp_path / "outer.launch.py")
+    assert (include.target, include.arguments) == ("demo.launch.py", ("sim", "rate"))
+    assert declared_launch_arguments(tmp_path / "outer.launch.py") == {"sim"}
+
+
+def test_checks_find_what_a_node_declares_publishes_and_serves(tmp_path, monkeypatch):
+    if not ROS_AVAILABLE:
+        require_ros()
+    import rclpy
+
+    (tmp_path / "demo_static_pkg").mkdir()
+    (tmp_path / "demo_static_pkg" / "__init__.py").write_text("")
+    (tmp_path / "demo_static_pkg" / "talker_node.py").write_text(_NODE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    if rclpy.ok():
+        rclpy.shutdown()
+    info = _inspect_node(ConsoleScript("demo_static_pkg", "talker", "demo_static_pkg.talker_node", "main"))
+    assert not info.error and info.name == "talker" and info.class_name == "TalkerNode"
+    assert info.publishers == {"/chatter": ["std_msgs/msg/String"]}
+    assert info.action_servers == {"/prisma/grasp": ["prisma_msgs/action/Grasp"]}
+    assert config_problems(info, {"rate_hz": 10.0, "fingers": ["thumb", "index"], "use_sim_time": True}) == []
+    problems = config_problems(info, {"rate_hz": 10, "fingers": ["thumb"], "unknown": 1})
+    assert len(problems) == 3
+    assert "INTEGER" in problems[0] and "DOUBLE" in problems[0]
+    assert "!= node default" in problems[1] and "not declared" in problems[2]
