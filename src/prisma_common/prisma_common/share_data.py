@@ -61,12 +61,20 @@ def install_prefixes() -> list[Path]:
     return _unique(ament + python)
 
 
+def workspace_root(directory: Path) -> Path | None:
+    """`directory` when it is this repository's root (a workspace a tool is run from), else None."""
+    return directory if (directory / "src" / "prisma_msgs" / "package.xml").is_file() else None
+
+
 def package_directories(package: str) -> list[Path]:
-    """Every directory that may hold `package`'s share/ contents, in lookup order; the source
-    tree's first, then share/<package> of each install prefix (existing or not)."""
+    """Every directory that may hold `package`'s share/ contents, in lookup order: the source
+    tree's (of these modules, then of the workspace the tool runs in: a copy install does not know
+    its sources, but a bundle retrained in the workspace must win over the installed one), then
+    share/<package> of each install prefix (existing or not)."""
     found = []
-    if SOURCE_ROOT is not None:
-        found.append(SOURCE_ROOT / SOURCE_DIR / package)
+    for root in (SOURCE_ROOT, workspace_root(Path.cwd())):
+        if root is not None:
+            found.append(root / SOURCE_DIR / package)
     found += [prefix / "share" / package for prefix in install_prefixes()]
     return _unique(found)
 
