@@ -142,7 +142,8 @@ def test_action_without_three_sections_is_rejected(tmp_path: Path):
 def test_interfaces_are_found_in_a_colcon_install_share(tmp_path: Path, monkeypatch):
     share = tmp_path / "install" / "prisma_msgs" / "share" / "prisma_msgs"
     (share / "msg").mkdir(parents=True)
-    monkeypatch.setattr(share_data, "SOURCE_ROOT", None)  # as when installed: no source tree
+    monkeypatch.setattr(share_data, "SOURCE_ROOT", None)  # as when installed: no source tree...
+    monkeypatch.chdir(tmp_path)  # ...and run outside a workspace
     monkeypatch.delenv("PRISMA_MSGS_DIR", raising=False)
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "install" / "prisma_msgs"))
     assert ts_module.find_interface_dir() == share
