@@ -34,8 +34,7 @@ from typing import Any
 import numpy as np
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_hand_sim.hand_world import Disturbance, HandWorld
-from prisma_hand_sim.pad_model import PadModel
+from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldContactSource
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
 from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ServoPresent
@@ -44,6 +43,7 @@ from prisma_tactile_driver.i2c_emulator import five_finger_bus
 from prisma_tactile_driver.i2c_socket import I2CSocketServer
 from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort, PtyLink
+from prisma_tactile_driver.sim_backend import SimHubBackend
 
 # The hand's wiring as config/motor_driver.yaml and config/tactile_driver.yaml have it.
 MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
@@ -133,7 +133,9 @@ class EmulatedHand:
         self.world = world_for(self.settings.world)
         self.world_name = self.settings.world
         self._world_start_ns = clock_ns()
-        self.pads = {f: PadModel(seed=self.settings.seed + i) for i, f in enumerate(FINGERS)}
+        # the pads as the tactile driver's sim backend samples them, on this world
+        self._contacts = HandWorldContactSource(self.world)
+        self._pads = SimHubBackend(self._contacts, FINGERS, seed=self.settings.seed)
         self.i2c_bus = five_finger_bus()
         self.servos = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9)
         self.hub = HubState()
@@ -204,8 +206,9 @@ class EmulatedHand:
         present = self.servos.present()
         with self.lock:
             positions = self._motor_positions(present)
-            self.world.update_joints(positions, now_ns - self._world_start_ns)
-            counts = {f: self.pads[f].sample(self.world.contact(f)) for f in FINGERS}
+            self._contacts.update_joints(list(positions), list(positions.values()), now_ns - self._world_start_ns)
+            [reading] = self._pads.read(now_ns - self._world_start_ns)
+            counts = reading.counts
             for finger, channel in FINGER_CHANNELS.items():
                 self.i2c_bus.adcs[channel].values[: len(counts[finger])] = counts[finger]
             loads = self.world.motor_loads()
@@ -399,6 +402,7 @@ class EmulatedHand:
             raise FaultError(str(exc)) from None
         with self.lock:
             self.world, self.world_name = world, name
+            self._contacts = self._pads.source = HandWorldContactSource(world)
             self._world_start_ns = self.clock_ns()
         self._place_servos()
         return f"world {name}: motors at " + ", ".join(f"{n} {v:.3f} rad" for n, v in world.positions.items())

@@ -7,8 +7,9 @@ explicit stamps. Per scan at t_k:
    to the manipulation core as the node's MoveMotors client hands it over;
 2. the world moves to the motor positions and loads the motors;
 3. the manipulation core (`ManipulationCore`, the manipulation node's) takes the joint sample;
-4. the tactile driver's core (`TactileHub`) reads the pads' counts (one `PadModel` per finger) into
-   taxel frames, and the manipulation core takes each (Algorithm 1, a controller step when due);
+4. the tactile driver's core (`TactileHub`) reads its sim backend (`SimHubBackend`, the world as its
+   contact source: one `PadModel` per finger) into taxel frames, and the manipulation core takes
+   each (Algorithm 1, a controller step when due);
 5. the force estimator's core (`WrenchPipeline`) turns the frames into wrenches when an estimator is
    given, and the manipulation core takes each normal force; without one it takes the world's
    force on each pad (ground truth).
@@ -27,16 +28,16 @@ import numpy as np
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_force_estimator.node_config import EstimatorConfig
 from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
-from prisma_hand_sim.hand_world import HandWorld
-from prisma_hand_sim.pad_model import PadModel, PadParams
+from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
+from prisma_hand_sim.pad_model import PadParams
 from prisma_motor_driver.motor_bus import MotorState
 from prisma_motor_driver.motor_driver_core import MotorDriverCore
 from prisma_motor_driver.motor_goals import MoveFeedback, MoveResult
 from prisma_motor_driver.node_config import MotorDriverConfig
 from prisma_motor_driver.ros_conversions import velocity_goal
 from prisma_motor_driver.sim_motors import SimMotorBus
-from prisma_tactile_driver.backend import HubReading
 from prisma_tactile_driver.hub import TactileHub
+from prisma_tactile_driver.sim_backend import SimHubBackend
 from prisma_tactile_driver.taxels import TaxelFrame
 
 from .contact_monitor import ContactEvaluation
@@ -99,24 +100,6 @@ class Scan:
     actions: list = field(default_factory=list)  # the manipulation core's decisions, in order
 
 
-class _PadsBackend:
-    """The tactile hub's backend on the loop's pads: one reading per scan, the counts of that scan."""
-
-    def __init__(self) -> None:
-        self.counts: dict[str, np.ndarray] = {}
-        self.scans = 0
-
-    def read(self, stamp_ns: int) -> list[HubReading]:
-        self.scans += 1
-        return [HubReading(self.scans - 1, dict(self.counts))]
-
-    def counters(self) -> dict[str, int]:
-        return {"scans": self.scans}
-
-    def close(self) -> None:
-        pass
-
-
 class ClosedLoop:
     def __init__(
         self,
@@ -131,15 +114,16 @@ class ClosedLoop:
         self.world = world
         self.period_ns = int(round(1e9 / rate_hz))
         self.observer = observer
-        self.pads = {f: PadModel(pad_params, seed=seed + i) for i, f in enumerate(FINGERS)}
         self.core = ManipulationCore(config or ManipulationConfig())
         motor_config = MotorDriverConfig(backend="sim")
         # the motors' clock starts at the first scan, whatever its stamp
         self.bus = SimMotorBus(motor_config.motors(), initial_positions=world.positions, start_ns=None)
         self.motor = MotorDriverCore(motor_config, self.bus)
         self.motor.connect(0)
-        self._pads_backend = _PadsBackend()
-        self.hub = TactileHub(self._pads_backend, FINGERS, name="tactile_driver", hardware_id="sim/hand_world")
+        # the tactile driver's sim backend (contact_source hand_world) on this loop's world
+        self.contacts = HandWorldContactSource(world)
+        self.hub = TactileHub(SimHubBackend(self.contacts, FINGERS, pad_params, seed), FINGERS,
+                              name="tactile_driver", hardware_id="sim/hand_world")
         self.estimator = estimator
         self.pipeline = None
         if estimator is not None:
@@ -160,11 +144,10 @@ class ClosedLoop:
         scan = Scan(stamp_ns, states, [], {}, {}, move_feedback=tick.feedback, move_result=tick.result)
         if tick.result is not None:
             self._carry_out(self.core.on_move_result(tick.result.reason, stamp_ns), scan)
-        self.world.update_joints(joints.positions, stamp_ns)
+        self.contacts.update_joints(list(joints.positions), list(joints.positions.values()), stamp_ns)
         self.bus.set_loads(self.world.motor_loads())
         self._carry_out(self.core.on_joints(joints, stamp_ns), scan)
 
-        self._pads_backend.counts = {f: self.pads[f].sample(self.world.contact(f)) for f in FINGERS}
         scan.frames = self.hub.poll(stamp_ns)
         for frame in scan.frames:
             evaluation, actions = self.core.on_taxels(frame.finger, frame.stamp_ns, frame.voltages, stamp_ns)
