@@ -2,6 +2,7 @@
 and `Params`, the base of the nodes' parameter dataclasses (defaults, ROS parameter values, validation)."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, fields
 from typing import Any, ClassVar
 
@@ -25,6 +26,12 @@ def check_fingers(fingers: list[str], name: str = "fingers") -> None:
             raise ParameterError(name, fingers, f"{finger!r} is not one of {FINGERS}")
     if len(set(fingers)) != len(fingers):
         raise ParameterError(name, fingers, "each finger at most once")
+
+
+def check_positive(name: str, value: Any) -> None:
+    """ParameterError naming `name` unless `value` is a finite number > 0."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ParameterError(name, value, "must be a finite number > 0")
 
 
 class Params:

@@ -5,11 +5,10 @@ invalid parameter fails at start with that message.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_common.parameters import ParameterError, Params
+from prisma_common.parameters import ParameterError, Params, check_positive
 from prisma_motor_driver.motor_bus import (
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MIN_POSITIONS,
@@ -18,15 +17,6 @@ from prisma_motor_driver.motor_bus import (
 )
 
 from .contact_monitor import DEFAULT_K, K_RANGE
-
-
-def _bad(name: str, value, why: str) -> ParameterError:
-    return ParameterError(name, value, why)
-
-
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise _bad(name, value, "must be a finite number > 0")
 
 
 @dataclass
@@ -66,40 +56,41 @@ class ManipulationConfig(Params):
     def validate(self) -> None:
         for f in self.fingers:
             if f not in FINGERS:
-                raise _bad("fingers", self.fingers, f"{f!r} is not one of {list(FINGERS)}")
+                raise ParameterError("fingers", self.fingers, f"{f!r} is not one of {list(FINGERS)}")
         if self.monitored_finger not in self.fingers:
-            raise _bad("monitored_finger", self.monitored_finger, f"must be one of fingers {self.fingers}")
+            raise ParameterError("monitored_finger", self.monitored_finger, f"must be one of fingers {self.fingers}")
         if not (isinstance(self.k, float) and K_RANGE[0] < self.k <= K_RANGE[1]):
-            raise _bad("k", self.k, f"must be in ({K_RANGE[0]}, {K_RANGE[1]}]")
+            raise ParameterError("k", self.k, f"must be in ({K_RANGE[0]}, {K_RANGE[1]}]")
         if not 0 <= self.min_mean_voltage < 3.3:
-            raise _bad("min_mean_voltage", self.min_mean_voltage, "must be in [0, 3.3) V")
+            raise ParameterError("min_mean_voltage", self.min_mean_voltage, "must be in [0, 3.3) V")
         if "{finger}" not in self.frame_id_format:
-            raise _bad("frame_id_format", self.frame_id_format, "must contain {finger}")
+            raise ParameterError("frame_id_format", self.frame_id_format, "must contain {finger}")
         for name in ("stale_timeout", "watchdog_period", "max_speed_rpm", "max_force_n", "grasp_finger_force",
                      "grasp_thumb_force", "grasp_speed_rpm", "grasp_timeout", "horizontal_speed_rpm",
                      "vertical_speed_rpm", "hold_speed_rpm", "manipulate_timeout", "contact_force_n",
                      "lateral_closure", "force_target_n", "force_band_n", "force_speed_rpm", "limit_margin"):
-            _positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         if not 0 <= self.hold_min_k < K_RANGE[1]:
-            raise _bad("hold_min_k", self.hold_min_k, f"must be in [0, {K_RANGE[1]})")
+            raise ParameterError("hold_min_k", self.hold_min_k, f"must be in [0, {K_RANGE[1]})")
         for name in ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm",
                      "force_speed_rpm"):
             if getattr(self, name) > self.max_speed_rpm:
-                raise _bad(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
+                raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
         for name in ("grasp_finger_force", "grasp_thumb_force", "force_target_n"):
             if getattr(self, name) > self.max_force_n:
-                raise _bad(name, getattr(self, name), f"above max_force_n {self.max_force_n}")
+                raise ParameterError(name, getattr(self, name), f"above max_force_n {self.max_force_n}")
         if self.force_band_n >= self.force_target_n:
-            raise _bad("force_band_n", self.force_band_n, f"must be below force_target_n {self.force_target_n}")
+            raise ParameterError("force_band_n", self.force_band_n,
+                                 f"must be below force_target_n {self.force_target_n}")
         n = len(self.motor_names)
         if sorted(self.motor_names) != sorted(MOTOR_NAMES):
-            raise _bad("motor_names", self.motor_names, f"must name {list(MOTOR_NAMES)}")
+            raise ParameterError("motor_names", self.motor_names, f"must name {list(MOTOR_NAMES)}")
         for name in ("min_positions", "max_positions"):
             if len(getattr(self, name)) != n:
-                raise _bad(name, getattr(self, name), f"needs one entry per motor ({n})")
+                raise ParameterError(name, getattr(self, name), f"needs one entry per motor ({n})")
         for name, lo, hi in zip(self.motor_names, self.min_positions, self.max_positions):
             if not lo < hi:
-                raise _bad("min_positions/max_positions", [lo, hi], f"empty window for {name}")
+                raise ParameterError("min_positions/max_positions", [lo, hi], f"empty window for {name}")
 
     def limits_motors(self) -> dict[str, MotorConfig]:
         """MotorConfigs carrying only what the controllers use: the position windows."""

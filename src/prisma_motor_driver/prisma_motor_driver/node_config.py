@@ -5,11 +5,10 @@ invalid parameter fails at start with that message.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from prisma_common.hand import MOTOR_NAMES
-from prisma_common.parameters import ParameterError, Params
+from prisma_common.parameters import ParameterError, Params, check_positive
 
 from .motor_bus import (
     DEFAULT_IDS,
@@ -19,15 +18,6 @@ from .motor_bus import (
     MotorConfig,
     MotorMap,
 )
-
-
-def _bad(name: str, value, why: str) -> ParameterError:
-    return ParameterError(name, value, why)
-
-
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise _bad(name, value, "must be a finite number > 0")
 
 
 @dataclass
@@ -53,26 +43,26 @@ class MotorDriverConfig(Params):
 
     def validate(self) -> None:
         if self.backend not in ("sim", "dynamixel"):
-            raise _bad("backend", self.backend, "must be 'sim' or 'dynamixel'")
+            raise ParameterError("backend", self.backend, "must be 'sim' or 'dynamixel'")
         if not isinstance(self.baud, int) or self.baud <= 0:
-            raise _bad("baud", self.baud, "must be a positive integer")
+            raise ParameterError("baud", self.baud, "must be a positive integer")
         if not isinstance(self.retries, int) or self.retries < 0:
-            raise _bad("retries", self.retries, "must be an integer >= 0")
+            raise ParameterError("retries", self.retries, "must be an integer >= 0")
         for name in ("rate_hz", "position_profile_rpm", "position_tolerance", "diagnostics_period",
                      "reconnect_backoff_initial", "reconnect_backoff_max"):
-            _positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         for name in self.motor_names:
             if name not in MOTOR_NAMES:
-                raise _bad("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")
+                raise ParameterError("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")
         n = len(self.motor_names)
         for name in ("motor_ids", "min_positions", "max_positions", "max_velocities_rpm", "directions",
                      "zero_ticks", "sim_initial_positions"):
             if len(getattr(self, name)) != n:
-                raise _bad(name, getattr(self, name), f"needs one entry per motor ({n})")
+                raise ParameterError(name, getattr(self, name), f"needs one entry per motor ({n})")
         try:
             self.motors()
         except ValueError as exc:
-            raise _bad("motor map", {"motor_ids": self.motor_ids, "min_positions": self.min_positions,
+            raise ParameterError("motor map", {"motor_ids": self.motor_ids, "min_positions": self.min_positions,
                                      "max_positions": self.max_positions}, str(exc)) from exc
 
     def motors(self) -> dict[str, MotorConfig]:
