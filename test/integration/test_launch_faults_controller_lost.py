@@ -16,7 +16,7 @@ import unittest
 
 import pytest
 
-from ros_harness import RosHarness, require_ros, stamp_ns
+from ros_harness import RosHarness, closing_at_10_rpm, require_ros, stamp_ns
 
 require_ros()
 
@@ -46,12 +46,6 @@ def generate_test_description():
 
 def stopped(msg: JointState) -> bool:
     return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
-
-
-def closing_at_10_rpm(joints: list) -> bool:
-    """The latest 5 /joint_states show the fingers motor closing steadily at 10 rpm (1.05 rad/s),
-    not passing through that speed while it stops from a faster command."""
-    return len(joints) >= 5 and all(0.95 < m.velocity[list(m.name).index("fingers")] < 1.15 for m in joints[-5:])
 
 
 class TestControllerLost(unittest.TestCase):

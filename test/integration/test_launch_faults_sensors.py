@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import NodeProcess, RosHarness, require_ros, stamp_ns
+from ros_harness import NodeProcess, RosHarness, closing_at_10_rpm, require_ros, stamp_ns
 
 require_ros()
 
@@ -120,12 +120,6 @@ class HubOnPty:
 
 def stopped(msg: JointState) -> bool:
     return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
-
-
-def closing_at_10_rpm(joints: list) -> bool:
-    """The latest 5 /joint_states show the fingers motor closing steadily at 10 rpm (1.05 rad/s),
-    not passing through that speed while it stops from a faster command."""
-    return len(joints) >= 5 and all(0.95 < m.velocity[list(m.name).index("fingers")] < 1.15 for m in joints[-5:])
 
 
 class TestMissingParts(unittest.TestCase):

@@ -33,6 +33,8 @@ import pytest
 from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
+    closing_at_10_rpm,
+    goal_outcome,
     include_launch,
     output_of,
     require_ros,
@@ -54,7 +56,6 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
-STATUS = {SUCCEEDED: "SUCCEEDED", CANCELED: "CANCELED", ABORTED: "ABORTED"}
 # "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm), which
 # reads 0 there. The sim motors' velocity follows the command with a 10 ms time constant: from
 # 10 rpm it is below that 38 ms after the stop.
@@ -83,17 +84,6 @@ def generate_test_description():
 
 def stopped(msg: JointState) -> bool:
     return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
-
-
-def closing_at_10_rpm(joints: list) -> bool:
-    """The latest 5 /joint_states show the fingers motor closing steadily at 10 rpm (1.05 rad/s)."""
-    return len(joints) >= 5 and all(0.95 < m.velocity[list(m.name).index("fingers")] < 1.15 for m in joints[-5:])
-
-
-def outcome(result) -> tuple[str, str]:
-    """(status, reason) of a Grasp or Manipulate result."""
-    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
-    return STATUS.get(result.status, str(result.status)), reason
 
 
 class TestHandActions(unittest.TestCase):
@@ -138,7 +128,7 @@ class TestHandActions(unittest.TestCase):
                 self.ros.spin_for(RETRY_S)
                 continue
             result = self.ros.result(handle, timeout_sec=30.0)
-            if outcome(result) == ("ABORTED", "sensor_stale") != expected and stale < stale_retries:
+            if goal_outcome(result) == ("ABORTED", "sensor_stale") != expected and stale < stale_retries:
                 stale += 1
                 why = self.ros.wait_for_log(name="manipulation", contains="goal ended: sensor_stale")[ended_stale:]
                 print(f"  {why}: again")
@@ -158,7 +148,7 @@ class TestHandActions(unittest.TestCase):
             # the first two goals meet the graph just started: the node must refuse them until it is
             # ready, then carry them out (no sensor_stale); later ones may meet a machine too busy
             rejections, stale, result = self.run_goal(goal, want, stale_retries=0 if i < 2 else STALE_RETRIES)
-            outcomes.append(outcome(result))
+            outcomes.append(goal_outcome(result))
             print(f"{type(goal).__name__} {goal.grasp if hasattr(goal, 'grasp') else goal.motion} "
                   f"timeout {goal.timeout:g}: {rejections} rejections, {stale} sensor_stale, then {outcomes[-1]} "
                   f"at {time.monotonic() - start:.1f} s")
@@ -186,7 +176,7 @@ class TestHandActions(unittest.TestCase):
             if not result.done():
                 break
             # a starved machine can end it sensor_stale before it gets going (the watchdog working)
-            self.assertEqual(outcome(result.result()), ("ABORTED", "sensor_stale"))
+            self.assertEqual(goal_outcome(result.result()), ("ABORTED", "sensor_stale"))
             print(f"attempt {attempt}: the grasp ended sensor_stale before the cancel")
         self.assertFalse(result.done(), "the grasp ended sensor_stale five times before the cancel")
         moving = len(self.joints)
@@ -195,7 +185,7 @@ class TestHandActions(unittest.TestCase):
         result_ns = time.time_ns()
         ros.spin_until(cancel, 5.0)
         ros.spin_for(0.3)  # /joint_states up to 300 ms after the result
-        self.assertEqual(outcome(result.result()), ("CANCELED", "canceled"))
+        self.assertEqual(goal_outcome(result.result()), ("CANCELED", "canceled"))
 
         after = self.joints[moving:]
         first_stop = next((m for m in after if stopped(m)), None)
@@ -213,7 +203,7 @@ class TestHandActions(unittest.TestCase):
         normal_end = {"grasp": ("SUCCEEDED", "force_reached"), "manipulate": ("SUCCEEDED", "edge_lost")}
         # from the ball held in a pinch (whatever the tests before left), where either can run
         _, _, held = self.run_goal(PINCH, normal_end["grasp"], stale_retries=STALE_RETRIES)
-        self.assertEqual(outcome(held), normal_end["grasp"])
+        self.assertEqual(goal_outcome(held), normal_end["grasp"])
         stale = 0
         for _ in range(100):
             futures = [self.grasp.send_goal_async(PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
@@ -223,7 +213,7 @@ class TestHandActions(unittest.TestCase):
                 ros.spin_for(RETRY_S)
                 continue
             results = {kind: (ros.result(h) if h.accepted else None) for kind, h in handles.items()}
-            ended = {kind: outcome(r) if r else "rejected" for kind, r in results.items()}
+            ended = {kind: goal_outcome(r) if r else "rejected" for kind, r in results.items()}
             print(f"sent together: {ended}")
             if ("ABORTED", "sensor_stale") in ended.values() and stale < STALE_RETRIES:
                 stale += 1  # the watchdog on a machine too busy (see run_goal): again
@@ -243,7 +233,7 @@ class TestHandActions(unittest.TestCase):
         # the node serves the other one now
         _, _, result = self.run_goal(PINCH if other == "grasp" else HORIZONTAL, normal_end[other],
                                      stale_retries=STALE_RETRIES)
-        self.assertEqual(outcome(result), normal_end[other])
+        self.assertEqual(goal_outcome(result), normal_end[other])
 
     def test_4_goals_beyond_the_limits_are_rejected(self):
         ros = self.ros

@@ -36,6 +36,7 @@ from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
     diagnostic_values,
+    goal_outcome,
     hand_fault,
     include_launch,
     require_ros,
@@ -58,7 +59,6 @@ from prisma_bringup.sim_runner import EXPECTED_REASONS  # noqa: E402
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
 SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
-STATUS = {SUCCEEDED: "SUCCEEDED", ABORTED: "ABORTED", 5: "CANCELED"}
 # "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm)
 STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
 SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
@@ -82,11 +82,6 @@ def emulator_status() -> dict:
 
 def stopped(msg: JointState) -> bool:
     return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
-
-
-def outcome(result) -> tuple[str, str]:
-    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
-    return STATUS.get(result.status, str(result.status)), reason
 
 
 class TestHandEmulated(unittest.TestCase):
@@ -148,9 +143,9 @@ class TestHandEmulated(unittest.TestCase):
                                        60.0), "no /prisma/grasp and /prisma/manipulate servers")
 
         result = self.run_goal(Grasp.Goal(grasp="pinch"))
-        self.assertEqual(outcome(result), ("SUCCEEDED", "force_reached"))
+        self.assertEqual(goal_outcome(result), ("SUCCEEDED", "force_reached"))
         result = self.run_goal(Manipulate.Goal(motion="horizontal"))
-        self.assertEqual(outcome(result), ("SUCCEEDED", "edge_lost"))
+        self.assertEqual(goal_outcome(result), ("SUCCEEDED", "edge_lost"))
 
         after = emulator_status()
         self.assertGreater(after["hub"]["frames_sent"], before["hub"]["frames_sent"])
@@ -202,14 +197,14 @@ class TestHandEmulated(unittest.TestCase):
                                                    .get("reconnects", 0)) >= 1, 5.0), "/diagnostics shows no reconnect")
         self.assertEqual(emulator_status()["hub"]["unplugs"], 1)
         fault("world", "grasp")
-        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+        self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_4_servo_overload_mid_grasp(self):
         ros = self.ros
         result = self.start_slow_grasp()
         fault("servo-error", "--motor", "fingers", "--bit", "overload")
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with an overloaded servo")
-        self.assertEqual(outcome(result.result()), ("ABORTED", "motor_fault"))
+        self.assertEqual(goal_outcome(result.result()), ("ABORTED", "motor_fault"))
         fault_reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
         self.assertTrue(ros.wait_for_log(name="manipulation",
                                          contains=f"grasp goal ended: motor_fault ({fault_reason}"))
@@ -217,7 +212,7 @@ class TestHandEmulated(unittest.TestCase):
                         "the overloaded servo's torque is still on")
         fault("servo-clear")
         fault("world", "grasp")
-        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+        self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_5_servo_off_the_bus_mid_grasp(self):
         """A servo that stops answering: the goal is aborted, by whichever safety net fires first
@@ -229,14 +224,14 @@ class TestHandEmulated(unittest.TestCase):
         result = self.start_slow_grasp()
         fault("servo-silent", "--motor", "thumb_flexion", "--seconds", "1.0")
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with a servo off the bus")
-        status, reason = outcome(result.result())
+        status, reason = goal_outcome(result.result())
         self.assertIn((status, reason), {("ABORTED", "sensor_stale"), ("ABORTED", "motor_fault")})
         ros.spin_for(0.5)
         fingers = emulator_status()["servos"]["fingers"]
         self.assertTrue(fingers["velocity_rpm"] == 0 or not fingers["torque_on"], f"fingers still driven: {fingers}")
         ros.spin_for(1.0)  # the servo is back
         fault("world", "grasp")
-        self.assertEqual(outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+        self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_6_paper_scenarios(self):
         ends, rotations, forces = {}, {}, {}
@@ -244,7 +239,7 @@ class TestHandEmulated(unittest.TestCase):
             fault("world", spec.world)
             goal = (Grasp.Goal if spec.action == "grasp" else Manipulate.Goal)(**spec.goal)
             start = emulator_status()
-            ends[name] = outcome(self.run_goal(goal))
+            ends[name] = goal_outcome(self.run_goal(goal))
             end = emulator_status()
             rotations[name] = (end["servos"]["thumb_rotation"]["position_rad"]
                                - start["servos"]["thumb_rotation"]["position_rad"])

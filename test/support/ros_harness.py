@@ -595,3 +595,18 @@ def hand_fault(emulator_dir: str | Path, *args: str) -> str:
     result = subprocess.run(command, capture_output=True, text=True, timeout=30)
     assert result.returncode == 0, f"prisma-hand-fault {' '.join(args)}: {result.stderr}"
     return result.stdout
+
+
+GOAL_STATUS = {4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}  # action_msgs/GoalStatus
+
+
+def goal_outcome(result: Any) -> tuple[str, str]:
+    """(status name, reason) of a Grasp or Manipulate result."""
+    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
+    return GOAL_STATUS.get(result.status, str(result.status)), reason
+
+
+def closing_at_10_rpm(joints: list) -> bool:
+    """The latest 5 /joint_states show the fingers motor closing steadily at 10 rpm (1.05 rad/s),
+    not passing through that speed while it stops from a faster command."""
+    return len(joints) >= 5 and all(0.95 < m.velocity[list(m.name).index("fingers")] < 1.15 for m in joints[-5:])
