@@ -203,6 +203,7 @@ class TestHandEmulated(unittest.TestCase):
         ros = self.ros
         result = self.start_slow_grasp()
         fault("servo-error", "--motor", "fingers", "--bit", "overload")
+        self.addCleanup(fault, "servo-clear")  # the tests after this one need the servo back
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with an overloaded servo")
         self.assertEqual(goal_outcome(result.result()), ("ABORTED", "motor_fault"))
         fault_reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"

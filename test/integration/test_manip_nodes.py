@@ -488,6 +488,11 @@ def test_motor_fault_aborts_move_and_grasp_naming_motor_and_bit(ros, hand):
     status = {s.name: s for s in diagnostics[-1].status}
     assert "overload" in status["motor_driver: fingers"].message
     assert "bit 5 overload" in status["motor_driver: bus"].message
+    # a goal naming the faulted motor (a client's refresh on its way when the fault was found) is
+    # accepted and aborted with the fault reason, which a rejection could not carry
+    move = finish(ros, send(ros, f"{NS}/prisma/motors/move", MoveMotors,
+                            MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[5.0])))
+    assert (move.status, move.result.reason) == (GoalStatus.STATUS_ABORTED, reason)
 
 
 # ---- control lost, foreign publishers ----------------------------------------------------------

@@ -8,7 +8,7 @@ from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
 from .control_table import decode_hardware_error
 from .motor_bus import BusError, MotorBus, MotorState
-from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult
+from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult, validate_goal
 from .node_config import MotorDriverConfig
 
 
@@ -80,13 +80,20 @@ class MotorDriverCore:
             self._reported_error = error
 
     def validate(self, goal: MoveGoal) -> str | None:
+        """The reason to reject a goal: not connected, or a malformed goal. A goal naming a faulted
+        motor is valid: it fails at start with the fault reason, which a rejection could not carry
+        to the client."""
         if not self.connected:
             return f"motor bus not connected: {self.last_error or 'not opened yet'}"
-        return self.runner.validate(goal)
+        return validate_goal(goal, self.bus.motors)
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
         """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a
-        goal it replaces is over (`preempted`) and a goal the bus failed to start is `failed`."""
+        goal it replaces is over (`preempted`) and a goal the bus failed to start is `failed`; a
+        goal naming a faulted motor is `failed` with the fault reason and the running goal goes on."""
+        fault = self.runner.fault_of(goal)
+        if fault:
+            return StartOutcome(failed=MoveResult(False, [], fault))
         try:
             preempted = self.runner.start(goal, now_ns)
         except GoalStartError as exc:

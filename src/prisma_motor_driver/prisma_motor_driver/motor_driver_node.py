@@ -78,7 +78,7 @@ class MotorDriverNode(Node):
         goal = move_goal_from_msg(goal_handle.request)
         try:
             outcome = self.core.start(goal, self._now_ns())
-        except ValueError as exc:  # became invalid since acceptance (a fault): the running goal goes on
+        except ValueError as exc:  # validated at acceptance: only a driver bug gets here
             goal_handle.abort()
             return move_result_to_msg(self.types, MoveResult(False, [], f"rejected at start: {exc}"))
         if outcome.preempted is not None:

@@ -90,10 +90,9 @@ def validate_goal(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[s
     for value in goal.position_limits:
         if not math.isfinite(value):
             return f"position limit {value} is not finite"
-    faults = faults or {}
-    faulted = [m for m in goal.motors if faults.get(m)]
+    faulted = [m for m in goal.motors if (faults or {}).get(m)]
     if faulted:
-        return "; ".join(fault_reason(m, motors[m].servo_id, faults[m]) for m in faulted)
+        return "; ".join(fault_reason(m, motors[m].servo_id, (faults or {})[m]) for m in faulted)
     return None
 
 
@@ -130,6 +129,11 @@ class MoveGoalRunner:
 
     def validate(self, goal: MoveGoal) -> str | None:
         return validate_goal(goal, self.bus.motors, self.faults)
+
+    def fault_of(self, goal: MoveGoal) -> str | None:
+        """The fault reason of the goal's motors that have an active hardware error, else None."""
+        faulted = [m for m in goal.motors if self.faults.get(m)]
+        return "; ".join(fault_reason(m, self.bus.motors[m].servo_id, self.faults[m]) for m in faulted) or None
 
     def start(self, goal: MoveGoal, stamp_ns: int) -> MoveResult | None:
         """Start a validated goal; returns the preempted goal's result, if one was running.

@@ -79,6 +79,10 @@ class SimMotorBus:
     def inject_hardware_error(self, name: str, bit: int) -> None:
         self._m[name].hardware_error |= 1 << bit
 
+    def clear_hardware_error(self, name: str) -> None:
+        """As a power cycle: the error is gone (the driver turns the torque back on)."""
+        self._m[name].hardware_error = 0
+
     def positions(self) -> dict[str, float]:
         return {name: m.position_rad for name, m in self._m.items()}
 

@@ -96,3 +96,26 @@ def test_driver_diagnostics_per_motor():
     diag = {d.name: d for d in core.diagnostics()}
     assert diag["motor_driver: bus"].level == OK
     assert diag["motor_driver: thumb_rotation"].values["id"] == "3"
+
+
+def test_a_goal_naming_a_faulted_motor_is_accepted_and_fails_with_the_fault_reason():
+    """A client re-sending its goal as the fault is found must still learn the motor and the bit:
+    an action rejection carries no reason, so the goal is valid and fails at start. The running goal
+    and goals for the other motors are not affected; once the error clears the motor takes goals."""
+    core = MotorDriverCore(MotorDriverConfig())
+    core.tick(10 * MS)
+    core.start(MoveGoal(["fingers"], "velocity", [5.0]), 10 * MS)
+    core.bus.inject_hardware_error("fingers", 5)
+    reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
+    assert core.tick(20 * MS).result.reason == reason
+    core.start(MoveGoal(["thumb_rotation"], "velocity", [5.0]), 30 * MS)
+    faulted = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, 10.0])
+    assert core.validate(faulted) is None
+    assert core.start(faulted, 40 * MS) == StartOutcome(failed=MoveResult(False, [], reason))
+    assert core.runner.goal.motors == ["thumb_rotation"]  # the running goal goes on
+    assert core.tick(50 * MS).result is None
+    core.bus.clear_hardware_error("fingers")
+    core.tick(60 * MS)
+    outcome = core.start(faulted, 70 * MS)
+    assert outcome.failed is None and outcome.preempted.reason == "preempted"
+    assert core.runner.goal is faulted
