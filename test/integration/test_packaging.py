@@ -40,10 +40,10 @@ PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.py").is_file()]
 # ros/rosdistro jazzy/distribution.yaml (commit 59a60b4): packages released for Jazzy that a
 # package.xml here names. apt: ros-jazzy-<name with - for _>.
 JAZZY_ROS_PACKAGES = {
-    "action_msgs", "ament_cmake", "builtin_interfaces", "diagnostic_msgs", "dynamixel_sdk",
+    "action_msgs", "ament_cmake", "ament_index_python", "builtin_interfaces", "diagnostic_msgs", "dynamixel_sdk",
     "geometry_msgs", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "rcl_interfaces",
     "rclpy", "ros2bag", "rosbag2_storage_mcap", "rosidl_default_generators", "rosidl_default_runtime",
-    "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs",
+    "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs", "python_qt_binding", "rqt_plot",
 }
 # ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
 # (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
@@ -51,8 +51,8 @@ JAZZY_ROS_PACKAGES = {
 # refuses on noble: rosbags is pip-installed in the venv, see the README).
 NOBLE_ROSDEP_KEYS = {
     "python3-h5py", "python3-hypothesis", "python3-matplotlib", "python3-numpy", "python3-pytest",
-    "python3-scipy", "python3-serial", "python3-sklearn", "python3-smbus2", "python3-torch",
-    "python3-yaml",
+    "python3-scipy", "python3-serial", "python3-setuptools", "python3-sklearn", "python3-smbus2",
+    "python3-torch", "python3-yaml",
 }
 # Third-party Python modules the packages import -> the dependency that provides them.
 MODULE_DEPENDENCY = {
@@ -120,8 +120,8 @@ def test_every_third_party_import_is_declared(package):
 
 # The shared test helpers (test/support, on pytest's pythonpath) and the test runners.
 TEST_SUPPORT = {p.stem for p in (ROOT / "test" / "support").glob("*.py")}
-TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis"}
-TEST_PIP_ONLY = {"mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
+TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis", "setuptools": "python3-setuptools"}
+TEST_PIP_ONLY = {"mcap", "mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
 
 
 def check_test_imports_declared(package: str) -> None:
@@ -148,6 +148,41 @@ def check_test_imports_declared(package: str) -> None:
             if key not in declared:
                 missing.append(key)
     assert not missing, f"src/{package}/test imports what src/{package}/package.xml does not declare: {missing}"
+
+
+INTEGRATION = ROOT / "test" / "integration"
+
+
+def test_integration_tests_are_a_package_colcon_test_runs():
+    """test/integration/ is the test-only package prisma_integration_tests, so that `colcon test`
+    runs it as it runs src/<package>/test/: pytest as its test extra, and a test_depend on what its
+    tests import (colcon builds and sources those before testing it)."""
+    root = ET.parse(INTEGRATION / "package.xml").getroot()
+    assert root.findtext("name") == "prisma_integration_tests"
+    assert (INTEGRATION / "resource" / "prisma_integration_tests").is_file()
+    setup = ast.parse((INTEGRATION / "setup.py").read_text())
+    extras = [ast.literal_eval(k.value) for k in ast.walk(setup)
+              if isinstance(k, ast.keyword) and k.arg == "extras_require"]
+    assert extras == [{"test": ["pytest"]}]
+    declared = {e.text.strip() for e in root.iter("test_depend") if e.text}
+    imported = set()
+    for path in INTEGRATION.glob("test_*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                imported.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                imported.add(node.module.split(".")[0])
+    roots = imported - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__"}
+    missing = []
+    for module in sorted(roots):
+        if module in PIP_ONLY | TEST_PIP_ONLY:
+            continue  # pip installed (the README's venv): no rosdep key to declare
+        key = {**MODULE_DEPENDENCY, **TEST_MODULES}.get(module, module)
+        if key not in declared:
+            missing.append(key)
+    assert not missing, f"test/integration imports what its package.xml does not test_depend on: {missing}"
+    unknown = declared - set(PACKAGES) - JAZZY_ROS_PACKAGES - NOBLE_ROSDEP_KEYS
+    assert not unknown, f"test/integration/package.xml names {sorted(unknown)}: not resolvable by rosdep"
 
 
 def _robot_section() -> str:
