@@ -57,8 +57,9 @@ def workspace(found: dict[str, set[str]], package: str) -> dict[str, set[str]]:
 
 
 def test_packages_found():
-    assert {"prisma_msgs", "prisma_common", "prisma_hand_sim", "prisma_tactile_driver", "prisma_motor_driver",
-            "prisma_force_estimator", "prisma_manipulation", "stag_glove", "prisma_bringup"} <= set(PACKAGES)
+    assert {"prisma_msgs", "prisma_common", "prisma_node_wiring", "prisma_hand_sim", "prisma_tactile_driver",
+            "prisma_motor_driver", "prisma_force_estimator", "prisma_manipulation", "stag_glove",
+            "prisma_bringup"} <= set(PACKAGES)
 
 
 @pytest.mark.parametrize("package", PYTHON_PACKAGES)
@@ -83,7 +84,13 @@ def test_declared_graph_is_acyclic():
     except CycleError as exc:
         pytest.fail(f"package.xml dependencies form a cycle: {exc.args[1]}")
     assert order.index("prisma_common") < order.index("prisma_hand_sim") < order.index("prisma_tactile_driver")
-    assert order.index("prisma_tactile_driver") < order.index("prisma_motor_driver") < order.index("prisma_bringup")
+    for package in ("prisma_tactile_driver", "prisma_motor_driver", "prisma_force_estimator", "prisma_manipulation",
+                    "stag_glove"):
+        assert order.index("prisma_node_wiring") < order.index(package) < order.index("prisma_bringup")
+    # the drivers are siblings: none needs another to run (their shared wiring is prisma_node_wiring)
+    drivers = {"prisma_tactile_driver", "prisma_motor_driver", "stag_glove"}
+    for driver in drivers:
+        assert not declared(driver) & (drivers - {driver}), f"{driver} depends on another driver"
 
 
 def test_the_ros_free_layers_are_at_the_bottom():

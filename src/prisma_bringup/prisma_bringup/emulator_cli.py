@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from prisma_tactile_driver.cli_args import (
+from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     command,

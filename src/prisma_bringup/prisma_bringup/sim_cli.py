@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from prisma_tactile_driver.cli_args import (
+from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     check_bundle_dir,

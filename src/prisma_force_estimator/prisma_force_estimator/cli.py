@@ -13,11 +13,7 @@ from pathlib import Path
 
 from prisma_common.atomic import atomic_output
 from prisma_common.bag import BagError, MissingTopicsError, require_topics
-from prisma_common.hand import FINGERS
-from prisma_common.topics import TAXELS, WRENCH
-from prisma_common.typestore import types
-from prisma_hand_sim.calibration import CalibrationSet
-from prisma_tactile_driver.cli_args import (
+from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     check_bundle_dir,
@@ -34,6 +30,10 @@ from prisma_tactile_driver.cli_args import (
     positive_int,
     unit_interval,
 )
+from prisma_common.hand import FINGERS
+from prisma_common.topics import TAXELS, WRENCH
+from prisma_common.typestore import types
+from prisma_hand_sim.calibration import CalibrationSet
 
 # networks.MODEL_KINDS, spelled out so that building the parser does not import torch
 # (test/integration/test_cli_bad_input.py checks that they agree).

@@ -20,9 +20,9 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
 from prisma_common.diagnostics import diagnostics_to_msg
-from prisma_tactile_driver.node_process import run_node
+from prisma_node_wiring.node_process import run_node
+from prisma_node_wiring.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples, taxel_frame_from_msg
-from prisma_tactile_driver.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics

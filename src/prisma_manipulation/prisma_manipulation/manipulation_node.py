@@ -30,9 +30,9 @@ from sensor_msgs.msg import JointState
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
 from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_from_msg, velocity_goal
-from prisma_tactile_driver.node_process import run_node
+from prisma_node_wiring.node_process import run_node
+from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
-from prisma_tactile_driver.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 
 from .contact_monitor import check_k
 from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 import dynamixel_sdk as sdk
 import serial
 
-from prisma_tactile_driver.backend import describe_os_error
+from prisma_common.os_errors import describe_os_error
 
 from . import control_table as ct
 from .motor_bus import BusError, BusStats, MotorConfig, MotorState, check_velocity

@@ -18,8 +18,8 @@ from sensor_msgs.msg import JointState
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
-from prisma_tactile_driver.node_process import run_node
-from prisma_tactile_driver.sample_streams import stream_publisher
+from prisma_node_wiring.node_process import run_node
+from prisma_node_wiring.sample_streams import stream_publisher
 
 from .motor_bus import BusError
 from .motor_driver_core import MotorDriverCore, make_bus

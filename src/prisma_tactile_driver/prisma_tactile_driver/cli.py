@@ -21,12 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from prisma_common.atomic import atomic_output
-from prisma_common.hand import FINGERS
-from prisma_hand_sim.calibration import KINDS, CalibrationSet, generate_calibration_set
-from prisma_hand_sim.contact_source import ScriptedContactSource
-from prisma_hand_sim.pad_model import PadContact, PadModel
-
-from .cli_args import (
+from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     command,
@@ -37,6 +32,10 @@ from .cli_args import (
     positive_float,
     positive_int,
 )
+from prisma_common.hand import FINGERS
+from prisma_hand_sim.calibration import KINDS, CalibrationSet, generate_calibration_set
+from prisma_hand_sim.contact_source import ScriptedContactSource
+from prisma_hand_sim.pad_model import PadContact, PadModel
 
 
 def plot_calibration(cal: CalibrationSet, path: Path, seconds: float = 30.0) -> None:

@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 
 from prisma_common.hand import FINGERS, N_TAXELS
+from prisma_common.os_errors import describe_os_error
 
-from .backend import HubReading, LinkStatus, describe_os_error
+from .backend import HubReading, LinkStatus
 
 MAX11617_SETUP = 0x82  # setup byte: VDD reference, internal clock, unipolar, no reset
 MAX11617_CONFIG = 0x11  # configuration: SCAN 00 (AIN0..CS), CS = AIN8, single-ended

@@ -37,7 +37,8 @@ from typing import Any
 
 import smbus2
 
-from .backend import describe_os_error
+from prisma_common.os_errors import describe_os_error
+
 from .i2c_emulator import EmulatedI2CBus, Messages, check_messages, i2c_rdwr_ioctl, route_ioctl, unroute_ioctl
 
 VERSION = 1

@@ -15,8 +15,10 @@ from dataclasses import dataclass
 
 import serial
 
+from prisma_common.os_errors import describe_os_error
+
 from . import hub_clock
-from .backend import HubReading, LinkStatus, describe_os_error
+from .backend import HubReading, LinkStatus
 from .protocol import FrameParser, HubFrame
 
 

@@ -19,12 +19,12 @@ from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
 from prisma_hand_sim.hand_world import HandWorldContactSource
+from prisma_node_wiring.node_process import run_node
+from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 from .driver_config import DriverConfig, make_backend
 from .hub import TactileHub
-from .node_process import run_node
 from .ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
-from .sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 
 class TactileDriverNode(Node):

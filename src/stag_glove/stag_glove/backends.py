@@ -12,7 +12,7 @@ from typing import Protocol
 import numpy as np
 import serial
 
-from prisma_tactile_driver.backend import describe_os_error
+from prisma_common.os_errors import describe_os_error
 
 from .dataset import load_dataset
 from .protocol import GloveStreamParser, ParserStats

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from prisma_common.atomic import atomic_output
-from prisma_tactile_driver.cli_args import (
+from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     check_bundle_out,

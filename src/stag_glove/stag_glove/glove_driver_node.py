@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger
 
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.parameters import ParameterError
-from prisma_tactile_driver.node_process import run_node
+from prisma_node_wiring.node_process import run_node
 
 from .driver import GloveDriver
 from .layout import load_layout

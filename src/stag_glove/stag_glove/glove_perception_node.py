@@ -13,7 +13,7 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
 from prisma_common.parameters import ParameterError
-from prisma_tactile_driver.node_process import run_node
+from prisma_node_wiring.node_process import run_node
 
 from .bundle import BundleError, load_bundle
 from .node_config import GlovePerceptionConfig

@@ -1,5 +1,5 @@
 """hand_input.HandInput: per-finger samples until the per-hand stream speaks, each sample once."""
-from prisma_tactile_driver.hand_input import HandInput
+from prisma_common.hand_input import HandInput
 
 
 def test_per_finger_samples_are_taken_until_the_first_per_hand_message():

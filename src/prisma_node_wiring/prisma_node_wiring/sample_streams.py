@@ -23,9 +23,8 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 
+from prisma_common.hand_input import HandInput
 from prisma_common.messages import ns_from_stamp
-
-from .hand_input import HandInput
 
 DEPTH = 10  # keep-last depth of every stream: a slow subscriber loses the oldest samples, never blocks
 
