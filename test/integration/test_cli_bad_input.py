@@ -105,7 +105,7 @@ def data(tmp_path_factory) -> Path:
         for k in range(5):
             counts = np.full(9, 1000 + k, dtype=np.uint16)
             frame = TaxelFrame("thumb", 10_000_000 * (k + 1), counts, (counts * 3.3 / 4096).astype(np.float32))
-            bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(frame, types, "thumb_pad"))
+            bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(types, frame, "thumb_pad"))
     for path in root.rglob("*"):
         path.chmod(path.stat().st_mode & ~0o222)  # the tools must not write here
     yield root

@@ -90,7 +90,7 @@ class SensorSide(Node):
         for f in FINGERS:
             if self.taxels_on:
                 frame = TaxelFrame.from_counts(f, stamp, self.pads[f].sample(self.world.contact(f)))
-                taxels.append(taxel_frame_to_msg(frame, get_message, f"prisma_{f}_pad"))
+                taxels.append(taxel_frame_to_msg(get_message, frame, f"prisma_{f}_pad"))
                 self.taxels[f].publish(taxels[-1])
             if self.wrenches_on:
                 force = Vector3(x=0.0, y=0.0, z=float(self.world.forces()[f]))

@@ -141,7 +141,7 @@ def test_the_node_decides_as_the_off_robot_loop(ros, name):
         ros.set_time(scan.stamp_ns, settle=True)
         ros.publish(f"{NS}/joint_states", joint_state_to_msg(get_message, scan.stamp_ns, scan.states))
         ros.settle()
-        samples = [taxel_frame_to_msg(frame, get_message, f"prisma_{frame.finger}_pad") for frame in scan.frames]
+        samples = [taxel_frame_to_msg(get_message, frame, f"prisma_{frame.finger}_pad") for frame in scan.frames]
         ros.publish(f"{NS}/prisma/hand/taxels", hand_taxels_to_msg(get_message, samples))
         ros.settle()
         stamps = {frame.finger: frame.stamp_ns for frame in scan.frames}

@@ -150,12 +150,12 @@ def test_glove_converters_on_both_kinds_of_class(rclpy_types):
     frame = FrameProcessor().process(raw, stamp_ns=1_700_000_000_123_456_789)
     estimate = Estimate("mug", 0.75, ["mug", "ball"], np.array([0.75, 0.25], dtype=np.float32), 12)
     for types in (rclpy_types, typestore_types):
-        msg = glove_frame_to_msg(frame, types, "stag_glove")
+        msg = glove_frame_to_msg(types, frame, "stag_glove")
         for received in (msg, cdr_round_trip(msg)):
             np.testing.assert_array_equal(glove_frame_from_msg(received).raw, frame.raw)
         image = pressure_image_msg(frame, types, "stag_glove")
         np.testing.assert_array_equal(image_to_pressure(image), frame.pressure)
-        back = estimate_from_msg(cdr_round_trip(estimate_to_msg(estimate, types, 5, "stag_glove")))
+        back = estimate_from_msg(cdr_round_trip(estimate_to_msg(types, estimate, 5, "stag_glove")))
         assert back.labels == ["mug", "ball"] and back.probabilities.tolist() == [0.75, 0.25]
         if types is rclpy_types:
             assert isinstance(msg.raw, array.array) and msg.raw.typecode == "H"

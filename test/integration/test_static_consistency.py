@@ -664,3 +664,18 @@ def test_checks_find_what_a_node_declares_publishes_and_serves(tmp_path, monkeyp
     assert len(problems) == 3
     assert "INTEGER" in problems[0] and "DOUBLE" in problems[0]
     assert "!= node default" in problems[1] and "not declared" in problems[2]
+
+
+# ---- one converter signature ------------------------------------------------------------------
+def test_every_converter_to_a_message_takes_the_message_lookup_first():
+    """`<thing>_to_msg(types, data, ...)` in every package: the lookup first, as rclpy and the
+    typestore are the two places messages come from, then the core data."""
+    modules = sorted((ROOT / "src").glob("*/*/ros_conversions.py"))
+    modules.append(ROOT / "src" / "prisma_common" / "prisma_common" / "diagnostics.py")
+    converters = {}
+    for path in modules:
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.FunctionDef) and node.name.endswith("_to_msg"):
+                converters[f"{path.parent.name}.{node.name}"] = node.args.args[0].arg
+    assert len(converters) >= 18
+    assert {name: first for name, first in converters.items() if first != "types"} == {}

@@ -169,19 +169,19 @@ def run_glove_session(writer: BagWriter, objects: int = 4, seed: int | None = No
     while backend.frames_sent < total:
         for frame in driver.poll(t):
             truth, touching = backend.truth
-            write(FRAME, glove_frame_to_msg(frame, types, frame_id))
+            write(FRAME, glove_frame_to_msg(types, frame, frame_id))
             write(IMAGE, pressure_image_msg(frame, types, frame_id))
             item = GloveFrameRecord(frame.stamp_ns, truth, bool(touching), float(frame.pressure.mean()),
                                     bool(frame.shorted), bool(frame.contact))
             out = perception.update(frame)
             if out.pose is not None:
-                write(HAND_POSE, estimate_to_msg(out.pose, types, frame.stamp_ns, frame_id))
+                write(HAND_POSE, estimate_to_msg(types, out.pose, frame.stamp_ns, frame_id))
                 item.pose_label = out.pose.label
             if out.weight is not None:
-                write(WEIGHT, weight_to_msg(out.weight, types, frame.stamp_ns, frame_id))
+                write(WEIGHT, weight_to_msg(types, out.weight, frame.stamp_ns, frame_id))
                 item.weight_g, item.baseline_g = out.weight.grams, out.weight.baseline_grams
             if out.object is not None:
-                write(OBJECT, estimate_to_msg(out.object, types, frame.stamp_ns, frame_id))
+                write(OBJECT, estimate_to_msg(types, out.object, frame.stamp_ns, frame_id))
                 item.object_label, item.object_confidence = out.object.label, out.object.confidence
             rec.frames.append(item)
             n = len(rec.frames)

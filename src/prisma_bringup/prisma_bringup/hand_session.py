@@ -201,7 +201,7 @@ class HandRecorder:
         self._write(JOINT_STATES, joint_state_to_msg(types, t, scan.states))
         for frame in scan.frames:
             self._write(TAXELS.format(finger=frame.finger),
-                        taxel_frame_to_msg(frame, types, self.tactile_config.frame_id(frame.finger)))
+                        taxel_frame_to_msg(types, frame, self.tactile_config.frame_id(frame.finger)))
         for finger in FINGERS:
             if finger in scan.wrenches:
                 self._write(WRENCH.format(finger=finger), wrench_to_msg(types, scan.wrenches[finger]))

@@ -31,7 +31,7 @@ def _write_calibration_bag(path, n=200):
             stamp = T0 + k * 10_000_000
             counts = np.rint(voltages[k] / 3.3 * 4096).astype(np.uint16)
             frame = TaxelFrame("thumb", stamp, counts, voltages[k])
-            bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(frame, types, "prisma_thumb_pad"))
+            bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(types, frame, "prisma_thumb_pad"))
             if k % 10 != 9:
                 bag.write("/ft_sensor/wrench", wrench_to_msg(types, WrenchSample(stamp + 1_500_000, wrench[k], "ft")))
         for k in range(20):

@@ -21,7 +21,7 @@ T0 = 1_700_000_000_000_000_000
 
 def _taxel(finger, stamp, voltages):
     counts = np.rint(np.nan_to_num(voltages) / 3.3 * 4096).astype(np.uint16)
-    return taxel_frame_to_msg(TaxelFrame(finger, stamp, counts, np.asarray(voltages, np.float32)), types,
+    return taxel_frame_to_msg(types, TaxelFrame(finger, stamp, counts, np.asarray(voltages, np.float32)),
                               f"prisma_{finger}_pad")
 
 

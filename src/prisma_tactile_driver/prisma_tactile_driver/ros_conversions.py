@@ -19,7 +19,7 @@ from .taxels import TaxelFrame
 Types = Callable[[str], Any]
 
 
-def taxel_frame_to_msg(frame: TaxelFrame, types: Types, frame_id: str) -> Any:
+def taxel_frame_to_msg(types: Types, frame: TaxelFrame, frame_id: str) -> Any:
     return types("prisma_msgs/msg/TaxelArray")(
         header=make_header(types, frame.stamp_ns, frame_id),
         finger=frame.finger,

@@ -72,7 +72,7 @@ class TactileDriverNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _on_poll(self) -> None:
-        samples = [taxel_frame_to_msg(frame, self.types, self.config.frame_id(frame.finger))
+        samples = [taxel_frame_to_msg(self.types, frame, self.config.frame_id(frame.finger))
                    for frame in self.hub.poll(self._now_ns())]
         for msg in samples:
             publish_if_subscribed(self._taxel_pubs[msg.finger], msg)

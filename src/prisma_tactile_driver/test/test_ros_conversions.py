@@ -32,7 +32,7 @@ def test_stamp_helpers():
 def test_taxel_frame_cdr_round_trip():
     counts = np.array([0, 1, 512, 1241, 2048, 3000, 4000, 4094, 4095], dtype=np.uint16)
     frame = TaxelFrame.from_counts("ring", 1_700_000_000_123_456_789, counts)
-    msg = cdr_round_trip(taxel_frame_to_msg(frame, types, "ring_pad"))
+    msg = cdr_round_trip(taxel_frame_to_msg(types, frame, "ring_pad"))
     assert msg.header.frame_id == "ring_pad"
     back = taxel_frame_from_msg(msg)
     assert back.finger == "ring" and back.stamp_ns == frame.stamp_ns
@@ -46,7 +46,7 @@ def test_hand_taxels_carry_every_sample_of_a_poll_in_order():
     frames = [TaxelFrame.from_counts("thumb", 1_000_000_000, np.full(9, 1000, np.uint16)),
               TaxelFrame.from_counts("index", 1_000_200_000, np.arange(9, dtype=np.uint16) * 400),
               TaxelFrame.from_counts("thumb", 1_010_000_000, np.full(9, 1100, np.uint16))]
-    msg = cdr_round_trip(hand_taxels_to_msg(types, [taxel_frame_to_msg(f, types, f"{f.finger}_pad") for f in frames]))
+    msg = cdr_round_trip(hand_taxels_to_msg(types, [taxel_frame_to_msg(types, f, f"{f.finger}_pad") for f in frames]))
     assert msg.__msgtype__ == "prisma_msgs/msg/HandTaxels"
     assert ns_from_stamp(msg.header.stamp) == 1_010_000_000  # the newest sample's
     pairs = hand_taxels_samples(msg)

@@ -70,7 +70,7 @@ class GloveDriverNode(Node):
 
     def _on_poll(self) -> None:
         for frame in self.driver.poll(self._now_ns()):
-            self._frame_pub.publish(glove_frame_to_msg(frame, self.types, self.config.frame_id))
+            self._frame_pub.publish(glove_frame_to_msg(self.types, frame, self.config.frame_id))
             self._image_pub.publish(pressure_image_msg(frame, self.types, self.config.frame_id))
         for error in self.driver.backend.take_errors():  # each new one once, with port and OS reason
             self.get_logger().error(error)

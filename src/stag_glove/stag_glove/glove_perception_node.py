@@ -54,11 +54,11 @@ class GlovePerceptionNode(Node):
         out = self.perception.update(frame)
         stamp, frame_id = frame.stamp_ns, self.config.frame_id
         if out.object is not None:
-            self._object_pub.publish(estimate_to_msg(out.object, self.types, stamp, frame_id))
+            self._object_pub.publish(estimate_to_msg(self.types, out.object, stamp, frame_id))
         if out.pose is not None:
-            self._pose_pub.publish(estimate_to_msg(out.pose, self.types, stamp, frame_id))
+            self._pose_pub.publish(estimate_to_msg(self.types, out.pose, stamp, frame_id))
         if out.weight is not None:
-            self._weight_pub.publish(weight_to_msg(out.weight, self.types, stamp, frame_id))
+            self._weight_pub.publish(weight_to_msg(self.types, out.weight, stamp, frame_id))
 
 
 def main(args=None) -> None:

@@ -24,7 +24,7 @@ Types = Callable[[str], Any]
 
 
 # ------------------------------------------------------------------------------- glove frame
-def glove_frame_to_msg(frame: ProcessedFrame, types: Types, frame_id: str) -> Any:
+def glove_frame_to_msg(types: Types, frame: ProcessedFrame, frame_id: str) -> Any:
     cls = types("prisma_msgs/msg/GloveFrame")
     rows, cols = frame.raw.shape
     return cls(
@@ -80,7 +80,7 @@ class WeightResult:
     baseline_grams: float
 
 
-def estimate_to_msg(estimate: Estimate, types: Types, stamp_ns: int, frame_id: str) -> Any:
+def estimate_to_msg(types: Types, estimate: Estimate, stamp_ns: int, frame_id: str) -> Any:
     cls = types("prisma_msgs/msg/ObjectEstimate")
     return cls(header=make_header(types, stamp_ns, frame_id), label=estimate.label,
                confidence=float(estimate.confidence), labels=list(estimate.labels),
@@ -93,7 +93,7 @@ def estimate_from_msg(msg: Any) -> Estimate:
                     np.asarray(msg.probabilities, dtype=np.float32), int(msg.frames_used))
 
 
-def weight_to_msg(result: WeightResult, types: Types, stamp_ns: int, frame_id: str) -> Any:
+def weight_to_msg(types: Types, result: WeightResult, stamp_ns: int, frame_id: str) -> Any:
     return types("prisma_msgs/msg/WeightEstimate")(header=make_header(types, stamp_ns, frame_id),
                                                    grams=float(result.grams),
                                                    baseline_grams=float(result.baseline_grams))

@@ -33,7 +33,7 @@ def processed(shorted=False):
 
 def test_glove_frame_round_trip():
     frame = processed(shorted=True)
-    msg = round_trip(glove_frame_to_msg(frame, types, "stag_glove"))
+    msg = round_trip(glove_frame_to_msg(types, frame, "stag_glove"))
     assert msg.header.frame_id == "stag_glove"
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
     back = glove_frame_from_msg(msg)
@@ -44,7 +44,7 @@ def test_glove_frame_round_trip():
 
 
 def test_glove_frame_with_inconsistent_size_is_rejected():
-    msg = glove_frame_to_msg(processed(), types, "g")
+    msg = glove_frame_to_msg(types, processed(), "g")
     msg.rows = 31
     with pytest.raises(ValueError, match="31x32"):
         glove_frame_from_msg(msg)
@@ -59,11 +59,11 @@ def test_pressure_image_is_32fc1():
 
 def test_estimates_round_trip():
     est = Estimate("mug", 0.75, ["ball", "mug"], np.array([0.25, 0.75], np.float32), 8)
-    back = estimate_from_msg(round_trip(estimate_to_msg(est, types, 5, "stag_glove")))
+    back = estimate_from_msg(round_trip(estimate_to_msg(types, est, 5, "stag_glove")))
     assert (back.label, back.labels, back.frames_used) == ("mug", ["ball", "mug"], 8)
     assert back.confidence == pytest.approx(0.75)
     np.testing.assert_allclose(back.probabilities, [0.25, 0.75])
-    w = weight_from_msg(round_trip(weight_to_msg(WeightResult(123.5, 98.25), types, 5, "g")))
+    w = weight_from_msg(round_trip(weight_to_msg(types, WeightResult(123.5, 98.25), 5, "g")))
     assert (w.grams, w.baseline_grams) == (123.5, 98.25)
 
 
