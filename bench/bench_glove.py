@@ -17,9 +17,9 @@ import torch
 
 from run import Benchmark
 from stag_glove.bundle import Bundle, BundleError, load_bundle
+from stag_glove.glove_perception_core import GlovePerception, PerceptionConfig, limit_threads
 from stag_glove.layout import load_layout
 from stag_glove.models import TouchNet
-from stag_glove.perception import GlovePerception, PerceptionConfig, limit_threads
 from stag_glove.processing import FrameProcessor
 from stag_glove.synthetic import SyntheticConfig, SyntheticGlove
 

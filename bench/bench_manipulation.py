@@ -19,7 +19,7 @@ from prisma_manipulation.contact_monitor import DEFAULT_K, ContactMonitor
 from prisma_manipulation.controllers import ControlInput, ControlLimits, JointSample
 from prisma_manipulation.motion_controllers import HoldController
 from prisma_manipulation.scenarios import build
-from prisma_motor_driver.motor_bus import default_motors
+from prisma_motor_driver.backend import default_motors
 from run import Benchmark
 
 MIN_SECONDS = 1.0
@@ -71,9 +71,9 @@ def _measure_control_step(bench: Benchmark) -> float:
 
 
 def _measure_dynamixel_cycle(bench: Benchmark) -> float:
-    from prisma_motor_driver.dynamixel_bus import DynamixelBus
+    from prisma_motor_driver.backend import default_motors
+    from prisma_motor_driver.dynamixel_backend import DynamixelBus
     from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator
-    from prisma_motor_driver.motor_bus import default_motors
 
     with DynamixelEmulator([1, 2, 3]) as emu:
         bus = DynamixelBus(emu.port_name, 1_000_000, default_motors())

@@ -756,7 +756,7 @@ def relay_entities(control: Control, out: Path, settle_s: float = 3.0, cpu_s: fl
 CATEGORIES = (
     ("torch", lambda fn, path: path.startswith("torch/")),
     ("sim pad model", lambda fn, path: path.endswith("pad_model.py")),
-    ("sim hand/world, motors", lambda fn, path: path.endswith(("hand_world.py", "sim_motors.py", "sim_backend.py"))),
+    ("sim backends, hand/world", lambda fn, path: path.endswith(("hand_world.py", "sim_backend.py"))),
     ("publish (serialise + DDS write)",
      lambda fn, path: fn in ("Publisher.publish", "ServerGoalHandle.publish_feedback")),
     ("message classes (construct/convert)",

@@ -21,7 +21,7 @@ from prisma_common.typestore import get_typestore
 from prisma_common.typestore import types as typestore_types
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.ros_conversions import contact_state_from_msg, contact_state_to_msg, joint_sample_from_msg
-from prisma_motor_driver.motor_bus import MotorState
+from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
 from prisma_motor_driver.ros_conversions import (
     joint_state_to_msg,

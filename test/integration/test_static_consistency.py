@@ -679,3 +679,25 @@ def test_every_converter_to_a_message_takes_the_message_lookup_first():
                 converters[f"{path.parent.name}.{node.name}"] = node.args.args[0].arg
     assert len(converters) >= 18
     assert {name: first for name, first in converters.items() if first != "types"} == {}
+
+
+# ---- one naming scheme ------------------------------------------------------------------------
+def test_node_core_config_backend_and_converter_modules_are_named_alike_in_every_package():
+    """`<name>_node.py` has its decisions in `<name>_core.py`, its parameters in `node_config.py` and
+    its messages in `ros_conversions.py`; a package with hardware backends has the interface in
+    `backend.py` and each implementation in `<kind>_backend.py`."""
+    problems = []
+    nodes = [path for path in sorted((ROOT / "src").glob("*/*/*_node.py")) if path.parent.name != "test"]
+    assert len(nodes) == 6
+    for node in nodes:
+        folder, name = node.parent, node.name.removesuffix("_node.py")
+        for expected in (f"{name}_core.py", "node_config.py", "ros_conversions.py"):
+            if not (folder / expected).is_file():
+                problems.append(f"{node.relative_to(ROOT)} has no {expected} beside it")
+    for implementation in [p for p in sorted((ROOT / "src").glob("*/*/*_backend.py")) if p.parent.name != "test"]:
+        if not (implementation.parent / "backend.py").is_file():
+            problems.append(f"{implementation.relative_to(ROOT)} has no backend.py (the interface) beside it")
+    for interface in sorted((ROOT / "src").glob("*/*/backend.py")):
+        if len(list(interface.parent.glob("*_backend.py"))) < 2:
+            problems.append(f"{interface.relative_to(ROOT)}: an interface with fewer than two backends")
+    assert problems == []

@@ -24,12 +24,12 @@ import numpy as np
 from prisma_common.bag import BagWriter
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.typestore import types as typestore_types
-from stag_glove.backends import BackendFrame, BackendStatus
+from stag_glove.backend import BackendFrame, BackendStatus
 from stag_glove.bundle import load_bundle
-from stag_glove.driver import GloveDriver
+from stag_glove.glove_driver_core import GloveDriver
+from stag_glove.glove_perception_core import GlovePerception, PerceptionConfig, limit_threads
 from stag_glove.layout import load_layout
 from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig
-from stag_glove.perception import GlovePerception, PerceptionConfig, limit_threads
 from stag_glove.processing import FrameProcessor, NormalisationConfig
 from stag_glove.ros_conversions import estimate_to_msg, glove_frame_to_msg, pressure_image_msg, weight_to_msg
 from stag_glove.synthetic import EMPTY_HAND, SyntheticConfig, SyntheticGlove

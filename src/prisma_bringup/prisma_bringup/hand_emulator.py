@@ -38,7 +38,7 @@ from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldContactS
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
 from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ServoPresent
-from prisma_motor_driver.sim_motors import SimMotorParams
+from prisma_motor_driver.sim_backend import SimMotorParams
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
 from prisma_tactile_driver.i2c_socket import I2CSocketServer
 from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame

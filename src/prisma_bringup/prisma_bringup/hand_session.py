@@ -45,7 +45,7 @@ from prisma_manipulation.ros_conversions import (
 )
 from prisma_manipulation.scenarios import Scenario, build, scenario_request
 from prisma_motor_driver.ros_conversions import joint_state_to_msg, move_feedback_to_msg
-from prisma_tactile_driver.driver_config import DriverConfig
+from prisma_tactile_driver.node_config import TactileDriverConfig
 from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
 
 NS = 1_000_000_000
@@ -182,7 +182,7 @@ class HandRecorder:
         self.scenario, self.writer, self.types, self.action = scenario, writer, types, action
         self.loop = loop
         self.recording = HandRecording()
-        self.tactile_config = DriverConfig(backend="sim", contact_source="hand_world")
+        self.tactile_config = TactileDriverConfig(backend="sim", contact_source="hand_world")
         self.contact_frame_id = loop.core.config.frame_id_format
         self.bundle_paths = {f: loop.estimator.path for f in FINGERS}
         self._next_diagnostics_ns: int | None = None

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from prisma_common.atomic import atomic_output
 from prisma_common.bag import BagWriter
-from prisma_force_estimator.pipeline import load_estimator as load_bundle_estimator
+from prisma_force_estimator.force_estimator_core import load_estimator as load_bundle_estimator
 from prisma_manipulation.scenarios_cli import plot, summarise
 
 GLOVE = "glove"

@@ -25,9 +25,9 @@ import pytest
 from prisma_bringup.hand_emulator import FINGER_CHANNELS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
 from prisma_common.hand import FINGERS
 from prisma_motor_driver import control_table as ct
-from prisma_motor_driver.dynamixel_bus import DynamixelBus
-from prisma_motor_driver.motor_bus import BusError, MotorMap
-from prisma_motor_driver.sim_motors import SimMotorParams
+from prisma_motor_driver.backend import BusError, MotorMap
+from prisma_motor_driver.dynamixel_backend import DynamixelBus
+from prisma_motor_driver.sim_backend import SimMotorParams
 from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_socket import SocketSMBus
 from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size

@@ -335,7 +335,7 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
 
     from .bundle import DEFAULT_BUNDLE, resolve_bundle_path
     from .estimate_bag import estimate_bag
-    from .pipeline import WrenchPipeline, build_estimators
+    from .force_estimator_core import WrenchPipeline, build_estimators
 
     overrides = dict(args.override)
     default = args.bundle or DEFAULT_BUNDLE

@@ -5,7 +5,7 @@ from collections.abc import Mapping
 
 from prisma_common.diagnostics import OK, WARN, DiagnosticStatusData
 
-from .pipeline import WrenchPipeline
+from .force_estimator_core import WrenchPipeline
 
 
 def pipeline_diagnostics(pipeline: WrenchPipeline, name: str, bundles: Mapping[str, str]) -> list[DiagnosticStatusData]:

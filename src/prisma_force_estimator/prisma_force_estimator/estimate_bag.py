@@ -8,7 +8,7 @@ from prisma_common.bag import BagWriter, read_bag, require_topics
 from prisma_common.topics import TAXELS, WRENCH
 from prisma_tactile_driver.ros_conversions import taxel_frame_from_msg
 
-from .pipeline import TaxelSample, WrenchPipeline
+from .force_estimator_core import TaxelSample, WrenchPipeline
 from .ros_conversions import MessageLookup, wrench_to_msg
 
 TAXEL_TOPIC = TAXELS

@@ -26,8 +26,8 @@ from prisma_tactile_driver.ros_conversions import hand_taxels_samples, taxel_fra
 
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
-from .node_config import EstimatorConfig, ParameterError
-from .pipeline import TaxelSample, WrenchPipeline, build_estimators
+from .force_estimator_core import TaxelSample, WrenchPipeline, build_estimators
+from .node_config import ForceEstimatorConfig, ParameterError
 from .ros_conversions import hand_wrench_to_msg, wrench_to_msg
 
 
@@ -35,10 +35,10 @@ class ForceEstimatorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("force_estimator", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = EstimatorConfig().as_parameters()
+        defaults = ForceEstimatorConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, naming the parameter and value when one is invalid
-        self.config = EstimatorConfig.from_parameters(
+        self.config = ForceEstimatorConfig.from_parameters(
             {name: self.get_parameter(name).value for name in defaults})
         cfg = self.config
         self.bundle_paths = {finger: str(resolve_bundle_path(path)) for finger, path in cfg.bundles().items()}

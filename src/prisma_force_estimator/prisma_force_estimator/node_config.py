@@ -10,12 +10,12 @@ from prisma_common.parameters import ParameterError, check_fingers
 
 from .bundle import DEFAULT_BUNDLE
 
-__all__ = ["EstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
+__all__ = ["ForceEstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
 OVERRIDE_PREFIX = "finger_bundles."
 
 
 @dataclass
-class EstimatorConfig:
+class ForceEstimatorConfig:
     model_bundle: str = DEFAULT_BUNDLE  # bundle directory for every finger without an override
     # finger -> bundle directory; "" = use model_bundle. ROS parameters finger_bundles.<finger>.
     finger_bundles: dict[str, str] = field(default_factory=lambda: {f: "" for f in FINGERS})
@@ -40,7 +40,7 @@ class EstimatorConfig:
         return params
 
     @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> EstimatorConfig:
+    def from_parameters(cls, values: dict[str, Any]) -> ForceEstimatorConfig:
         config = cls()
         for name, value in values.items():
             if name.startswith(OVERRIDE_PREFIX):
@@ -51,7 +51,7 @@ class EstimatorConfig:
                 setattr(config, name, value)
         return config.validate()
 
-    def validate(self) -> EstimatorConfig:
+    def validate(self) -> ForceEstimatorConfig:
         if not isinstance(self.model_bundle, str) or not self.model_bundle:
             raise ParameterError("model_bundle", self.model_bundle, "a bundle directory path")
         for finger, path in self.finger_bundles.items():

@@ -25,7 +25,7 @@ from std_msgs.msg import Header  # noqa: E402
 
 from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # noqa: E402
 from prisma_force_estimator.inference import ForceEstimator  # noqa: E402
-from prisma_force_estimator.node_config import EstimatorConfig, ParameterError  # noqa: E402
+from prisma_force_estimator.node_config import ForceEstimatorConfig, ParameterError  # noqa: E402
 
 CONFIG = CONFIG / "force_estimator.yaml"
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -73,7 +73,7 @@ def test_config_yaml_matches_declared_defaults():
     params = node_parameters(CONFIG)
     flat = {k: v for k, v in params.items() if k != "finger_bundles"}
     flat.update({f"finger_bundles.{f}": p for f, p in params["finger_bundles"].items()})
-    assert flat == EstimatorConfig().as_parameters()
+    assert flat == ForceEstimatorConfig().as_parameters()
 
 
 def test_one_wrench_per_taxel_message_with_the_input_stamp(ros, node_cls, bundles):

@@ -35,8 +35,8 @@ def test_diagnostics_of_the_pipeline_round_trip(tmp_path):
     from prisma_common.diagnostics import diagnostics_from_msg, diagnostics_to_msg
     from prisma_force_estimator.bundle import save_untrained_bundle
     from prisma_force_estimator.diagnostics import pipeline_diagnostics
+    from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline
     from prisma_force_estimator.inference import ForceEstimator
-    from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
 
     est = ForceEstimator.from_bundle(save_untrained_bundle(tmp_path / "b", "ann"))
     pipe = WrenchPipeline({"thumb": est, "index": est})

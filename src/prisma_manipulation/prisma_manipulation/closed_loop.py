@@ -26,18 +26,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_force_estimator.node_config import EstimatorConfig
-from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline
+from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline
+from prisma_force_estimator.node_config import ForceEstimatorConfig
 from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
 from prisma_hand_sim.pad_model import PadParams
-from prisma_motor_driver.motor_bus import MotorState
+from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.motor_driver_core import MotorDriverCore
 from prisma_motor_driver.motor_goals import MoveFeedback, MoveResult
 from prisma_motor_driver.node_config import MotorDriverConfig
 from prisma_motor_driver.ros_conversions import velocity_goal
-from prisma_motor_driver.sim_motors import SimMotorBus
-from prisma_tactile_driver.hub import TactileHub
+from prisma_motor_driver.sim_backend import SimMotorBus
 from prisma_tactile_driver.sim_backend import SimHubBackend
+from prisma_tactile_driver.tactile_driver_core import TactileHub
 from prisma_tactile_driver.taxels import TaxelFrame
 
 from .contact_monitor import ContactEvaluation
@@ -46,8 +46,8 @@ from .manipulation_core import Finished, GraspRequest, ManipulateRequest, Manipu
 from .node_config import ManipulationConfig
 
 if TYPE_CHECKING:
+    from prisma_force_estimator.force_estimator_core import WrenchSample
     from prisma_force_estimator.inference import ForceEstimator
-    from prisma_force_estimator.pipeline import WrenchSample
 
 NS = 1_000_000_000
 FRAME_ID_FORMAT = "prisma_{finger}_pad"  # tactile_driver's and force_estimator's default frame ids
@@ -127,7 +127,7 @@ class ClosedLoop:
         self.estimator = estimator
         self.pipeline = None
         if estimator is not None:
-            batch_window_ns = int(round(EstimatorConfig().batch_window * NS))
+            batch_window_ns = int(round(ForceEstimatorConfig().batch_window * NS))
             self.pipeline = WrenchPipeline({f: estimator for f in FINGERS}, FRAME_ID_FORMAT, batch_window_ns)
         self.controller: Controller | None = None  # the goal's controller, kept after it ends
         self.finished: Finished | None = None

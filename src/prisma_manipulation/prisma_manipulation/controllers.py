@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from prisma_common.hand import MOTOR_NAMES
-from prisma_motor_driver.motor_bus import MotorConfig
+from prisma_motor_driver.backend import MotorConfig
 
 from .contact_monitor import ContactEvaluation
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_common.parameters import ParameterError, Params, check_positive
-from prisma_motor_driver.motor_bus import (
+from prisma_motor_driver.backend import (
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MIN_POSITIONS,
     MotorConfig,

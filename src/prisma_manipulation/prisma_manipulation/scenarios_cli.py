@@ -19,7 +19,7 @@ import numpy as np
 from prisma_common.atomic import atomic_output
 from prisma_common.cli_args import ArgumentParser, check_bundle_dir, command, output_dir
 from prisma_common.hand import MOTOR_NAMES
-from prisma_force_estimator.pipeline import load_estimator
+from prisma_force_estimator.force_estimator_core import load_estimator
 from prisma_tactile_driver.taxels import EDGES
 
 from .closed_loop import Trace

@@ -14,7 +14,7 @@ from prisma_manipulation.controllers import (
 )
 from prisma_manipulation.grasp_controller import GraspController
 from prisma_manipulation.motion_controllers import ForceKeeper, HoldController, HorizontalController
-from prisma_motor_driver.motor_bus import default_motors
+from prisma_motor_driver.backend import default_motors
 
 MS = 1_000_000
 

@@ -24,7 +24,7 @@ from prisma_manipulation.ros_conversions import (
     manipulate_feedback_to_msg,
     manipulate_result_to_msg,
 )
-from prisma_motor_driver.motor_bus import MotorState
+from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
 from prisma_motor_driver.ros_conversions import (
     joint_state_to_msg,

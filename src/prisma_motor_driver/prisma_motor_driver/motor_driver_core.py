@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
+from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
-from .motor_bus import BusError, MotorBus, MotorState
 from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult, validate_goal
 from .node_config import MotorDriverConfig
 
@@ -15,10 +15,10 @@ from .node_config import MotorDriverConfig
 def make_bus(config: MotorDriverConfig, start_ns: int | None = 0) -> MotorBus:
     motors = config.motors()
     if config.backend == "dynamixel":
-        from .dynamixel_bus import DynamixelBus  # dynamixel-sdk only where it is used
+        from .dynamixel_backend import DynamixelBus  # dynamixel-sdk only where it is used
 
         return DynamixelBus(config.port, config.baud, motors, retries=config.retries)
-    from .sim_motors import SimMotorBus
+    from .sim_backend import SimMotorBus
 
     initial = dict(zip(config.motor_names, (float(p) for p in config.sim_initial_positions)))
     return SimMotorBus(motors, initial_positions=initial, start_ns=start_ns)

@@ -21,7 +21,7 @@ from prisma_common.parameters import ParameterError
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import stream_publisher
 
-from .motor_bus import BusError
+from .backend import BusError
 from .motor_driver_core import MotorDriverCore, make_bus
 from .motor_goals import MoveResult
 from .node_config import MotorDriverConfig

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .motor_bus import BusError, MotorBus, MotorConfig, MotorState, fault_reason
+from .backend import BusError, MotorBus, MotorConfig, MotorState, fault_reason
 
 VELOCITY = "velocity"
 POSITION = "position"

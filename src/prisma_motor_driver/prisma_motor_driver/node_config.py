@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from prisma_common.hand import MOTOR_NAMES
 from prisma_common.parameters import ParameterError, Params, check_positive
 
-from .motor_bus import (
+from .backend import (
     DEFAULT_IDS,
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MAX_VELOCITIES_RPM,

@@ -18,8 +18,8 @@ import numpy as np
 
 from prisma_common.messages import Types, make_header, sequence_field
 
+from .backend import MotorState
 from .control_table import rpm_to_rad_s
-from .motor_bus import MotorState
 from .motor_goals import MoveFeedback, MoveGoal, MoveResult
 
 

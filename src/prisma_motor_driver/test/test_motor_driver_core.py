@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from prisma_motor_driver.motor_bus import BusError, MotorState
+from prisma_motor_driver.backend import BusError, MotorState
 from prisma_motor_driver.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
 from prisma_motor_driver.motor_goals import MoveGoal, MoveResult
 from prisma_motor_driver.node_config import MotorDriverConfig
@@ -15,7 +15,7 @@ class FlakyBus:
     """Opens only after `failures` attempts; can lose the link."""
 
     def __init__(self, failures):
-        from prisma_motor_driver.motor_bus import BusStats, default_motors
+        from prisma_motor_driver.backend import BusStats, default_motors
 
         self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
         self.attempts, self.down = [], False

@@ -22,19 +22,19 @@ from prisma_hand_sim.hand_world import HandWorldContactSource
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
-from .driver_config import DriverConfig, make_backend
-from .hub import TactileHub
+from .node_config import TactileDriverConfig, make_backend
 from .ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
+from .tactile_driver_core import TactileHub
 
 
 class TactileDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = DriverConfig().as_parameters()
+        defaults = TactileDriverConfig().as_parameters()
         self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        self.config = DriverConfig.from_parameters(
+        self.config = TactileDriverConfig.from_parameters(
             {name: self.get_parameter(name).value for name in defaults})
         cfg = self.config
 

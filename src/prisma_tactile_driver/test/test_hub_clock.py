@@ -11,11 +11,11 @@ import pytest
 from prisma_common.diagnostics import OK
 from prisma_common.hand import FINGERS
 from prisma_tactile_driver import hub_clock
-from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.hub_clock import HubClockConfig, HubClockState, reanchor, update
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort
 from prisma_tactile_driver.serial_backend import SerialHubBackend
+from prisma_tactile_driver.tactile_driver_core import TactileHub
 from repo_paths import ROOT
 
 MS = 1_000_000

@@ -13,7 +13,6 @@ from smbus2 import i2c_msg
 
 from prisma_common.diagnostics import ERROR, OK
 from prisma_common.hand import FINGERS
-from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_emulator import EmulatedSMBus, five_finger_bus
 from prisma_tactile_driver.i2c_socket import (
@@ -27,6 +26,7 @@ from prisma_tactile_driver.i2c_socket import (
     encode_request,
     recv_frame,
 )
+from prisma_tactile_driver.tactile_driver_core import TactileHub
 
 CHANNELS = {"thumb": 0, "index": 1, "middle": 2, "ring": 3, "little": 4}
 RNG = np.random.default_rng(11)

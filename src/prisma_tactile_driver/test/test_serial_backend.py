@@ -161,7 +161,7 @@ def test_open_failure_says_why_once_per_change(tmp_path):
     take_errors() (what the node logs)."""
     from prisma_common.diagnostics import ERROR, OK
     from prisma_common.hand import FINGERS
-    from prisma_tactile_driver.hub import TactileHub
+    from prisma_tactile_driver.tactile_driver_core import TactileHub
 
     link = tmp_path / "ttyHUB"
     now = [0.0]

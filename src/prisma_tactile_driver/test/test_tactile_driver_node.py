@@ -21,7 +21,7 @@ from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError
 from prisma_hand_sim.contact_source import ScriptedContactSource
 from prisma_hand_sim.pad_model import PadContact, PadParams
-from prisma_tactile_driver.driver_config import DriverConfig
+from prisma_tactile_driver.node_config import TactileDriverConfig
 from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.sim_backend import SimHubBackend
 
@@ -41,7 +41,7 @@ def diag_by_name(msg):
 def test_config_yaml_matches_declared_defaults():
     import yaml
     params = yaml.safe_load(CONFIG.read_text())["/**/tactile_driver"]["ros__parameters"]  # any namespace
-    assert params == DriverConfig().as_parameters()
+    assert params == TactileDriverConfig().as_parameters()
 
 
 def test_sim_publishes_five_taxel_topics_with_pad_model_voltages(ros, node_cls):

@@ -40,7 +40,7 @@ DATASET_SUFFIXES = (".mat", ".h5", ".hdf5")
 
 
 def limit_threads(threads: int) -> None:
-    from .perception import limit_threads as limit
+    from .glove_perception_core import limit_threads as limit
 
     limit(threads)
 

@@ -19,7 +19,7 @@ from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.parameters import ParameterError
 from prisma_node_wiring.node_process import run_node
 
-from .driver import GloveDriver
+from .glove_driver_core import GloveDriver
 from .layout import load_layout
 from .node_config import GloveDriverConfig
 from .processing import FrameProcessor, NormalisationConfig

@@ -16,8 +16,8 @@ from prisma_common.parameters import ParameterError
 from prisma_node_wiring.node_process import run_node
 
 from .bundle import BundleError, load_bundle
+from .glove_perception_core import GlovePerception, PerceptionConfig, limit_threads
 from .node_config import GlovePerceptionConfig
-from .perception import GlovePerception, PerceptionConfig, limit_threads
 from .ros_conversions import estimate_to_msg, glove_frame_from_msg, weight_to_msg
 
 

@@ -7,8 +7,11 @@ from typing import Any, ClassVar
 
 from prisma_common.parameters import ParameterError
 
-from .backends import BACKENDS, GloveBackend, ReplayGloveBackend, SerialGloveBackend, SimGloveBackend
+from .backend import BACKENDS, GloveBackend
+from .replay_backend import ReplayGloveBackend
 from .selection import SELECTIONS
+from .serial_backend import SerialGloveBackend
+from .sim_backend import SimGloveBackend
 
 
 def _positive(config: Any, *names: str) -> None:

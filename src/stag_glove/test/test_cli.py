@@ -17,13 +17,13 @@ def restore_threads():
     """The commands limit torch/BLAS threads for their whole process; give other tests theirs back."""
     import torch
 
-    from stag_glove import perception
+    from stag_glove import glove_perception_core
     before = torch.get_num_threads()
     yield
     torch.set_num_threads(before)
-    if perception._thread_limit is not None:
-        perception._thread_limit.restore_original_limits()
-        perception._thread_limit = None
+    if glove_perception_core._thread_limit is not None:
+        glove_perception_core._thread_limit.restore_original_limits()
+        glove_perception_core._thread_limit = None
 
 
 @pytest.fixture(scope="module")

@@ -40,13 +40,13 @@ POLL_STEP = 0.02  # advance in the driver's poll period (50 Hz)
 @pytest.fixture(autouse=True)
 def restore_threads():
     """glove_perception limits torch/BLAS threads for its process; give other tests theirs back."""
-    from stag_glove import perception
+    from stag_glove import glove_perception_core
     before = torch.get_num_threads()
     yield
     torch.set_num_threads(before)
-    if perception._thread_limit is not None:
-        perception._thread_limit.restore_original_limits()
-        perception._thread_limit = None
+    if glove_perception_core._thread_limit is not None:
+        glove_perception_core._thread_limit.restore_original_limits()
+        glove_perception_core._thread_limit = None
 
 
 @pytest.fixture

@@ -156,7 +156,7 @@ def test_pearson_and_cca_maps():
 def test_live_stream_puts_each_object_down_long_enough_for_perception_to_reset():
     from itertools import islice
 
-    from stag_glove.perception import PerceptionConfig
+    from stag_glove.glove_perception_core import PerceptionConfig
 
     glove = SyntheticGlove(SyntheticConfig(n_objects=8, frames_per_session=4, seed=3))
     frames = list(islice(glove.stream(episode_frames=30, empty_first=20, release_frames=22), 20 + 3 * 52))

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from prisma_force_estimator.bundle import save_untrained_bundle
+from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline, build_estimators
 from prisma_force_estimator.inference import ForceEstimator
-from prisma_force_estimator.pipeline import TaxelSample, WrenchPipeline, build_estimators
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 

@@ -11,8 +11,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from .backend import BusStats, MotorConfig, MotorState, check_velocity
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
-from .motor_bus import BusStats, MotorConfig, MotorState, check_velocity
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,8 @@ from prisma_common.hand import FINGERS
 from prisma_hand_sim.contact_source import ScriptedContactSource
 from prisma_hand_sim.pad_model import PadContact, PadParams
 from prisma_tactile_driver.backend import HubReading
-from prisma_tactile_driver.hub import TactileHub
 from prisma_tactile_driver.sim_backend import SimHubBackend
+from prisma_tactile_driver.tactile_driver_core import TactileHub
 
 MS = 1_000_000
 

@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from prisma_motor_driver.motor_bus import default_motors
-from prisma_motor_driver.sim_motors import SimMotorBus
+from prisma_motor_driver.backend import default_motors
+from prisma_motor_driver.sim_backend import SimMotorBus
 
 MS = 1_000_000
 

@@ -1,53 +1,17 @@
-"""Glove readout backends: serial (the readout board), sim (synthetic glove) and replay (a dataset
-file). Each is polled with the current time and returns the frames that arrived; none reads a
-clock itself, so the node's timer (and use_sim_time) sets the pace.
-"""
+"""The readout board over pyserial: frames parsed as they arrive, reconnect with backoff."""
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Protocol
+from collections.abc import Callable
+from dataclasses import dataclass
 
-import numpy as np
 import serial
 
 from prisma_common.os_errors import describe_os_error
 
-from .dataset import load_dataset
+from .backend import NS, BackendFrame, BackendStatus
 from .protocol import GloveStreamParser, ParserStats
 
-NS = 1_000_000_000
-BACKENDS = ("serial", "sim", "replay")
 
-
-@dataclass
-class BackendFrame:
-    stamp_ns: int
-    sequence: int
-    raw: np.ndarray  # uint16 [rows, cols]
-
-
-@dataclass
-class BackendStatus:
-    connected: bool
-    message: str
-    values: dict[str, str] = field(default_factory=dict)
-
-
-class GloveBackend(Protocol):
-    def poll(self, now_ns: int) -> list[BackendFrame]: ...
-
-    def status(self) -> BackendStatus: ...
-
-    def take_errors(self) -> list[str]:
-        """Errors (with the port and the OS reason) that appeared since the last call, each once."""
-        ...
-
-    def close(self) -> None: ...
-
-
-# ------------------------------------------------------------------------------------- serial
 @dataclass
 class SerialStats:
     opens: int = 0
@@ -166,89 +130,3 @@ class SerialGloveBackend:
             except (serial.SerialException, OSError):
                 pass
             self._serial = None
-
-
-# ------------------------------------------------------------------------------------- paced
-class _PacedBackend:
-    """Emits frames from an iterator at `rate_hz` of the polled time (at most max_burst per poll,
-    so a long pause in polling does not flood the graph)."""
-
-    def __init__(self, frames: Iterator[np.ndarray], rate_hz: float, max_burst: int = 8) -> None:
-        if rate_hz <= 0:
-            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
-        self._frame_iter = frames
-        self._period_ns = int(round(NS / rate_hz))
-        self._next_ns: int | None = None
-        self._sequence = 0
-        self._max_burst = max_burst
-        self.frames_sent = 0
-        self.finished = False
-
-    def poll(self, now_ns: int) -> list[BackendFrame]:
-        if self._next_ns is None:
-            self._next_ns = now_ns
-        out: list[BackendFrame] = []
-        while self._next_ns <= now_ns and len(out) < self._max_burst and not self.finished:
-            try:
-                raw = next(self._frame_iter)
-            except StopIteration:
-                self.finished = True
-                break
-            out.append(BackendFrame(self._next_ns, self._sequence, np.asarray(raw, dtype=np.uint16)))
-            self._sequence = (self._sequence + 1) & 0xFFFF
-            self._next_ns += self._period_ns
-            self.frames_sent += 1
-        if self._next_ns <= now_ns and len(out) == self._max_burst:
-            self._next_ns = now_ns + self._period_ns  # skip what we could not send in time
-        return out
-
-    def take_errors(self) -> list[str]:
-        return []  # no link to fail
-
-    def close(self) -> None:
-        pass
-
-
-class SimGloveBackend(_PacedBackend):
-    """Synthetic glove stream (empty hand first, then grasps of random objects)."""
-
-    def __init__(self, rate_hz: float = 7.3, seed: int = 0, short_probability: float = 0.0) -> None:
-        from .synthetic import SyntheticConfig, SyntheticGlove  # heavy-ish import only when used
-
-        self.glove = SyntheticGlove(SyntheticConfig(seed=seed, short_probability=short_probability))
-        self._stream = self.glove.stream()
-        self.truth: tuple[str, bool] | None = None
-        super().__init__(self._frames(), rate_hz)
-
-    def _frames(self) -> Iterator[np.ndarray]:
-        for raw, name, touching in self._stream:
-            self.truth = (name, touching)
-            yield raw
-
-    def status(self) -> BackendStatus:
-        return BackendStatus(True, "simulated glove", {"frames": str(self.frames_sent)})
-
-
-class ReplayGloveBackend(_PacedBackend):
-    """Replays the raw frames of a dataset file (metadata.mat or HDF5) in order."""
-
-    def __init__(self, path: str | Path, rate_hz: float = 7.3, loop: bool = True) -> None:
-        self.path = Path(path)
-        self.dataset = load_dataset(self.path)
-        if not np.issubdtype(self.dataset.pressure.dtype, np.integer):
-            raise ValueError(f"{self.path}: replay needs raw 10-bit counts, pressure has dtype "
-                             f"{self.dataset.pressure.dtype}")
-        self.loop = loop
-        super().__init__(self._frames(), rate_hz)
-
-    def _frames(self) -> Iterator[np.ndarray]:
-        while True:
-            yield from self.dataset.pressure
-            if not self.loop:
-                return
-
-    def status(self) -> BackendStatus:
-        state = "finished" if self.finished else "replaying"
-        return BackendStatus(not self.finished, f"{state} {self.path.name}",
-                             {"file": str(self.path), "frames": str(self.frames_sent),
-                              "file_frames": str(len(self.dataset))})

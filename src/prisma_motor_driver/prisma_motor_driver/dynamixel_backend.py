@@ -18,7 +18,7 @@ import serial
 from prisma_common.os_errors import describe_os_error
 
 from . import control_table as ct
-from .motor_bus import BusError, BusStats, MotorConfig, MotorState, check_velocity
+from .backend import BusError, BusStats, MotorConfig, MotorState, check_velocity
 
 # Results worth another attempt: the packet may simply have been lost or garbled on the wire.
 _RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.COMM_TX_FAIL}

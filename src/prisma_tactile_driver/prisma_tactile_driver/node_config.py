@@ -18,7 +18,7 @@ CONTACT_SOURCES = ("scripted", "hand_world")
 
 
 @dataclass
-class DriverConfig:
+class TactileDriverConfig:
     backend: str = "sim"  # serial | i2c | sim
     fingers: list[str] = field(default_factory=lambda: list(FINGERS))  # fingers on this hub
     frame_id_format: str = "prisma_{finger}_pad"  # header.frame_id of each finger's TaxelArray
@@ -45,7 +45,7 @@ class DriverConfig:
     sim_seed: int = 0
 
     @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> DriverConfig:
+    def from_parameters(cls, values: dict[str, Any]) -> TactileDriverConfig:
         known = {f.name for f in fields(cls)}
         # rclpy hands integer/double arrays over as array.array: store plain lists
         kwargs: dict[str, Any] = {k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
@@ -55,7 +55,7 @@ class DriverConfig:
     def as_parameters(self) -> dict[str, Any]:
         return asdict(self)
 
-    def validate(self) -> DriverConfig:
+    def validate(self) -> TactileDriverConfig:
         if self.backend not in BACKENDS:
             raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
         check_fingers(self.fingers)
@@ -111,7 +111,7 @@ class DriverConfig:
         return self.frame_id_format.format(finger=finger)
 
 
-def make_backend(config: DriverConfig, contact_source: ContactSource | None = None) -> HubBackend:
+def make_backend(config: TactileDriverConfig, contact_source: ContactSource | None = None) -> HubBackend:
     """The configured backend. For sim, `contact_source` defaults to the scripted cycle."""
     if config.backend == "serial":
         from .serial_backend import SerialHubBackend

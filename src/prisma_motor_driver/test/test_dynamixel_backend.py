@@ -14,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from prisma_motor_driver import control_table as ct
-from prisma_motor_driver.dynamixel_bus import DynamixelBus
+from prisma_motor_driver.backend import BusError, MotorMap
+from prisma_motor_driver.dynamixel_backend import DynamixelBus
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ManualClock
 from prisma_motor_driver.dynamixel_packets import (
     INST_PING,
@@ -26,7 +27,6 @@ from prisma_motor_driver.dynamixel_packets import (
     stuff,
     unstuff,
 )
-from prisma_motor_driver.motor_bus import BusError, MotorMap
 from prisma_motor_driver.motor_driver_core import MotorDriverCore
 from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner
 from prisma_motor_driver.node_config import MotorDriverConfig

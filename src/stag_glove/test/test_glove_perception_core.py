@@ -5,13 +5,14 @@ import pytest
 import torch
 
 from prisma_common.diagnostics import ERROR, OK, WARN
-from stag_glove.backends import ReplayGloveBackend, SimGloveBackend
 from stag_glove.bundle import load_bundle, save_bundle
 from stag_glove.dataset import save_hdf5
-from stag_glove.driver import GloveDriver
+from stag_glove.glove_driver_core import GloveDriver
+from stag_glove.glove_perception_core import GlovePerception, PerceptionConfig
 from stag_glove.models import TouchNet, WeightNet
-from stag_glove.perception import GlovePerception, PerceptionConfig
 from stag_glove.processing import FrameProcessor, ProcessedFrame
+from stag_glove.replay_backend import ReplayGloveBackend
+from stag_glove.sim_backend import SimGloveBackend
 from stag_glove.synthetic import SyntheticConfig, SyntheticGlove
 
 NS = 1_000_000_000

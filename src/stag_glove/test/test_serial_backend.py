@@ -7,8 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from stag_glove.backends import SerialGloveBackend
 from stag_glove.protocol import encode_frame
+from stag_glove.serial_backend import SerialGloveBackend
 
 NS = 1_000_000_000
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
-from .backends import GloveBackend
+from .backend import GloveBackend
 from .processing import EmptyHandCalibration, FrameProcessor, ProcessedFrame
 
 NS = 1_000_000_000

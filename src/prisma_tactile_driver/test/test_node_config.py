@@ -5,17 +5,17 @@ import numpy as np
 import pytest
 
 from prisma_common.parameters import ParameterError
-from prisma_tactile_driver.driver_config import DriverConfig, make_backend
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
 from prisma_tactile_driver.i2c_socket import I2CSocketServer, SocketSMBus
+from prisma_tactile_driver.node_config import TactileDriverConfig, make_backend
 from prisma_tactile_driver.sim_backend import SimHubBackend
 
 
 def test_defaults_are_valid_and_arrays_become_lists():
-    config = DriverConfig.from_parameters({"finger_channels": array.array("q", [4, 3, 2, 1, 0])})
+    config = TactileDriverConfig.from_parameters({"finger_channels": array.array("q", [4, 3, 2, 1, 0])})
     assert config.finger_channels == [4, 3, 2, 1, 0]
     assert config.frame_id("ring") == "prisma_ring_pad"
-    assert isinstance(make_backend(DriverConfig()), SimHubBackend)
+    assert isinstance(make_backend(TactileDriverConfig()), SimHubBackend)
 
 
 @pytest.mark.parametrize("values, message", [
@@ -37,14 +37,14 @@ def test_defaults_are_valid_and_arrays_become_lists():
 ])
 def test_bad_values_are_named(values, message):
     with pytest.raises(ParameterError) as info:
-        DriverConfig.from_parameters(values)
+        TactileDriverConfig.from_parameters(values)
     assert message in str(info.value)
 
 
 def test_i2c_socket_makes_the_i2c_backend_read_the_emulator_process(tmp_path):
     path = tmp_path / "i2c.sock"
-    config = DriverConfig.from_parameters({"backend": "i2c", "i2c_socket": str(path), "fingers": ["ring", "thumb"],
-                                           "finger_channels": [3, 0]})
+    config = TactileDriverConfig.from_parameters({"backend": "i2c", "i2c_socket": str(path),
+                                                  "fingers": ["ring", "thumb"], "finger_channels": [3, 0]})
     backend = make_backend(config)
     try:
         assert backend.bus_name == str(path)
