@@ -10,9 +10,8 @@ import shutil
 
 import numpy as np
 import pytest
-import yaml
 
-from repo_paths import CONFIG
+from repo_paths import CONFIG, node_parameters
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
 
 require_ros()
@@ -62,15 +61,8 @@ def wrench_rows(msgs):
                       m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z] for m in msgs])
 
 
-def node_parameters(path):
-    """The force_estimator section of a parameter file (keyed by node name, bare or `/**/`-prefixed)."""
-    sections = yaml.safe_load(path.read_text())
-    (key,) = [k for k in sections if k.split("/")[-1] == "force_estimator"]
-    return sections[key]["ros__parameters"]
-
-
 def test_config_yaml_matches_declared_defaults():
-    params = node_parameters(CONFIG)
+    params = node_parameters(CONFIG, "force_estimator")
     flat = {k: v for k, v in params.items() if k != "finger_bundles"}
     flat.update({f"finger_bundles.{f}": p for f, p in params["finger_bundles"].items()})
     assert flat == ForceEstimatorConfig().as_parameters()

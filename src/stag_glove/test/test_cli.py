@@ -12,20 +12,6 @@ from stag_glove.synthetic import SyntheticConfig, SyntheticGlove
 TINY = ["--width", "4", "--epochs", "1", "--threads", "1"]
 
 
-@pytest.fixture(autouse=True)
-def restore_threads():
-    """The commands limit torch/BLAS threads for their whole process; give other tests theirs back."""
-    import torch
-
-    from stag_glove import glove_perception_core
-    before = torch.get_num_threads()
-    yield
-    torch.set_num_threads(before)
-    if glove_perception_core._thread_limit is not None:
-        glove_perception_core._thread_limit.restore_original_limits()
-        glove_perception_core._thread_limit = None
-
-
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("data")
