@@ -25,11 +25,10 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from .bundle import BundleMetadata, load_bundle, quiet_jit
+from .bundle import DEFAULT_PRECISION, PRECISIONS, BundleMetadata, load_bundle, quiet_jit
 from .networks import taxel_image
 
-PRECISIONS = ("float16", "float32")
-DEFAULT_PRECISION = "float16"
+__all__ = ["DEFAULT_PRECISION", "PRECISIONS", "Float16Chain", "ForceEstimator", "dense_layers", "set_torch_threads"]
 # Input map of every network here: one channel, the 3x3 taxel image (networks.taxel_image).
 _IMAGE_SHAPE = (1, 3, 3)
 # A float16 chain whose outputs differ from the float32 network by more than this (normalised
