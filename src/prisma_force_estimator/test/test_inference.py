@@ -86,6 +86,21 @@ def test_networks_that_are_no_dense_chain_run_in_float32(tmp_path):
         ForceEstimator.from_bundle(tmp_path / "ann", precision="int8")
 
 
+def test_without_fbgemm_the_float32_network_runs(estimator, monkeypatch):
+    """torch builds without fbgemm (ARM) raise on packing: the estimator runs in float32 instead."""
+    path = estimator[3]
+
+    def unsupported(*_args):
+        raise RuntimeError("Your CPU does not support FBGEMM.")
+
+    monkeypatch.setattr(torch, "fbgemm_pack_gemm_matrix_fp16", unsupported)
+    est = ForceEstimator.from_bundle(path)
+    assert est.precision == "float32"
+    exact = ForceEstimator.from_bundle(path, precision="float32")
+    v = np.random.default_rng(5).uniform(0.3, 3.0, (5, 9))
+    assert np.array_equal(est.estimate(v), exact.estimate(v))
+
+
 def test_default_bundle_float16_within_2e3_newton_of_float32():
     """The shipped bundle on held-out push and slide voltages: float16 weights move a force by at
     most 1.3e-3 N (ranges 1.4-4.7 N) and a torque by 1.2e-5 N*m over the 60,000 samples of the
