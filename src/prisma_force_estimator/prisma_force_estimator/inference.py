@@ -201,8 +201,8 @@ class ForceEstimator:
         self.axes: list[str] = list(metadata.axes)
         self._in_mean = metadata.input_normaliser.mean.astype(np.float32)
         self._in_std = metadata.input_normaliser.std.astype(np.float32)
-        self._out_mean = metadata.output_normaliser.mean
-        self._out_std = metadata.output_normaliser.std
+        self._out_mean = np.asarray(metadata.output_normaliser.mean, dtype=np.float64)
+        self._out_std = np.asarray(metadata.output_normaliser.std, dtype=np.float64)
         self.estimated = 0  # rows that went through the network
         self.rejected = 0  # rows refused for non-finite input
 
@@ -231,15 +231,23 @@ class ForceEstimator:
             v = v[None, :]
         if v.ndim != 2 or v.shape[1] != 9:
             raise ValueError(f"voltages must have shape [F, 9], got {np.shape(voltages)}")
-        out = np.full((v.shape[0], len(self.axes)), np.nan)
         finite = np.isfinite(v).all(axis=1)
-        n_good = int(finite.sum())
+        n_good = int(np.count_nonzero(finite))
         self.rejected += v.shape[0] - n_good
-        if n_good:
-            good = v if n_good == v.shape[0] else v[finite]
-            x = torch.from_numpy((good - self._in_mean) / self._in_std)
-            with torch.inference_mode():
-                y = self._run(taxel_image(x)).numpy()
-            out[finite] = y * self._out_std + self._out_mean
-            self.estimated += n_good
+        if n_good == v.shape[0]:
+            # every row finite, the usual scan: no NaN array to fill and scatter into (~30 us of
+            # a cold five-finger call)
+            out = self._network(v)
+        else:
+            out = np.full((v.shape[0], len(self.axes)), np.nan)
+            if n_good:
+                out[finite] = self._network(v[finite])
+        self.estimated += n_good
         return out[0] if single else out
+
+    def _network(self, v: np.ndarray) -> np.ndarray:
+        """Wrenches [N, axes] (float64) of finite voltage rows [N, 9] (float32)."""
+        x = torch.from_numpy((v - self._in_mean) / self._in_std)
+        with torch.inference_mode():
+            y = self._run(taxel_image(x)).numpy()
+        return y * self._out_std + self._out_mean
