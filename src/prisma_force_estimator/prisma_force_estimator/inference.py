@@ -7,8 +7,8 @@ Precision ("float16", the default, or "float32"): a network made of 3x3-map conv
 Flatten and Linear layers (CNN2) is a chain of dense layers: a padded convolution on a 3x3 map is
 a linear map of the 9*Cin inputs to the 9*Cout outputs. "float16" runs that chain with the
 weights stored in float16 and packed once at load (fbgemm), activations and accumulation in
-float32: about 2.8x less CPU per five-finger call than the frozen TorchScript network when called
-once per 10 ms scan (2.9x in a hot loop), forces within 1.3e-3 N of it on the held-out tests
+float32: 2.2-2.7x less CPU per five-finger call than the frozen TorchScript network when called
+once per 10 ms scan (3x in a hot loop), forces within 1.3e-3 N of it on the held-out tests
 (docs/force_estimation.md, "Inference precision"). "float32" is the bundle's own network,
 frozen and optimised for inference. Networks that are not such a chain (CNN, CNN_T: max-pool;
 ANN: sigmoid) and torch builds without fbgemm run in float32; `ForceEstimator.precision` says
