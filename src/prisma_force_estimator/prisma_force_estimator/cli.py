@@ -35,7 +35,7 @@ from prisma_tactile_driver.cli_args import (
     unit_interval,
 )
 
-from .bundle import DEFAULT_PRECISION, PRECISIONS  # torch-free, like the whole bundle module's import
+from .bundle import DEFAULT_PRECISION, PRECISIONS  # bundle.py imports torch only to load a network
 
 # networks.MODEL_KINDS, spelled out so that building the parser does not import torch
 # (test/integration/test_cli_bad_input.py checks that they agree).
