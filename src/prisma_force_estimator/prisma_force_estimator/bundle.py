@@ -190,6 +190,11 @@ def load_bundle(directory: str | Path) -> tuple[torch.jit.ScriptModule, BundleMe
 
 
 DEFAULT_BUNDLE = "config/models/cnn2"
+# How a loaded network runs (inference.py): float16 weights on its dense-chain form, or the
+# bundle's float32 TorchScript network. Here, not in inference.py, so that node parameters are
+# checked without importing torch.
+PRECISIONS = ("float16", "float32")
+DEFAULT_PRECISION = "float16"
 # Bundles ship in prisma_bringup's share directory (config/models/); relative bundle paths are
 # looked up in the working directory, then there (source tree, colcon install or wheel).
 BUNDLE_PACKAGES = ("prisma_bringup",)

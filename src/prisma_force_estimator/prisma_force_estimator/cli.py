@@ -35,6 +35,8 @@ from prisma_common.topics import TAXELS, WRENCH
 from prisma_common.typestore import types
 from prisma_hand_sim.calibration import CalibrationSet
 
+from .bundle import DEFAULT_PRECISION, PRECISIONS  # bundle.py imports torch only to load a network
+
 # networks.MODEL_KINDS, spelled out so that building the parser does not import torch
 # (test/integration/test_cli_bad_input.py checks that they agree).
 MODEL_CHOICES = ("ann", "cnn", "cnn_t", "cnn2")
@@ -229,6 +231,8 @@ def eval_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--table", type=output_file(), help="also write the markdown table to this file")
     parser.add_argument("--json", type=output_file(), help="also write the numbers as JSON")
     parser.add_argument("--threads", type=positive_int, default=1)
+    parser.add_argument("--precision", choices=PRECISIONS, default=DEFAULT_PRECISION,
+                        help="network weights: float16 on the dense form (CNN2) or the float32 network")
     args = parser.parse_args(argv)
     for path in args.bundles:
         check_bundle_dir(path)
@@ -236,7 +240,8 @@ def eval_main(argv: list[str] | None = None) -> int:
     from .evaluation import PUSH_SEED, SLIDE_SEED, TARGETS, evaluate, held_out_tests, plot_tests, results_table
     from .inference import ForceEstimator
 
-    estimators = [(path, ForceEstimator.from_bundle(path, threads=args.threads)) for path in args.bundles]
+    estimators = [(path, ForceEstimator.from_bundle(path, threads=args.threads, precision=args.precision))
+                  for path in args.bundles]
     tests = held_out_tests(args.push_samples, args.slide_samples,
                            args.push_seed if args.push_seed is not None else PUSH_SEED,
                            args.slide_seed if args.slide_seed is not None else SLIDE_SEED)
@@ -320,6 +325,8 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch-window-ms", type=non_negative_float, default=5.0)
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--threads", type=positive_int, default=1)
+    parser.add_argument("--precision", choices=PRECISIONS, default=DEFAULT_PRECISION,
+                        help="network weights: float16 on the dense form (CNN2) or the float32 network")
     args = parser.parse_args(argv)
     fingers = args.fingers
     for path in [args.bundle, *(bundle for _, bundle in args.override)]:
@@ -340,7 +347,7 @@ def estimate_bag_main(argv: list[str] | None = None) -> int:
     overrides = dict(args.override)
     default = args.bundle or DEFAULT_BUNDLE
     bundles = {f: str(resolve_bundle_path(overrides.get(f, default))) for f in fingers}
-    estimators = build_estimators(bundles, threads=args.threads)
+    estimators = build_estimators(bundles, threads=args.threads, precision=args.precision)
     pipeline = WrenchPipeline(estimators, args.frame_id_template, int(args.batch_window_ms * 1e6))
     report = estimate_bag(args.input, args.output, pipeline, types, args.taxel_topic, args.wrench_topic,
                           args.storage)

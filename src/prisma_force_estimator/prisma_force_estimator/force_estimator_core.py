@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .bundle import resolve_bundle_path
+from .bundle import DEFAULT_PRECISION, resolve_bundle_path
 from .wrench import WrenchSample, full_wrench
 
 if TYPE_CHECKING:
@@ -104,7 +104,8 @@ class WrenchPipeline:
         return out
 
 
-def build_estimators(bundles: Mapping[str, str], threads: int | None = None) -> dict[str, ForceEstimator]:
+def build_estimators(bundles: Mapping[str, str], threads: int | None = None,
+                     precision: str = DEFAULT_PRECISION) -> dict[str, ForceEstimator]:
     """finger -> ForceEstimator, loading each distinct bundle path once."""
     from .inference import ForceEstimator
 
@@ -112,14 +113,15 @@ def build_estimators(bundles: Mapping[str, str], threads: int | None = None) -> 
     estimators = {}
     for finger, path in bundles.items():
         if path not in loaded:
-            loaded[path] = ForceEstimator.from_bundle(path, threads=threads)
+            loaded[path] = ForceEstimator.from_bundle(path, threads=threads, precision=precision)
         estimators[finger] = loaded[path]
     return estimators
 
 
-def load_estimator(bundle: str | Path, threads: int | None = None) -> ForceEstimator:
+def load_estimator(bundle: str | Path, threads: int | None = None,
+                   precision: str = DEFAULT_PRECISION) -> ForceEstimator:
     """The ForceEstimator of a bundle path as the node resolves it (BundleError if it is not one).
     torch is imported here, when an estimator is loaded, not with this module."""
     from .inference import ForceEstimator
 
-    return ForceEstimator.from_bundle(resolve_bundle_path(bundle), threads=threads)
+    return ForceEstimator.from_bundle(resolve_bundle_path(bundle), threads=threads, precision=precision)

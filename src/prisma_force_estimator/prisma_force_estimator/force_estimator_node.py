@@ -43,7 +43,7 @@ class ForceEstimatorNode(Node):
         cfg = self.config
         self.bundle_paths = {finger: str(resolve_bundle_path(path)) for finger, path in cfg.bundles().items()}
         # BundleError (path + mismatch) propagates: the node does not start without its network
-        estimators = build_estimators(self.bundle_paths, threads=cfg.torch_threads)
+        estimators = build_estimators(self.bundle_paths, threads=cfg.torch_threads, precision=cfg.network_precision)
         self.pipeline = WrenchPipeline(estimators, cfg.frame_id_format, int(round(cfg.batch_window * 1e9)))
 
         self._wrench_pubs = {f: stream_publisher(self, WrenchStamped, f"prisma/{f}/wrench") for f in cfg.fingers}
@@ -54,7 +54,9 @@ class ForceEstimatorNode(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
         kinds = sorted({f"{e.model_kind} ({self.bundle_paths[f]})" for f, e in estimators.items()})
-        self.get_logger().info(f"fingers {', '.join(cfg.fingers)}; model {'; '.join(kinds)}")
+        precisions = sorted({f"{e.model_kind} {e.precision}" for e in estimators.values()})
+        self.get_logger().info(f"fingers {', '.join(cfg.fingers)}; model {'; '.join(kinds)}; "
+                               f"network {', '.join(precisions)}")
 
     def _on_taxels(self, finger: str, msg: TaxelArray) -> None:
         frame = taxel_frame_from_msg(msg)

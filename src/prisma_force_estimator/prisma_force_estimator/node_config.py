@@ -8,7 +8,7 @@ from typing import Any
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, check_fingers
 
-from .bundle import DEFAULT_BUNDLE
+from .bundle import DEFAULT_BUNDLE, DEFAULT_PRECISION, PRECISIONS
 
 __all__ = ["ForceEstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
 OVERRIDE_PREFIX = "finger_bundles."
@@ -22,6 +22,9 @@ class ForceEstimatorConfig:
     fingers: list[str] = field(default_factory=lambda: list(FINGERS))
     frame_id_format: str = ""  # "" = the input TaxelArray's frame id; else e.g. "prisma_{finger}_pad"
     torch_threads: int = 1  # intra-op threads of the network (process-wide)
+    # "float16": float16 weights on the network's dense-chain form (CNN2; other networks run in
+    # float32); "float32": the bundle's TorchScript network as it is (docs/force_estimation.md)
+    network_precision: str = DEFAULT_PRECISION
     batch_window: float = 0.005  # s: samples whose stamps lie this close form one batch (one scan)
     diagnostics_period: float = 1.0  # s between /diagnostics messages
 
@@ -32,6 +35,7 @@ class ForceEstimatorConfig:
             "fingers": list(self.fingers),
             "frame_id_format": self.frame_id_format,
             "torch_threads": self.torch_threads,
+            "network_precision": self.network_precision,
             "batch_window": self.batch_window,
             "diagnostics_period": self.diagnostics_period,
         }
@@ -67,6 +71,8 @@ class ForceEstimatorConfig:
                                  f"'' or a str.format pattern whose only field is {{finger}} ({exc})") from None
         if isinstance(self.torch_threads, bool) or not isinstance(self.torch_threads, int) or self.torch_threads < 1:
             raise ParameterError("torch_threads", self.torch_threads, "an integer >= 1")
+        if self.network_precision not in PRECISIONS:
+            raise ParameterError("network_precision", self.network_precision, f"one of {list(PRECISIONS)}")
         if not self.batch_window >= 0:
             raise ParameterError("batch_window", self.batch_window, "must be >= 0")
         if not self.diagnostics_period > 0:

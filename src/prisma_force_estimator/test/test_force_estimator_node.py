@@ -166,6 +166,7 @@ def test_mismatched_bundle_fails_at_start_with_the_problem(ros, node_cls, bundle
 @pytest.mark.parametrize("name,value,message", [
     ("fingers", ["thumb", "pinky"], "'pinky' is not one of"),
     ("torch_threads", 0, "'torch_threads' = 0"),
+    ("network_precision", "int8", "'network_precision' = 'int8'"),
     ("batch_window", -0.1, "'batch_window' = -0.1"),
     ("frame_id_format", "{hand}", "'frame_id_format'"),
 ])
