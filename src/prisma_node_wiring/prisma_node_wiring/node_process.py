@@ -15,8 +15,11 @@ from collections.abc import Callable
 
 import rclpy
 import rclpy.logging
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+
+SHUTDOWN_CHECK_PERIOD_S = 0.25  # the longest a stop request can wait when rclpy's wake-up comes too early
 
 
 def run_node(make_node: Callable[[], Node], logger_name: str,
@@ -30,6 +33,11 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
     node = None
     try:
         node = make_node()
+        # rclpy's SIGINT handler wakes the executor by a guard condition and shuts the context down
+        # from its own thread; when the executor wakes first (seen under load) it goes back to
+        # waiting, and a node with no timer of its own (glove_perception) then never sees the
+        # shutdown. A steady-clock timer bounds that to one period, whatever the node's clock.
+        node.create_timer(SHUTDOWN_CHECK_PERIOD_S, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
