@@ -14,6 +14,7 @@ from rosbags.highlevel import AnyReader
 
 from prisma_bringup.sim_cli import main
 from prisma_common.typestore import get_typestore
+from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from repo_paths import CONFIG
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -279,7 +280,8 @@ def test_scenario_names_match_the_hand_scenarios():
 
 
 def test_summaries_name_the_bundle_and_every_force_set_point(run):
-    bundle = str(CONFIG / "models" / "cnn2")
+    bundle = str(resolve_bundle_path(DEFAULT_BUNDLE))  # the source tree's from the root, else the installed one
+    assert Path(bundle).name == "cnn2"
     md = (run.out / "summary.md").read_text()
     assert f"bundle `{bundle}`" in md and "default bundle" not in md
     checks = {name: set(s["force_set_points"]) for name, s in run.summaries.items() if name != "glove"}
