@@ -90,10 +90,12 @@ def validate_goal(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[s
     for value in goal.position_limits:
         if not math.isfinite(value):
             return f"position limit {value} is not finite"
-    faulted = [m for m in goal.motors if (faults or {}).get(m)]
-    if faulted:
-        return "; ".join(fault_reason(m, motors[m].servo_id, (faults or {})[m]) for m in faulted)
-    return None
+    return goal_fault(goal, motors, faults or {})
+
+
+def goal_fault(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[str, int]) -> str | None:
+    """The fault reason naming each of the goal's motors with an active hardware error, else None."""
+    return "; ".join(fault_reason(m, motors[m].servo_id, faults[m]) for m in goal.motors if faults.get(m)) or None
 
 
 def stop_window(goal: MoveGoal, index: int, config: MotorConfig) -> tuple[float, float]:
@@ -132,8 +134,7 @@ class MoveGoalRunner:
 
     def fault_of(self, goal: MoveGoal) -> str | None:
         """The fault reason of the goal's motors that have an active hardware error, else None."""
-        faulted = [m for m in goal.motors if self.faults.get(m)]
-        return "; ".join(fault_reason(m, self.bus.motors[m].servo_id, self.faults[m]) for m in faulted) or None
+        return goal_fault(goal, self.bus.motors, self.faults)
 
     def start(self, goal: MoveGoal, stamp_ns: int) -> MoveResult | None:
         """Start a validated goal; returns the preempted goal's result, if one was running.
