@@ -23,6 +23,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 import zipfile
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -76,8 +77,13 @@ def dependencies(package: str, tags=DEPENDENCY_TAGS) -> set[str]:
 def imported_roots(package: str, folder: str | None = None) -> set[str]:
     """Top-level names of every module a package's Python code (or its `folder`, e.g. test/) imports,
     at module or function level."""
+    return roots_imported_by((SRC / package / (folder or package)).rglob("*.py"))
+
+
+def roots_imported_by(paths: Iterable[Path]) -> set[str]:
+    """Top-level names of every module the Python files `paths` import, at module or function level."""
     names = set()
-    for path in (SRC / package / (folder or package)).rglob("*.py"):
+    for path in paths:
         for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
             if isinstance(node, ast.Import):
                 names.update(alias.name.split(".")[0] for alias in node.names)
@@ -135,11 +141,17 @@ def check_test_imports_declared(package: str) -> None:
     assert extras == [{"test": ["pytest"]}], f"src/{package}/setup.py: extras_require={{'test': ['pytest']}}"
     if not (SRC / package / "test").is_dir():
         return
-    roots = imported_roots(package, "test") - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__", package}
+    roots = imported_roots(package, "test") - {package}
     declared = dependencies(package, ("depend", "exec_depend", "test_depend"))
-    xml_text = (SRC / package / "package.xml").read_text()
+    missing = undeclared_test_imports(roots, declared, (SRC / package / "package.xml").read_text())
+    assert not missing, f"src/{package}/test imports what src/{package}/package.xml does not declare: {missing}"
+
+
+def undeclared_test_imports(roots: set[str], declared: set[str], xml_text: str) -> list[str]:
+    """What tests importing `roots` need and a package.xml (`declared`, its text `xml_text`) does not
+    declare: the rosdep key of each third-party or ROS module, pip-only modules named in a comment."""
     missing = []
-    for module in sorted(roots):
+    for module in sorted(roots - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__"}):
         if module in PIP_ONLY | TEST_PIP_ONLY:
             if module not in xml_text:
                 missing.append(f"{module} (pip only: say so in a comment)")
@@ -147,7 +159,7 @@ def check_test_imports_declared(package: str) -> None:
             key = {**MODULE_DEPENDENCY, **TEST_MODULES}.get(module, module)
             if key not in declared:
                 missing.append(key)
-    assert not missing, f"src/{package}/test imports what src/{package}/package.xml does not declare: {missing}"
+    return missing
 
 
 INTEGRATION = ROOT / "test" / "integration"
@@ -165,21 +177,8 @@ def test_integration_tests_are_a_package_colcon_test_runs():
               if isinstance(k, ast.keyword) and k.arg == "extras_require"]
     assert extras == [{"test": ["pytest"]}]
     declared = {e.text.strip() for e in root.iter("test_depend") if e.text}
-    imported = set()
-    for path in INTEGRATION.glob("test_*.py"):
-        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-            if isinstance(node, ast.Import):
-                imported.update(alias.name.split(".")[0] for alias in node.names)
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                imported.add(node.module.split(".")[0])
-    roots = imported - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__"}
-    missing = []
-    for module in sorted(roots):
-        if module in PIP_ONLY | TEST_PIP_ONLY:
-            continue  # pip installed (the README's venv): no rosdep key to declare
-        key = {**MODULE_DEPENDENCY, **TEST_MODULES}.get(module, module)
-        if key not in declared:
-            missing.append(key)
+    missing = undeclared_test_imports(roots_imported_by(INTEGRATION.glob("test_*.py")), declared,
+                                      (INTEGRATION / "package.xml").read_text())
     assert not missing, f"test/integration imports what its package.xml does not test_depend on: {missing}"
     unknown = declared - set(PACKAGES) - JAZZY_ROS_PACKAGES - NOBLE_ROSDEP_KEYS
     assert not unknown, f"test/integration/package.xml names {sorted(unknown)}: not resolvable by rosdep"
