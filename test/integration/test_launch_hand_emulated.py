@@ -116,7 +116,7 @@ class TestHandEmulated(unittest.TestCase):
     def start_slow_grasp(self):
         """A grasp that closes at 10 rpm toward 3 N: still running when the fault comes."""
         ros = self.ros
-        fault("world", "grasp")
+        fault("world", "pinch_grasp")
         handle = ros.send_until_accepted(self.grasp, SLOW_PINCH, timeout_sec=30.0)
         result = handle.get_result_async()
         accepted = len(self.joints)
@@ -196,7 +196,7 @@ class TestHandEmulated(unittest.TestCase):
         self.assertTrue(ros.spin_until(lambda: int((self.diagnostic("tactile_driver: hub") or {})
                                                    .get("reconnects", 0)) >= 1, 5.0), "/diagnostics shows no reconnect")
         self.assertEqual(emulator_status()["hub"]["unplugs"], 1)
-        fault("world", "grasp")
+        fault("world", "pinch_grasp")
         self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_4_servo_overload_mid_grasp(self):
@@ -212,7 +212,7 @@ class TestHandEmulated(unittest.TestCase):
         self.assertTrue(ros.spin_until(lambda: not emulator_status()["servos"]["fingers"]["torque_on"], 2.0),
                         "the overloaded servo's torque is still on")
         fault("servo-clear")
-        fault("world", "grasp")
+        fault("world", "pinch_grasp")
         self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_5_servo_off_the_bus_mid_grasp(self):
@@ -231,13 +231,13 @@ class TestHandEmulated(unittest.TestCase):
         fingers = emulator_status()["servos"]["fingers"]
         self.assertTrue(fingers["velocity_rpm"] == 0 or not fingers["torque_on"], f"fingers still driven: {fingers}")
         ros.spin_for(1.0)  # the servo is back
-        fault("world", "grasp")
+        fault("world", "pinch_grasp")
         self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
     def test_6_paper_scenarios(self):
         ends, rotations, forces = {}, {}, {}
         for name, spec in HAND_SCENARIOS.items():
-            fault("world", spec.world)
+            fault("world", name)
             goal = (Grasp.Goal if spec.action == "grasp" else Manipulate.Goal)(**spec.goal)
             start = emulator_status()
             ends[name] = goal_outcome(self.run_goal(goal))

@@ -5,6 +5,7 @@ length and the rates imply (recomputed from the bag itself)."""
 from __future__ import annotations
 
 import json
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from prisma_bringup.sim_cli import main
 from prisma_common.typestore import get_typestore
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
-from repo_paths import CONFIG
+from repo_paths import CONFIG, ROOT
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 NS = 1_000_000_000
@@ -272,11 +273,20 @@ def test_cli_lists_scenarios_and_reports_a_missing_bundle(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------- bundle, force set points, output
-def test_scenario_names_match_the_hand_scenarios():
+def test_one_set_of_scenario_names_in_every_tool_and_launch_argument():
+    """prisma-sim, prisma-manip-scenarios, the emulator's worlds (--world, `world` fault command,
+    hand.launch.py emulator_world:=) and the scenarios themselves use the same names."""
+    from prisma_bringup.hand_emulator import WORLDS
     from prisma_bringup.hand_session import HAND_SCENARIOS
     from prisma_bringup.sim_runner import HAND_SCENARIO_NAMES
+    from prisma_manipulation.scenarios import SCENARIO_NAMES
 
-    assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS)
+    names = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
+    assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS) == SCENARIO_NAMES == names
+    assert WORLDS == ("hand", *names)
+    launch = (ROOT / "src" / "prisma_bringup" / "launch" / "hand.launch.py").read_text()
+    joined = re.sub(r'"\s*\n\s*"', "", launch)  # the description's adjacent string literals, as Python joins them
+    assert f"prisma-sim scenario ({', '.join(names)})" in joined
 
 
 def test_summaries_name_the_bundle_and_every_force_set_point(run):

@@ -64,7 +64,8 @@ def generate_launch_description():
                               description="Where the emulator's devices appear, an absolute path (hardware:=emulated)"),
         DeclareLaunchArgument("emulator_world", default_value="hand",
                               description="The emulator's object and pose: hand (as sim:=true) or a "
-                                          "prisma-sim scenario (grasp, lateral, horizontal, ...)"),
+                                          "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
+                                          "vertical, disturbance, combined)"),
         DeclareLaunchArgument("nice", default_value="-5",
                               description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
     ]

@@ -184,7 +184,7 @@ def test_one_world_drives_servos_hub_and_i2c_alike(rig):
 
 
 def test_motion_closes_the_grasp_and_loads_the_servos(rig):
-    r = rig("grasp")
+    r = rig("pinch_grasp")
     bus = r.bus()
     bus.set_velocities({"fingers": 60.0, "thumb_flexion": 60.0})
     r.hand.servos.sync()  # sync write has no status packet: let the servos take it before time moves
@@ -312,12 +312,12 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     assert bus.read_state()["fingers"].position_rad > 3.0
     bus.set_velocities({"fingers": 30.0})
     r.hand.servos.sync()
-    assert r.hand.apply("world", name="grasp").startswith("world grasp")
+    assert r.hand.apply("world", name="pinch_grasp").startswith("world pinch_grasp")
     r.clock.advance(0.5)  # posed at rest: the goal velocity was zeroed
     assert all(s.position_rad == pytest.approx(0.0, abs=RAD_PER_TICK) for s in bus.read_state().values())
     r.tick()
     status = r.hand.status()
-    assert status["world"] == "grasp" and all(f == 0.0 for f in status["forces_n"].values())
+    assert status["world"] == "pinch_grasp" and all(f == 0.0 for f in status["forces_n"].values())
 
 
 @pytest.mark.parametrize("command, args, named", [
