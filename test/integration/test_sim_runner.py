@@ -96,6 +96,25 @@ def test_every_scenario_ends_as_in_the_paper(run):
     assert run.summaries["pinch_grasp"]["close_thumb_used_at_stop_n"] >= 1.0
 
 
+def test_summaries_word_the_stop_as_the_events_do(run):
+    """The stop time names the event that stopped the motion, and the goal's end is the done event:
+    a hold's stop time is its last restore, and it ends at its timeout (the summary once said 'stop
+    time 1.41' for a goal whose events said timeout at 3.00 s)."""
+    md = (run.out / "summary.md").read_text()
+    for name in EXPECTED:
+        s = run.summaries[name]
+        events = {e["what"]: e["t_s"] for e in s["events"]}
+        assert events[s["stop_event"]] == pytest.approx(s["stop_time_s"])
+        assert events[f"done:{s['reason']}"] == pytest.approx(s["end_time_s"])
+        stop = f"{s['stop_time_s']:.2f} ({s['stop_event']})"
+        assert f"| {s['end_time_s']:.2f} | {stop} |" in md, name
+    hold = run.summaries["disturbance"]
+    assert (hold["reason"], hold["end_time_s"]) == ("timeout", 3.0)
+    assert hold["stop_event"] == "restored:left" and 0.5 < hold["stop_time_s"] < 3.0
+    horizontal = run.summaries["horizontal"]
+    assert horizontal["stop_event"] == "edge_lost:right" and horizontal["stop_time_s"] < horizontal["end_time_s"]
+
+
 def test_summary_markdown_plots_and_printed_summary(run, capsys):
     md = (run.out / "summary.md").read_text()
     for name in EXPECTED:
