@@ -219,17 +219,6 @@ class HubLink:
             self.state.corrupt_pending += int(frames)
         return f"CRC of the next {frames} frame(s) corrupted"
 
-    def request(self, name: str, args: dict[str, Any]) -> dict[str, Any]:
-        """One control-socket request: `status`, or a fault command with its arguments."""
-        if name == "status":
-            return {"ok": True, "status": self.status()}
-        try:
-            return {"ok": True, "message": self.apply(name, **args)}
-        except FaultError as exc:
-            return {"ok": False, "error": str(exc)}
-        except TypeError as exc:  # an argument the command does not take, or one it needs missing
-            return {"ok": False, "error": f"{name}: {exc}"}
-
     def status(self) -> dict[str, Any]:
         with self._lock:
             hub = self.state
