@@ -92,9 +92,8 @@ def set_points(sc: Scenario) -> list[tuple[float, str]]:
     a hold's kept thumb force."""
     c = sc.controller
     points = []
-    preset = getattr(c, "preset", None)
-    if preset is not None:  # GraspController
-        if preset.force_controlled_fingers:
+    if isinstance(c, GraspController):
+        if c.preset.force_controlled_fingers:
             points.append((c.finger_force_n, f"finger set point {c.finger_force_n:g} N"))
         points.append((c.thumb_force_n, f"thumb set point {c.thumb_force_n:g} N"))
     keeper = getattr(c, "force_keeper", None)
@@ -131,10 +130,11 @@ def plot(sc: Scenario, trace: Trace, path: Path) -> None:
     ax.set_ylabel("thumb pad contact (mm)")
     ax.legend(loc="upper left", fontsize=8)
     ax = axes[2]
+    used = "estimated" if sc.loop.estimator is not None else "true"  # what the controller steered by
     ax.plot(t, trace.force("thumb"), "k", lw=1, label="thumb Fz true")
-    ax.plot(t, trace.force("thumb", "used"), "k:", lw=1, label="thumb Fz used (estimated)")
+    ax.plot(t, trace.force("thumb", "used"), "k:", lw=1, label=f"thumb Fz used ({used})")
     ax.plot(t, trace.force("index"), "m", lw=1, label="index Fz true")
-    ax.plot(t, trace.force("index", "used"), "m:", lw=1, label="index Fz used (estimated)")
+    ax.plot(t, trace.force("index", "used"), "m:", lw=1, label=f"index Fz used ({used})")
     for (target, label), colour in zip(set_points(sc), ("tab:olive", "tab:cyan")):
         ax.axhline(target, color=colour, lw=1, ls="--", label=label)
     ax.set_ylabel("normal force (N)")
