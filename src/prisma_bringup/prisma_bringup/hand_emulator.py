@@ -268,11 +268,11 @@ class EmulatedHand:
         while not directory.exists() and not directory.is_symlink():
             missing.append(directory)
             directory = directory.parent
-        for directory in reversed(missing):
-            directory.mkdir()
-            self._made_dirs.append(directory)
         started: list[Callable[[], None]] = []
         try:
+            for directory in reversed(missing):
+                directory.mkdir()
+                self._made_dirs.append(directory)
             # the control socket first: a live one (another emulator on this dir) is refused, and
             # the pty links, which an earlier run's may replace, are then left alone
             self._control.bind()
