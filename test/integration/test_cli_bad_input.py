@@ -7,6 +7,11 @@ directory posing as a bundle) in a read-only fixture directory. Before and after
 file under both is recorded: the run must not add, change or remove anything. The cases fail
 before any heavy work; the few that load torch say so.
 
+Every script that writes files is also given outputs that cannot be created, each of its output
+options at least once: a path under /proc (a directory nobody can make there, not even root, whom
+permission bits do not stop) and a name too long for the file system. Each fails the same way,
+naming the path and the reason.
+
 Also: `--help` of every script builds its parser without importing torch, matplotlib, scipy,
 h5py or rosbags (what kept it above 5 s), and the console scripts in pyproject.toml are exactly
 the ones covered here.
@@ -48,6 +53,11 @@ SCRIPTS = {
     "stag-glove-correlation": "stag_glove.cli:correlation_main",
 }
 HEAVY = {"torch", "matplotlib", "scipy", "h5py", "rosbags", "sklearn"}
+# the one script that writes nothing (it talks to a running emulator)
+WRITES_NOTHING = {"prisma-hand-fault"}
+# outputs that cannot be created: no directory can be made in /proc; a name over 255 bytes
+NOPE = "/proc/prisma-no-such-dir"
+LONG = "x" * 300
 
 
 def pyproject_scripts() -> dict[str, str]:
@@ -165,6 +175,7 @@ class Case:
     setup: Callable[[Path], None] | None = None
     absent: tuple[str, ...] = ()  # message must not contain these
     loads_torch: bool = False
+    unwritable: bool = False  # an output that cannot be created (NOPE or LONG)
     id: str = field(default="")
 
 
@@ -305,6 +316,48 @@ CASES = [
     C("stag-glove-correlation", ["--dataset", "{data}/garbage.mat"], ("--dataset", "garbage.mat")),
     C("stag-glove-correlation", ["--dataset", "{data}/one_frame.mat"], ("one_frame.mat", "1 frame(s)")),
 ]
+
+
+def unwritable(script: str, args: list[str], option: str) -> list[Case]:
+    """The same command with its `option` output under /proc and with a too long name; `args` holds
+    "{out}" where the output goes (a file name with its extension, or a directory)."""
+    cases = []
+    for out, needles in ((f"{NOPE}/out", (NOPE, "choose another")), (LONG, ("File name too long",))):
+        cases.append(C(script, [a.replace("{out}", out) for a in args], (option, *needles), unwritable=True))
+    return cases
+
+
+def _unwritable_cases() -> list[Case]:
+    cases = []
+    for script, args, option in [
+        ("prisma-tactile-calset", ["--samples", "10", "--out", "{out}.npz"], "--out"),
+        ("prisma-tactile-calset", ["--samples", "10", "--out", "cal.npz", "--plot", "{out}.png"], "--plot"),
+        ("prisma-tactile-pad-plot", ["--out", "{out}.png"], "--out"),
+        ("prisma-tactile-hub-emulator", ["--link", "{out}", "--seconds", "0.2"], "--link"),
+        ("prisma-hand-emulator", ["--dir", "{out}", "--seconds", "0.2"], "--dir"),
+        ("prisma-sim", ["--out", "{out}"], "--out"),
+        ("prisma-train-force", ["--model", "cnn2", "--out", "{out}"], "--out"),
+        ("prisma-eval-force", [BUNDLE, "--plots", "{out}"], "--plots"),
+        ("prisma-eval-force", [BUNDLE, "--table", "{out}.md"], "--table"),
+        ("prisma-eval-force", [BUNDLE, "--json", "{out}.json"], "--json"),
+        ("prisma-estimate-bag", ["{data}/thumb_only_bag", "{out}"], "output"),
+        ("prisma-manip-scenarios", ["--out", "{out}"], "--out"),
+        ("stag-make-dataset", ["{out}.mat"], "out"),
+        ("stag-train-classifier", ["--curve-png", "{out}.png"], "--curve-png"),
+        ("stag-train-classifier", ["--confusion-png", "{out}.png"], "--confusion-png"),
+        ("stag-train-classifier", ["--bundle-out", "{out}"], "--bundle-out"),
+        ("stag-train-classifier", ["--out-json", "{out}.json"], "--out-json"),
+        ("stag-train-weight", ["--png", "{out}.png"], "--png"),
+        ("stag-train-weight", ["--bundle-out", "{out}"], "--bundle-out"),
+        ("stag-train-pose", ["--confusion-png", "{out}.png"], "--confusion-png"),
+        ("stag-train-pose", ["--bundle-out", "{out}"], "--bundle-out"),
+        ("stag-glove-correlation", ["--png", "{out}.png"], "--png"),
+    ]:
+        cases += unwritable(script, args, option)
+    return cases
+
+
+CASES += _unwritable_cases()
 for _i, _case in enumerate(CASES):
     _case.id = f"{_i:02d}-{_case.script}"
 
@@ -349,6 +402,13 @@ def test_bad_input_fails_with_one_line_and_writes_nothing(case: Case, outcomes: 
     for text in case.absent:
         assert text not in lines[0], (text, lines[0])
     assert outcome.after == outcome.before, "the failed run changed files"
+
+
+def test_every_script_that_writes_files_is_given_outputs_it_cannot_create():
+    assert {c.script for c in CASES if c.unwritable} == set(SCRIPTS) - WRITES_NOTHING
+    for kind in (NOPE, LONG):
+        assert {c.script for c in CASES if c.unwritable and any(kind in a for a in c.args)} == \
+            set(SCRIPTS) - WRITES_NOTHING
 
 
 def test_the_corpus_is_large_and_mostly_light():

@@ -9,7 +9,9 @@ that drive the hub's serial frames; motor_driver is on the servo emulator as in 
 2. the index pad's ADC stops acknowledging: its taxels stop while the other fingers' go on, and
    /diagnostics names the finger's mux channel and the NACK; cleared, the index taxels come back;
 3. glitched reads (all-zero bytes, a high nibble other than 1111) are rejected and counted as bad
-   reads, one per glitch.
+   reads, one per glitch;
+4. the emulator serves the bus and no hub: a hub fault is refused in one line naming the link, and
+   nothing changes.
 
 Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
@@ -114,6 +116,28 @@ class TestHandEmulatedI2C(unittest.TestCase):
         self.ros.spin_for(0.5)
         after = int(self.fresh_hub_diagnostic()["index_bad_reads"])
         self.assertEqual(after - before, 3)
+
+
+    def test_4_hub_faults_refused_on_the_i2c_link(self):
+        import shutil
+        import subprocess
+
+        before = json_status()
+        self.assertEqual(before["tactile_link"], "i2c")
+        self.assertNotIn("hub", before)
+        self.assertFalse((EMULATOR_DIR / "hub").exists())
+        command = [shutil.which("prisma-hand-fault") or "prisma-hand-fault", "--dir", str(EMULATOR_DIR),
+                   "hub-unplug", "--seconds", "1"]
+        done = subprocess.run(command, capture_output=True, text=True, timeout=30)
+        lines = done.stderr.strip().splitlines()
+        self.assertEqual((done.returncode, len(lines)), (2, 1), done.stderr)
+        self.assertTrue(lines[0].startswith("prisma-hand-fault: error: hub-unplug: "), lines[0])
+        self.assertIn("tactile link i2c", lines[0])
+        self.assertIn("tactile_backend:=serial", lines[0])
+        since = self.ros.now_ns()
+        self.assertTrue(self.ros.spin_until(lambda: self.taxels["thumb"] and
+                                            stamp_ns(self.taxels["thumb"][-1]) > since + 200_000_000, 5.0),
+                        "the thumb's taxels stopped")
 
 
 def json_status() -> dict:

@@ -109,7 +109,7 @@ def contact_values(msg) -> tuple:
             tuple(msg.lost_edges), bool(msg.feasible))
 
 
-@pytest.mark.parametrize("name", ["grasp", "combined"])
+@pytest.mark.parametrize("name", ["pinch_grasp", "combined"])
 def test_the_node_decides_as_the_off_robot_loop(ros, name):
     # the off-robot run, from the clock the node will see, with the k a Manipulate goal message
     # carries (float32)

@@ -5,6 +5,7 @@ length and the rates imply (recomputed from the bag itself)."""
 from __future__ import annotations
 
 import json
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from prisma_bringup.sim_cli import main
 from prisma_common.typestore import get_typestore
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
-from repo_paths import CONFIG
+from repo_paths import CONFIG, ROOT
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 NS = 1_000_000_000
@@ -93,6 +94,25 @@ def test_every_scenario_ends_as_in_the_paper(run):
     assert run.summaries["vertical"]["first_top_lost_s"] < run.summaries["vertical"]["stop_time_s"]
     assert 0.5 < run.summaries["disturbance"]["first_left_lost_s"] < run.summaries["disturbance"]["stop_time_s"]
     assert run.summaries["pinch_grasp"]["close_thumb_used_at_stop_n"] >= 1.0
+
+
+def test_summaries_word_the_stop_as_the_events_do(run):
+    """The stop time names the event that stopped the motion, and the goal's end is the done event:
+    a hold's stop time is its last restore, and it ends at its timeout (the summary once said 'stop
+    time 1.41' for a goal whose events said timeout at 3.00 s)."""
+    md = (run.out / "summary.md").read_text()
+    for name in EXPECTED:
+        s = run.summaries[name]
+        events = {e["what"]: e["t_s"] for e in s["events"]}
+        assert events[s["stop_event"]] == pytest.approx(s["stop_time_s"])
+        assert events[f"done:{s['reason']}"] == pytest.approx(s["end_time_s"])
+        stop = f"{s['stop_time_s']:.2f} ({s['stop_event']})"
+        assert f"| {s['end_time_s']:.2f} | {stop} |" in md, name
+    hold = run.summaries["disturbance"]
+    assert (hold["reason"], hold["end_time_s"]) == ("timeout", 3.0)
+    assert hold["stop_event"] == "restored:left" and 0.5 < hold["stop_time_s"] < 3.0
+    horizontal = run.summaries["horizontal"]
+    assert horizontal["stop_event"] == "edge_lost:right" and horizontal["stop_time_s"] < horizontal["end_time_s"]
 
 
 def test_summary_markdown_plots_and_printed_summary(run, capsys):
@@ -272,11 +292,20 @@ def test_cli_lists_scenarios_and_reports_a_missing_bundle(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------- bundle, force set points, output
-def test_scenario_names_match_the_hand_scenarios():
+def test_one_set_of_scenario_names_in_every_tool_and_launch_argument():
+    """prisma-sim, prisma-manip-scenarios, the emulator's worlds (--world, `world` fault command,
+    hand.launch.py emulator_world:=) and the scenarios themselves use the same names."""
+    from prisma_bringup.hand_emulator import WORLDS
     from prisma_bringup.hand_session import HAND_SCENARIOS
     from prisma_bringup.sim_runner import HAND_SCENARIO_NAMES
+    from prisma_manipulation.scenarios import SCENARIO_NAMES
 
-    assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS)
+    names = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
+    assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS) == SCENARIO_NAMES == names
+    assert WORLDS == ("hand", *names)
+    launch = (ROOT / "src" / "prisma_bringup" / "launch" / "hand.launch.py").read_text()
+    joined = re.sub(r'"\s*\n\s*"', "", launch)  # the description's adjacent string literals, as Python joins them
+    assert f"prisma-sim scenario ({', '.join(names)})" in joined
 
 
 def test_summaries_name_the_bundle_and_every_force_set_point(run):

@@ -11,11 +11,13 @@ sim:=true runs the drivers' sim backends: motor_driver simulates the motors and 
 sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
 not given here comes from config/<node>.yaml.
 
-hardware:=emulated (whatever sim is) starts prisma-hand-emulator: the Dynamixel servos and the
-fingertip hub on pseudo-terminals and the pads' I2C bus on a socket, in emulator_dir, all driven by
-one hand/world model. The drivers run their hardware paths on them: motor_driver backend dynamixel
+hardware:=emulated (whatever sim is) starts prisma-hand-emulator: the Dynamixel servos on a
+pseudo-terminal and the pads on the link tactile_backend names (serial: the fingertip hub on a
+second pseudo-terminal; i2c: the pads' I2C bus on a socket), in emulator_dir, driven by one
+hand/world model. The drivers run their hardware paths on them: motor_driver backend dynamixel
 through dynamixel-sdk, tactile_driver backend serial (or i2c) through pyserial (or smbus2).
-`prisma-hand-fault --dir <emulator_dir> ...` injects faults while it runs.
+`prisma-hand-fault --dir <emulator_dir> ...` injects faults while it runs (those of the other
+tactile link are refused).
 
 The four nodes run at nice -5 (`nice:=0` for the default priority): the hand's control path comes
 before a plotting tool or a recorder on the same cores. Without the right to raise priority (not
@@ -64,7 +66,8 @@ def generate_launch_description():
                               description="Where the emulator's devices appear, an absolute path (hardware:=emulated)"),
         DeclareLaunchArgument("emulator_world", default_value="hand",
                               description="The emulator's object and pose: hand (as sim:=true) or a "
-                                          "prisma-sim scenario (grasp, lateral, horizontal, ...)"),
+                                          "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
+                                          "vertical, disturbance, combined)"),
         DeclareLaunchArgument("nice", default_value="-5",
                               description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
     ]
@@ -103,7 +106,8 @@ def generate_launch_description():
     emulator = ExecuteProcess(
         cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup",
                                    "prisma-hand-emulator"]),
-             "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world")],
+             "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world"),
+             "--tactile-link", LaunchConfiguration("tactile_backend")],
         name="hand_emulator", output="screen", prefix=prefix, condition=emulated,
     )
     tactile_emulated = Node(

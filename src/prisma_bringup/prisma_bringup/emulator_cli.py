@@ -1,7 +1,7 @@
 """prisma-hand-emulator and prisma-hand-fault: the hand's hardware emulated, and faults injected into it.
 
     prisma-hand-emulator                          # devices in /tmp/prisma_hand_emulator
-    prisma-hand-emulator --dir /tmp/left --world horizontal
+    prisma-hand-emulator --dir /tmp/left --world horizontal --tactile-link i2c
     prisma-hand-fault hub-unplug --seconds 1      # another shell, while it runs
     prisma-hand-fault servo-error --motor fingers --bit overload
     prisma-hand-fault status
@@ -29,7 +29,7 @@ from prisma_common.cli_args import (
     positive_int,
 )
 
-from .hand_emulator import DEFAULT_DIR, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
+from .hand_emulator import DEFAULT_DIR, TACTILE_LINKS, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings
 
 
 @command("prisma-hand-emulator")
@@ -42,6 +42,10 @@ def emulator_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--world", choices=WORLDS, default="hand",
                         help="object and pose: hand = a foam ball presented for a pinch (as sim:=true); "
                              "the others start as prisma-sim's scenarios (default hand)")
+    parser.add_argument("--tactile-link", choices=TACTILE_LINKS, default="serial",
+                        help="how the pads reach the host, as tactile_driver's backend: serial = the "
+                             "fingertip hub on <dir>/hub, i2c = the pads' bus on <dir>/i2c.sock (default "
+                             "serial); faults of the other link are refused")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="pad noise seed")
     parser.add_argument("--seconds", type=non_negative_float, default=0.0,
                         help="stop after this long (0 = until Ctrl-C or SIGTERM)")
@@ -50,21 +54,15 @@ def emulator_main(argv: list[str] | None = None) -> int:
                              "shut down with it still turn their torque off; a second signal stops at once")
     args = parser.parse_args(argv)
 
-    if args.dir.exists() and not args.dir.is_dir():
-        raise UserError(f"--dir {args.dir} is not a directory; choose another path")
-    paths = EmulatorPaths(args.dir.absolute())  # the drivers, started elsewhere, need whole paths
-    hand = EmulatedHand(paths, EmulatorSettings(rate_hz=args.rate, world=args.world, seed=args.seed))
     try:
-        hand.start()
-    except FileExistsError as exc:
-        raise UserError(f"--dir {args.dir}: {exc}") from None
-    except OSError as exc:  # no permission to create the directory or a device there
+        if args.dir.exists() and not args.dir.is_dir():
+            raise UserError(f"--dir {args.dir} is not a directory; choose another path")
+    except OSError as exc:  # a path that cannot even be looked at: a name too long, a loop of links
         raise UserError(f"--dir {args.dir}: {exc.strerror or exc}; choose another path") from None
-
-    from .emulator_control import ControlServer
-
+    paths = EmulatorPaths(args.dir.absolute())  # the drivers, started elsewhere, need whole paths
+    hand = EmulatedHand(paths, EmulatorSettings(rate_hz=args.rate, world=args.world, seed=args.seed,
+                                                tactile_link=args.tactile_link))
     stop = threading.Event()
-    server = ControlServer(paths.control, lambda name, request: _handle(hand, name, request))
     signals: list[int] = []
 
     def on_signal(number: int, _frame: Any) -> None:
@@ -79,18 +77,19 @@ def emulator_main(argv: list[str] | None = None) -> int:
     if args.seconds:
         _later(args.seconds, stop.set)
     try:
-        server.start()
-    except OSError as exc:  # FileExistsError included: something else at control.sock
-        hand.close()
+        hand.start()
+    except FileExistsError as exc:  # something that is not an emulator's at one of the paths
         raise UserError(f"--dir {args.dir}: {exc}") from None
+    except OSError as exc:  # no permission to create the directory or a device there
+        raise UserError(f"--dir {args.dir}: {exc.strerror or exc}; choose another path") from None
     try:
-        print(f"emulated hand ({args.world}, {args.rate:g} Hz): hub {paths.hub}, servos {paths.servos}, "
-              f"i2c {paths.i2c}, control {paths.control}", flush=True)
+        pads = f"hub {paths.hub}" if args.tactile_link == "serial" else f"i2c {paths.i2c}"
+        print(f"emulated hand ({args.world}, {args.rate:g} Hz): servos {paths.servos}, {pads}, "
+              f"control {paths.control}", flush=True)
         ticks = hand.run(stop)
     finally:
-        server.close()
         hand.close()
-    print(f"emulated hand stopped after {ticks} scans; hub frames sent {hand.hub.frames_sent}", flush=True)
+    print(f"emulated hand stopped after {ticks} scans", flush=True)
     return 0
 
 
@@ -100,37 +99,27 @@ def _later(seconds: float, action: Callable[[], None]) -> None:
     timer.start()
 
 
-def _handle(hand: EmulatedHand, name: str, args: dict[str, Any]) -> dict[str, Any]:
-    if name == "status":
-        return {"ok": True, "status": hand.status()}
-    try:
-        return {"ok": True, "message": hand.apply(name, **args)}
-    except FaultError as exc:
-        return {"ok": False, "error": str(exc)}
-    except TypeError as exc:  # an argument the command does not take, or one it needs missing
-        return {"ok": False, "error": f"{name}: {exc}"}
-
-
 def _devices_help() -> str:
-    return ("devices in --dir: hub (pty, tactile_driver port), servos (pty, motor_driver port), i2c.sock "
-            "(tactile_driver i2c_socket), control.sock (prisma-hand-fault)")
+    return ("devices in --dir: servos (pty, motor_driver port), hub (pty, tactile_driver port; --tactile-link "
+            "serial) or i2c.sock (tactile_driver i2c_socket; --tactile-link i2c), control.sock (prisma-hand-fault)")
 
 
 # command -> its options: (flag, type, help, default or None when required)
 FAULTS: dict[str, tuple[str, list[tuple[str, Any, str, Any]]]] = {
     "status": ("what the emulated hardware is doing (JSON)", []),
-    "hub-unplug": ("unplug the fingertip hub's USB cable", [
+    "hub-unplug": ("unplug the fingertip hub's USB cable (tactile link serial)", [
         ("--seconds", non_negative_float, "plug it back after this long (0 = at hub-replug)", 0.0)]),
-    "hub-replug": ("plug the hub back in (a new pty behind the same link)", []),
-    "hub-garbage": ("write garbage bytes on the hub link before the next frame", [
+    "hub-replug": ("plug the hub back in (a new pty behind the same link; tactile link serial)", []),
+    "hub-garbage": ("write garbage bytes on the hub link before the next frame (tactile link serial)", [
         ("--bytes", positive_int, "how many", None)]),
-    "hub-crc": ("corrupt the CRC of the next frames", [("--frames", positive_int, "how many", None)]),
-    "i2c-nack": ("a finger's ADC stops acknowledging on the I2C bus", [
+    "hub-crc": ("corrupt the CRC of the next hub frames (tactile link serial)", [
+        ("--frames", positive_int, "how many", None)]),
+    "i2c-nack": ("a finger's ADC stops acknowledging on the I2C bus (tactile link i2c)", [
         ("--finger", str, "thumb, index, middle, ring or little", None),
         ("--count", non_negative_int, "this many addressings, then it recovers (0 = until i2c-clear)", 0)]),
-    "i2c-glitch": ("a finger's next reads return all-zero bytes", [
+    "i2c-glitch": ("a finger's next I2C reads return all-zero bytes (tactile link i2c)", [
         ("--finger", str, "thumb, index, middle, ring or little", None), ("--count", positive_int, "how many", None)]),
-    "i2c-clear": ("every ADC answers again", []),
+    "i2c-clear": ("every ADC answers again (tactile link i2c)", []),
     "servo-error": ("set a Hardware Error Status bit on a servo", [
         ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
         ("--bit", str, "0-7 or input_voltage, overheating, motor_encoder, electrical_shock, overload", None)]),

@@ -29,11 +29,19 @@ class ControlServer:
         self._identity: tuple[int, int] | None = None
         self._thread = threading.Thread(target=self._serve, name="emulator-control", daemon=True)
 
-    def start(self) -> ControlServer:
+    def bind(self) -> ControlServer:
+        """Take the socket path (FileExistsError for anything but a free path or a stale socket, a
+        live emulator's included) and listen; requests wait until `serve`."""
         self._socket, self._identity = bind_unix_socket(self.path)
         self._socket.listen(4)
+        return self
+
+    def serve(self) -> ControlServer:
         self._thread.start()
         return self
+
+    def start(self) -> ControlServer:
+        return self.bind().serve()
 
     def close(self) -> None:
         if self._socket is None:
@@ -44,7 +52,8 @@ class ControlServer:
         except OSError:
             pass
         self._socket.close()
-        self._thread.join(timeout=2.0)
+        if self._thread.ident is not None:
+            self._thread.join(timeout=2.0)
         self._socket = None
 
     def _serve(self) -> None:

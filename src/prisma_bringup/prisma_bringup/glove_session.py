@@ -128,6 +128,10 @@ class GloveRecording:
     reason: str = ""
     object_weights_g: dict[str, float] = field(default_factory=dict)
     bundles: dict[str, str] = field(default_factory=dict)
+    # the weight bundle's linear baseline, grams = a * sum(pressure) + b (least squares over the
+    # weight set's frames: on the synthetic glove the sum hardly depends on the weight, so it is
+    # nearly flat at the set's mean weight; docs/glove.md, "Weight")
+    baseline_a_b: tuple[float, float] = (0.0, 0.0)
 
 
 def run_glove_session(writer: BagWriter, objects: int = 4, seed: int | None = None,
@@ -152,8 +156,10 @@ def run_glove_session(writer: BagWriter, objects: int = 4, seed: int | None = No
                                  PerceptionConfig(perception_cfg.selection, perception_cfg.buffer_size,
                                                   perception_cfg.release_frames, perception_cfg.kmeans_restarts,
                                                   perception_cfg.seed))
+    line = bundles["weight"].metadata.get("linear_baseline") or {}
     rec = GloveRecording(bundles={k: str(b.path) for k, b in bundles.items()},
-                         object_weights_g={o.name: float(o.weight_g) for o in backend.glove.objects})
+                         object_weights_g={o.name: float(o.weight_g) for o in backend.glove.objects},
+                         baseline_a_b=(float(line.get("a", 0.0)), float(line.get("b", 0.0))))
     frame_id = driver_cfg.frame_id
 
     def write(topic: str, msg: Any) -> None:
@@ -301,10 +307,15 @@ def plot(rec: GloveRecording, path: Path) -> None:
     true_w = [rec.object_weights_g.get(f.truth, np.nan) if f.truth != EMPTY_HAND else np.nan for f in frames]
     ax.plot(t, true_w, color="0.5", lw=3, alpha=0.6, label="true weight")
     ax.plot(t, [f.weight_g for f in frames], ".", ms=3, color="tab:blue", label="/stag/weight grams (CNN)")
-    ax.plot(t, [f.baseline_g for f in frames], ".", ms=3, color="tab:orange", label="linear baseline")
+    a, b = rec.baseline_a_b
+    ax.plot(t, [f.baseline_g for f in frames], ".", ms=3, color="tab:orange",
+            label=f"linear baseline {a:.2f} g x sum(pressure) {b:+.0f} g (least squares over the weight set)")
     ax.set_ylabel("weight (g)")
     ax.set_xlabel("time (s)")
-    ax.legend(loc="upper left", fontsize=8)
+    shown = [w for f in frames for w in (f.weight_g, f.baseline_g)] + true_w
+    top = np.nanmax(shown) if np.isfinite(shown).any() else 1.0
+    ax.set_ylim(0, 1.45 * top)  # a band above the points for the legend
+    ax.legend(loc="upper left", fontsize=8, ncol=2)
     summary = summarise(rec)
     fig.suptitle(f"glove session: {summary['object_correct']}/{len(summary['grasps'])} objects recognised, "
                  f"{summary['shorted_frames']} shorted frames dropped")

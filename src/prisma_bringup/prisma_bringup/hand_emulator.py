@@ -1,22 +1,29 @@
 """The hand's hardware emulated in one process, for `hand.launch.py hardware:=emulated`.
 
-Three byte-level devices share one hand/world model, so a goal closes the loop through every real
-driver path:
+Byte-level devices share one hand/world model, so a goal closes the loop through every real driver
+path:
 - the Dynamixel servos (IDs 1-3, Protocol 2.0) on a pseudo-terminal, `<dir>/servos`: motor_driver's
   dynamixel backend opens it through dynamixel-sdk;
-- the fingertip hub on a second pseudo-terminal, `<dir>/hub`: 78-byte frames at the scan rate,
-  read by tactile_driver's serial backend through pyserial;
-- the same five pads as a TCA9548A + MAX11617 bus served on `<dir>/i2c.sock`: tactile_driver's i2c
-  backend reaches it through smbus2 (`i2c_socket`).
+- the five pads on the tactile link the hand is wired with (`tactile_link`, as tactile_driver's
+  `backend`): `serial`, the fingertip hub on a second pseudo-terminal, `<dir>/hub`, 78-byte frames
+  at the scan rate read by tactile_driver's serial backend through pyserial; or `i2c`, the pads'
+  TCA9548A + MAX11617 bus served on `<dir>/i2c.sock`, reached by tactile_driver's i2c backend
+  through smbus2 (`i2c_socket`). A robot has one of the two, so the emulator serves one.
 Every scan period `tick` reads the servos' present positions, moves the world to them, puts the
-pads' contacts through the pad model into counts (hub frame and ADC registers alike) and loads the
+pads' contacts through the pad model into counts (a hub frame or the ADC registers) and loads the
 servos with the world's tendon torques.
+
+Each device serves its link on its own: the servo emulator answers from its own thread, the I2C
+bus from the socket server's, and the hub link is written by the tick under a lock of its own, so
+a fault injected into one device (from the control socket's thread, while the tick runs) changes
+that device only: an unplugged hub never stops the servos from answering.
 
 Faults are applied by `apply`, as the emulator's control socket receives them (`prisma-hand-fault`):
 the hub unplugged and plugged back (a new pty behind the same link, sequence restarting at 0 as a
 powered-down Arduino does), garbage bytes and CRC-corrupted frames on the hub link, a pad's ADC not
 acknowledging or glitching on I2C, a servo hardware error bit, a servo off the bus, an external push
-on the object, and a new scenario world (the experimenter placing another object).
+on the object, and a new scenario world (the experimenter placing another object). A fault of the
+tactile link the hand is not wired with (`i2c-nack` on the serial hub) is refused with the reason.
 
 Nothing here reads ROS. Time is `clock_ns()` (monotonic); the world's time starts at 0 with each
 scenario, so the scenarios' disturbances keep their timing.
@@ -27,7 +34,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,12 +49,19 @@ from prisma_motor_driver.sim_backend import SimMotorParams
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
 from prisma_tactile_driver.i2c_socket import I2CSocketServer
 from prisma_tactile_driver.protocol import SEQUENCE_MODULO, encode_frame
-from prisma_tactile_driver.pty_hub import PtyHubPort, PtyLink
+from prisma_tactile_driver.pty_hub import ADAPTER_BUFFER_BYTES, PtyHubPort, PtyLink
 from prisma_tactile_driver.sim_backend import SimHubBackend
+
+from .emulator_control import ControlServer
 
 # The hand's wiring as config/motor_driver.yaml and config/tactile_driver.yaml have it.
 MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
 FINGER_CHANNELS = dict(zip(FINGERS, range(5)))
+# the fingertip pads reach the host through the Arduino hub (serial) or its own I2C bus (i2c)
+TACTILE_LINKS = ("serial", "i2c")
+# the fault commands that only one tactile link can have
+LINK_FAULTS = {"serial": ("hub-unplug", "hub-replug", "hub-garbage", "hub-crc"),
+               "i2c": ("i2c-nack", "i2c-glitch", "i2c-clear")}
 # "hand": the world of the sim graph (a foam ball presented for a pinch, let go once held); the
 # others start as prisma-sim's scenarios do (prisma_manipulation.scenarios.scenario_world).
 WORLDS = ("hand",) + SCENARIO_NAMES
@@ -84,17 +98,22 @@ class EmulatorPaths:
     def control(self) -> Path:
         return self.root / "control.sock"
 
+    def tactile(self, link: str) -> Path:
+        """Where the pads' link appears: the hub's pty or the I2C bus socket."""
+        return self.hub if link == "serial" else self.i2c
+
 
 @dataclass(frozen=True)
 class EmulatorSettings:
     rate_hz: float = 100.0  # hub scans per second (the Arduino firmware's rate)
     world: str = "hand"
     seed: int = 0  # pad noise
+    tactile_link: str = "serial"  # serial | i2c: how the pads reach the host (TACTILE_LINKS)
     directions: tuple[int, ...] = (1, 1, 1)  # as motor_driver's `directions`, per MOTOR_NAMES
     zero_ticks: tuple[int, ...] = (0, 0, 0)  # as motor_driver's `zero_ticks`
     # a USB-serial adapter buffers only so much for a host that does not read: frames beyond this
     # are lost at the adapter, as on the robot (and the emulator never blocks on its pty)
-    hub_buffer_bytes: int = 4096
+    hub_buffer_bytes: int = ADAPTER_BUFFER_BYTES
 
 
 @dataclass
@@ -111,13 +130,101 @@ class HubState:
     unplugs: int = 0
 
 
-@dataclass
-class ServoFaults:
-    silent_until_ns: dict[str, int | None] = field(default_factory=dict)  # None = until cleared
-
-
 class FaultError(ValueError):
     """A fault command that names something the emulator does not have; the message says what."""
+
+
+class HubLink:
+    """The fingertip hub's serial end: one frame per scan on a pty behind `path`, and its faults.
+
+    The tick sends and the control socket's thread unplugs, replugs and corrupts: every use of the
+    pty and of the counters is under this link's own lock, so a fault never pulls the pty from under
+    a frame being written, and nothing the hub does holds up the servos or the I2C bus."""
+
+    def __init__(self, path: Path, buffer_bytes: int, rng: np.random.Generator) -> None:
+        self.state = HubState()
+        self._port = PtyHubPort(path)
+        self._buffer_bytes = buffer_bytes
+        self._rng = rng
+        self._lock = threading.Lock()
+
+    def open(self) -> None:
+        with self._lock:
+            self._port.open()
+
+    def close(self) -> None:
+        with self._lock:
+            if self._port.is_open:
+                self._port.hang_up()
+
+    def send(self, counts: dict[str, np.ndarray], now_ns: int) -> None:
+        """One scan's frame (a timed unplug that is over first plugs the hub back in)."""
+        with self._lock:
+            hub = self.state
+            if not hub.plugged and hub.replug_at_ns is not None and now_ns >= hub.replug_at_ns:
+                self._replug()
+            frame = bytearray(encode_frame(hub.sequence, counts))
+            hub.sequence = (hub.sequence + 1) % SEQUENCE_MODULO
+            if not hub.plugged:
+                return
+            out = bytearray()
+            if hub.garbage_pending:
+                # no sync pattern in it: garbage that forms a false frame start would only delay the
+                # next real frame, and the count of skipped bytes must equal what was sent
+                garbage = self._rng.integers(0, 256, hub.garbage_pending, dtype=np.uint8)
+                garbage[garbage == 0xA5] = 0xA4
+                out += garbage.tobytes()
+                hub.garbage_sent += hub.garbage_pending
+                hub.garbage_pending = 0
+            if hub.corrupt_pending:
+                frame[-1] ^= 0xFF  # the CRC's high byte
+                hub.corrupt_pending -= 1
+                hub.frames_corrupted += 1
+            out += frame
+            if self._port.offer(bytes(out), self._buffer_bytes):
+                hub.frames_sent += 1
+            else:
+                hub.frames_unread += 1
+
+    def unplug(self, seconds: float, now_ns: int) -> str:
+        with self._lock:
+            hub = self.state
+            if hub.plugged:
+                self._port.hang_up()
+                hub.plugged = False
+                hub.unplugs += 1
+            hub.replug_at_ns = now_ns + int(seconds * 1e9) if seconds else None
+        return f"hub unplugged{f' for {seconds:g} s' if seconds else ' until hub-replug'}"
+
+    def replug(self) -> str:
+        with self._lock:
+            if self.state.plugged:
+                return "hub already plugged in"
+            self._replug()
+        return "hub plugged in"
+
+    def _replug(self) -> None:
+        self._port.open()
+        self.state.plugged = True
+        self.state.replug_at_ns = None
+        self.state.sequence = 0  # the Nano is powered from USB: it restarts with the link
+
+    def garbage(self, count: int) -> str:
+        with self._lock:
+            self.state.garbage_pending += int(count)
+        return f"{count} garbage bytes before the next frame"
+
+    def corrupt(self, frames: int) -> str:
+        with self._lock:
+            self.state.corrupt_pending += int(frames)
+        return f"CRC of the next {frames} frame(s) corrupted"
+
+    def status(self) -> dict[str, Any]:
+        with self._lock:
+            hub = self.state
+            return {"plugged": hub.plugged, "frames_sent": hub.frames_sent, "frames_unread": hub.frames_unread,
+                    "frames_corrupted": hub.frames_corrupted, "garbage_bytes": hub.garbage_sent,
+                    "unplugs": hub.unplugs, "sequence": hub.sequence}
 
 
 class EmulatedHand:
@@ -127,6 +234,9 @@ class EmulatedHand:
         self.settings = settings or EmulatorSettings()
         if self.settings.rate_hz <= 0:
             raise ValueError(f"rate_hz {self.settings.rate_hz}: must be > 0")
+        if self.settings.tactile_link not in TACTILE_LINKS:
+            raise ValueError(f"tactile_link {self.settings.tactile_link!r}: choose one of {', '.join(TACTILE_LINKS)}")
+        self.tactile_link = self.settings.tactile_link
         self.clock_ns = clock_ns
         self.period_ns = int(round(1e9 / self.settings.rate_hz))
         self.lock = threading.Lock()  # world, pads and ADC registers: the tick vs the I2C server
@@ -138,27 +248,41 @@ class EmulatedHand:
         self._pads = SimHubBackend(self._contacts, FINGERS, seed=self.settings.seed)
         self.i2c_bus = five_finger_bus()
         self.servos = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9)
-        self.hub = HubState()
-        self.servo_faults = ServoFaults()
-        self._hub_port = PtyHubPort(paths.hub)
+        self.hub = HubLink(paths.hub, self.settings.hub_buffer_bytes, np.random.default_rng(self.settings.seed))
+        self._servo_faults_lock = threading.Lock()  # the tick expires them, the control thread sets them
+        self._silent_until_ns: dict[str, int | None] = {}  # None = until servo-clear
         self._servo_link = PtyLink(paths.servos)
         self._i2c_server: Any = None
-        self._rng = np.random.default_rng(self.settings.seed)
+        self._control = ControlServer(paths.control, self.request)
+        self._made_dirs: list[Path] = []  # the directories start() created, innermost last
         self._place_servos()
 
     # ---- lifecycle -------------------------------------------------------------------------
     def start(self) -> EmulatedHand:
-        """Create the devices. FileExistsError (naming the path) if one of the paths holds something
-        that is not an earlier emulator's link or socket; nothing is replaced then."""
-        self.paths.root.mkdir(parents=True, exist_ok=True)
+        """Create the directory (and its missing parents), the control socket (`request` answers it:
+        prisma-hand-fault) and the devices. FileExistsError (naming the path) if one of the paths
+        holds something that is not an earlier emulator's link or socket; nothing is replaced then,
+        and whatever this call made is removed again."""
+        missing = []
+        directory = self.paths.root
+        while not directory.exists() and not directory.is_symlink():
+            missing.append(directory)
+            directory = directory.parent
         started: list[Callable[[], None]] = []
         try:
-            # the socket first: a live one (another emulator on this dir) is refused, and the pty
-            # links, which an earlier run's may replace, are then left alone
-            self._i2c_server = I2CSocketServer(self.i2c_bus, self.paths.i2c, self.lock).start()
-            started.append(self._i2c_server.close)
-            self._hub_port.open()
-            started.append(self._hub_port.hang_up)
+            for directory in reversed(missing):
+                directory.mkdir()
+                self._made_dirs.append(directory)
+            # the control socket first: a live one (another emulator on this dir) is refused, and
+            # the pty links, which an earlier run's may replace, are then left alone
+            self._control.bind()
+            started.append(self._control.close)
+            if self.tactile_link == "i2c":
+                self._i2c_server = I2CSocketServer(self.i2c_bus, self.paths.i2c, self.lock).start()
+                started.append(self._i2c_server.close)
+            else:
+                self.hub.open()
+                started.append(self.hub.close)
             self.servos.start()
             started.append(self.servos.close)
             self._servo_link.point_at(self.servos.port_name)
@@ -166,17 +290,29 @@ class EmulatedHand:
             for undo in reversed(started):
                 undo()
             self._i2c_server = None
+            self._remove_made_dirs()
             raise
+        self._control.serve()
         return self
 
     def close(self) -> None:
+        """Remove what start() made, and only that: the sockets and links (each only while it is
+        still this emulator's) and the directories start() created, while they are empty."""
+        self._control.close()
         if self._i2c_server is not None:
             self._i2c_server.close()
             self._i2c_server = None
         self._servo_link.remove()
         self.servos.close()
-        if self._hub_port.is_open:
-            self._hub_port.hang_up()
+        self.hub.close()
+        self._remove_made_dirs()
+
+    def _remove_made_dirs(self) -> None:
+        while self._made_dirs:
+            try:
+                self._made_dirs.pop().rmdir()  # only while empty: someone else's files stay, and so does it
+            except OSError:
+                self._made_dirs.clear()
 
     def __enter__(self) -> EmulatedHand:
         return self.start()
@@ -202,57 +338,32 @@ class EmulatedHand:
 
     # ---- one scan period -------------------------------------------------------------------
     def tick(self, now_ns: int) -> None:
-        self._expire_faults(now_ns)
+        self._expire_servo_faults(now_ns)
         present = self.servos.present()
         with self.lock:
             positions = self._motor_positions(present)
             self._contacts.update_joints(list(positions), list(positions.values()), now_ns - self._world_start_ns)
             [reading] = self._pads.read(now_ns - self._world_start_ns)
             counts = reading.counts
-            for finger, channel in FINGER_CHANNELS.items():
-                self.i2c_bus.adcs[channel].values[: len(counts[finger])] = counts[finger]
+            if self.tactile_link == "i2c":
+                for finger, channel in FINGER_CHANNELS.items():
+                    self.i2c_bus.adcs[channel].values[: len(counts[finger])] = counts[finger]
             loads = self.world.motor_loads()
         for name, servo_id in MOTOR_IDS.items():
             self.servos.set_load(servo_id, _current_units(loads[name]))
-        self._send_frame(counts)
+        if self.tactile_link == "serial":
+            self.hub.send(counts, now_ns)
 
     def _motor_positions(self, present: dict[int, ServoPresent]) -> dict[str, float]:
         s = self.settings
         return {name: s.directions[i] * ct.ticks_to_rad(present[MOTOR_IDS[name]].position_ticks - s.zero_ticks[i])
                 for i, name in enumerate(MOTOR_NAMES)}
 
-    def _send_frame(self, counts: dict[str, np.ndarray]) -> None:
-        hub = self.hub
-        frame = bytearray(encode_frame(hub.sequence, counts))
-        hub.sequence = (hub.sequence + 1) % SEQUENCE_MODULO
-        if not hub.plugged:
-            return
-        out = bytearray()
-        if hub.garbage_pending:
-            # no sync pattern in it: garbage that forms a false frame start would only delay the
-            # next real frame, and the count of skipped bytes must equal what was sent
-            garbage = self._rng.integers(0, 256, hub.garbage_pending, dtype=np.uint8)
-            garbage[garbage == 0xA5] = 0xA4
-            out += garbage.tobytes()
-            hub.garbage_sent += hub.garbage_pending
-            hub.garbage_pending = 0
-        if hub.corrupt_pending:
-            frame[-1] ^= 0xFF  # the CRC's high byte
-            hub.corrupt_pending -= 1
-            hub.frames_corrupted += 1
-        out += frame
-        if self._hub_port.pending() + len(out) > self.settings.hub_buffer_bytes:
-            hub.frames_unread += 1
-            return
-        self._hub_port.write(bytes(out))
-        hub.frames_sent += 1
-
-    def _expire_faults(self, now_ns: int) -> None:
-        if not self.hub.plugged and self.hub.replug_at_ns is not None and now_ns >= self.hub.replug_at_ns:
-            self._replug()
-        for name, until in list(self.servo_faults.silent_until_ns.items()):
-            if until is not None and now_ns >= until:
-                self._servo_back(name)
+    def _expire_servo_faults(self, now_ns: int) -> None:
+        with self._servo_faults_lock:
+            over = [name for name, until in self._silent_until_ns.items() if until is not None and now_ns >= until]
+        for name in over:
+            self._servo_back(name)
 
     # ---- faults ----------------------------------------------------------------------------
     def apply(self, command: str, **args: Any) -> str:
@@ -261,7 +372,24 @@ class EmulatedHand:
         handler = getattr(self, "_fault_" + command.replace("-", "_"), None)
         if handler is None:
             raise FaultError(f"unknown command {command!r}")
+        for link, commands in LINK_FAULTS.items():
+            if command in commands and link != self.tactile_link:
+                raise FaultError(f"{command}: the pads are on the {_LINK_NAMES[self.tactile_link]} here "
+                                 f"(tactile link {self.tactile_link}), which has no such fault; it needs the "
+                                 f"{_LINK_NAMES[link]} (prisma-hand-emulator --tactile-link {link}, "
+                                 f"hand.launch.py tactile_backend:={link})")
         return handler(**args)
+
+    def request(self, name: str, args: dict[str, Any]) -> dict[str, Any]:
+        """One control-socket request: `status`, or a fault command with its arguments."""
+        if name == "status":
+            return {"ok": True, "status": self.status()}
+        try:
+            return {"ok": True, "message": self.apply(name, **args)}
+        except FaultError as exc:
+            return {"ok": False, "error": str(exc)}
+        except TypeError as exc:  # an argument the command does not take, or one it needs missing
+            return {"ok": False, "error": f"{name}: {exc}"}
 
     def status(self) -> dict[str, Any]:
         """What the emulated hardware is doing, as plain data (JSON-ready)."""
@@ -278,47 +406,24 @@ class EmulatedHand:
             forces = {f: round(v, 4) for f, v in self.world.forces().items()}
             i2c = {"transfers": self.i2c_bus.transfers, "nacks": self.i2c_bus.nacks,
                    "failing": [f for f, ch in FINGER_CHANNELS.items() if self.i2c_bus.adcs[ch].failing]}
-        hub = self.hub
-        return {
-            "world": self.world_name,
-            "forces_n": forces,
-            "hub": {"plugged": hub.plugged, "frames_sent": hub.frames_sent, "frames_unread": hub.frames_unread,
-                    "frames_corrupted": hub.frames_corrupted, "garbage_bytes": hub.garbage_sent,
-                    "unplugs": hub.unplugs, "sequence": hub.sequence},
-            "servos": servos,
-            "i2c": i2c,
-        }
+        link = {"hub": self.hub.status()} if self.tactile_link == "serial" else {"i2c": i2c}
+        return {"world": self.world_name, "tactile_link": self.tactile_link, "forces_n": forces,
+                "servos": servos, **link}
 
     def _fault_hub_unplug(self, seconds: float = 0.0) -> str:
         _check_non_negative("seconds", seconds)
-        if self.hub.plugged:
-            self._hub_port.hang_up()
-            self.hub.plugged = False
-            self.hub.unplugs += 1
-        self.hub.replug_at_ns = self.clock_ns() + int(seconds * 1e9) if seconds else None
-        return f"hub unplugged{f' for {seconds:g} s' if seconds else ' until hub-replug'}"
+        return self.hub.unplug(seconds, self.clock_ns())
 
     def _fault_hub_replug(self) -> str:
-        if self.hub.plugged:
-            return "hub already plugged in"
-        self._replug()
-        return "hub plugged in"
-
-    def _replug(self) -> None:
-        self._hub_port.open()
-        self.hub.plugged = True
-        self.hub.replug_at_ns = None
-        self.hub.sequence = 0  # the Nano is powered from USB: it restarts with the link
+        return self.hub.replug()
 
     def _fault_hub_garbage(self, bytes: int) -> str:  # noqa: A002 (the CLI's option name)
         _check_positive("bytes", bytes)
-        self.hub.garbage_pending += int(bytes)
-        return f"{bytes} garbage bytes before the next frame"
+        return self.hub.garbage(bytes)
 
     def _fault_hub_crc(self, frames: int) -> str:
         _check_positive("frames", frames)
-        self.hub.corrupt_pending += int(frames)
-        return f"CRC of the next {frames} frame(s) corrupted"
+        return self.hub.corrupt(frames)
 
     def _adc(self, finger: str):
         if finger not in FINGER_CHANNELS:
@@ -368,13 +473,15 @@ class EmulatedHand:
     def _fault_servo_silent(self, motor: str, seconds: float = 0.0) -> str:
         _check_non_negative("seconds", seconds)
         servo_id = self._servo_id(motor)
-        self.servos.set_silent(servo_id, True)
-        self.servo_faults.silent_until_ns[motor] = self.clock_ns() + int(seconds * 1e9) if seconds else None
+        with self._servo_faults_lock:
+            self.servos.set_silent(servo_id, True)
+            self._silent_until_ns[motor] = self.clock_ns() + int(seconds * 1e9) if seconds else None
         return f"{motor} (ID {servo_id}) off the bus{f' for {seconds:g} s' if seconds else ' until servo-clear'}"
 
     def _servo_back(self, motor: str) -> None:
-        self.servos.set_silent(MOTOR_IDS[motor], False)
-        self.servo_faults.silent_until_ns.pop(motor, None)
+        with self._servo_faults_lock:
+            self.servos.set_silent(MOTOR_IDS[motor], False)
+            self._silent_until_ns.pop(motor, None)
 
     def _fault_servo_clear(self, motor: str = "") -> str:
         motors = [motor] if motor else list(MOTOR_NAMES)
@@ -413,6 +520,9 @@ class EmulatedHand:
         for i, name in enumerate(MOTOR_NAMES):
             servo_id = MOTOR_IDS[name]
             self.servos.place(servo_id, s.zero_ticks[i] + ct.rad_to_ticks(s.directions[i] * self.world.positions[name]))
+
+
+_LINK_NAMES = {"serial": "fingertip hub's serial link", "i2c": "host's I2C bus"}
 
 
 def _current_units(load_nm: float, params: SimMotorParams = SimMotorParams()) -> int:

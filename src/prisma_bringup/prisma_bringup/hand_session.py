@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -76,13 +76,12 @@ def status_topic(action: str) -> str:
 class HandScenarioSpec:
     name: str
     action: str  # "grasp" | "manipulate": the goal the scenario stands for
-    world: str  # the prisma_manipulation scenario it runs: its world (scenario_world) and goal
     description: str
 
     @property
     def goal(self) -> dict:
         """The goal's fields as the action defines them."""
-        r = scenario_request(self.world)
+        r = scenario_request(self.name)
         if isinstance(r, GraspRequest):
             return {"grasp": r.grasp, "finger_force": r.finger_force, "thumb_force": r.thumb_force,
                     "speed_rpm": r.speed_rpm, "timeout": r.timeout_s}
@@ -90,39 +89,33 @@ class HandScenarioSpec:
                 "timeout": r.timeout_s}
 
     def make(self, estimator: ForceEstimator | None = None) -> Scenario:
-        return replace(build(self.world, estimator=estimator), name=self.name)
+        return build(self.name, estimator=estimator)
 
 
 HAND_SCENARIOS: dict[str, HandScenarioSpec] = {
     spec.name: spec for spec in (
         HandScenarioSpec(
             "pinch_grasp", "grasp",
-            "grasp",
             "foam ball on a stand; fingers close at 60 rpm to 0.8 N on the index pad, then the thumb "
             "flexes at 60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
             "lateral_grasp", "grasp",
-            "lateral",
             "card against the side of the index: fingers close to the lateral fist, thumb flexes at "
             "60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
             "horizontal", "manipulate",
-            "horizontal",
             "ball pinched at 1 N; thumb rotates clockwise at 20 rpm until the right taxels 6-3-0 are "
             "lost, then back to the start angle"),
         HandScenarioSpec(
             "vertical", "manipulate",
-            "vertical",
             "ball pinched at 1 N; fingers close + thumb extends at 10 rpm until the top row 6-7-8 is "
             "lost, then the reverse until the bottom row 0-1-2 is lost"),
         HandScenarioSpec(
             "disturbance", "manipulate",
-            "disturbance",
             "ball pinched; at 0.5 s a push slips it 4 mm toward the thumb pad's right side; the thumb "
             "rotates at 20 rpm until two left taxels are back above v_t"),
         HandScenarioSpec(
             "combined", "manipulate",
-            "combined",
             "as disturbance, and the object slips to a narrower section: the estimated thumb force "
             "is restored to 1 N while the voltages steer the rotation"),
     )

@@ -28,7 +28,7 @@ from pathlib import Path
 from prisma_common.atomic import atomic_output
 from prisma_common.bag import BagWriter
 from prisma_force_estimator.force_estimator_core import load_estimator as load_bundle_estimator
-from prisma_manipulation.scenarios_cli import plot, summarise
+from prisma_manipulation.scenarios_cli import ending, plot, summarise
 
 GLOVE = "glove"
 NS = 1_000_000_000
@@ -253,8 +253,7 @@ def run(options: SimOptions, progress: Callable[[str], None] = print, estimator=
             summary["reason_as_expected"] = summary["reason"] == summary["expected_reason"]
             summary["as_expected"] = summary["reason_as_expected"] and summary.get("force_within_tolerance", True)
             summaries.append(summary)
-            progress(f"[{name}] {summary['reason']}"
-                     + (f", stop at {summary['stop_time_s']:.2f} s" if summary.get("stop_time_s") is not None else "")
+            progress(f"[{name}] " + (ending(summary) if name != GLOVE else summary["reason"])
                      + (f", force set point miss {summary['force_error_n']:.3f} N"
                         if summary.get("force_error_n") is not None else "")
                      + f" ({summary['wall_s']:.1f} s) -> {options.out / summary['bag']}")
@@ -297,11 +296,14 @@ def markdown(summaries: list[dict]) -> str:
         lines += [
             f"Hand: closed loop at 100 Hz, controllers on the Fz of the force estimator bundle "
             f"{', '.join(f'`{b}`' for b in bundles) or '(none)'}; forces in N at the end of the run "
-            f"(estimated / true). Set point miss: the largest |force - set point| of the scenario's force "
-            f"set points (estimated or true; tolerance {tolerance:g} N; - = none).", "",
-            "| scenario | stop reason | expected | success | stop time (s) | thumb Fz | index Fz | "
+            f"(estimated / true). Ended: when the goal ended for its stop reason. Stop time: the sample "
+            f"whose event (named) stopped the motion, a Manipulate result's stop_time; a horizontal goal "
+            f"returns to its start angle after it, a hold goal runs on until its timeout. Set point miss: "
+            f"the largest |force - set point| of the scenario's force set points (estimated or true; "
+            f"tolerance {tolerance:g} N; - = none).", "",
+            "| scenario | stop reason | expected | success | ended (s) | stop time (s) | thumb Fz | index Fz | "
             "set point miss (N) | samples | bag |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for s in hand:
             thumb = f"{_fmt(s.get('thumb_force_used_final_n'))} / {_fmt(s['thumb_force_final_n'])}"
@@ -309,8 +311,9 @@ def markdown(summaries: list[dict]) -> str:
             miss = _fmt(s.get("force_error_n"), 3)
             if not s.get("force_within_tolerance", True):
                 miss += " (over)"
+            stop = _fmt(s["stop_time_s"]) + (f" ({s['stop_event']})" if s.get("stop_event") else "")
             lines.append(f"| {s['scenario']} | {s['reason']} | {'yes' if s['as_expected'] else 'NO'} | "
-                         f"{s['success']} | {_fmt(s['stop_time_s'])} | {thumb} | {index} | {miss} | "
+                         f"{s['success']} | {_fmt(s.get('end_time_s'))} | {stop} | {thumb} | {index} | {miss} | "
                          f"{s['samples']} | {s['bag']} |")
         lines.append("")
         for s in hand:

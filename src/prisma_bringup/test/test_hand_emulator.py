@@ -2,10 +2,13 @@
 
 One EmulatedHand per test in pytest's tmp_path, on a manual clock (ticks and servo motion are
 deterministic), reached through the real host-side driver code: DynamixelBus (dynamixel-sdk) on
-<dir>/servos, SerialHubBackend (pyserial + FrameParser) on <dir>/hub and I2CHubBackend over
-SocketSMBus on <dir>/i2c.sock. Covered: device creation/removal and refusal of a foreign file, one
-world driving all three devices, motion closing the grasp and loading the servos, every fault command
-(hub, servo, I2C, push, world) and its bad values, and the two console scripts as subprocesses.
+<dir>/servos, SerialHubBackend (pyserial + FrameParser) on <dir>/hub (tactile link serial) and
+I2CHubBackend over SocketSMBus on <dir>/i2c.sock (tactile link i2c). Covered: device creation and
+removal (what start made, and only that) and refusal of a foreign file, one world driving the servos
+and either tactile link alike, motion closing the grasp and loading the servos, every fault command
+(hub, servo, I2C, push, world) and its bad values, faults of the other tactile link refused, hub
+faults injected while the tick runs on the real clock leaving the servos answering, and the two
+console scripts as subprocesses.
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import select
 import signal
 import stat
 import subprocess
+import threading
 import time
 
 import numpy as np
@@ -36,7 +40,7 @@ from prisma_tactile_driver.serial_backend import SerialHubBackend
 TICK_S = 0.01  # the emulator's 100 Hz scan period
 RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV
 FRAME_BYTES = frame_size(ALL_FINGERS_MASK)  # 78: a five-finger frame
-DEVICES = ("hub", "servos", "i2c.sock")
+DEVICES = {"serial": ("control.sock", "hub", "servos"), "i2c": ("control.sock", "i2c.sock", "servos")}
 
 
 class Clock:
@@ -54,9 +58,10 @@ class Clock:
 class Rig:
     """A started EmulatedHand plus the host-side drivers opened on its devices (closed in reverse)."""
 
-    def __init__(self, root, world: str) -> None:
+    def __init__(self, root, world: str, link: str) -> None:
         self.clock, self.paths = Clock(), EmulatorPaths(root)
-        self.hand = EmulatedHand(self.paths, EmulatorSettings(world=world), clock_ns=self.clock).start()
+        settings = EmulatorSettings(world=world, tactile_link=link)
+        self.hand = EmulatedHand(self.paths, settings, clock_ns=self.clock).start()
         self._closers = [self.hand.close]
 
     def tick(self, n: int = 1) -> None:
@@ -92,9 +97,9 @@ class Rig:
 
 @pytest.fixture
 def rig(tmp_path):
-    """rig(world="hand"): a Rig in tmp_path, closed after the test."""
+    """rig(world="hand", link="serial", root=tmp_path): a Rig, closed after the test."""
     rigs: list[Rig] = []
-    yield lambda world="hand": rigs.append(Rig(tmp_path, world)) or rigs[-1]
+    yield lambda world="hand", link="serial", root=tmp_path: rigs.append(Rig(root, world, link)) or rigs[-1]
     for r in rigs:
         r.close()
 
@@ -117,17 +122,44 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
 
 
 # ---- lifecycle --------------------------------------------------------------------------------
-def test_start_creates_the_devices_and_close_removes_exactly_them(tmp_path):
+@pytest.mark.parametrize("link", ["serial", "i2c"])
+def test_start_creates_the_devices_of_its_link_and_close_removes_exactly_them(tmp_path, link):
     (tmp_path / "notes.txt").write_text("mine")
-    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(), clock_ns=Clock()).start()
+    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(tactile_link=link), clock_ns=Clock()).start()
     try:
-        for link in (tmp_path / "hub", tmp_path / "servos"):
-            assert link.is_symlink() and os.readlink(link).startswith("/dev/pts/") and link.is_char_device()
-        assert stat.S_ISSOCK(os.lstat(tmp_path / "i2c.sock").st_mode)
-        assert sorted(os.listdir(tmp_path)) == sorted(DEVICES + ("notes.txt",))
+        ptys = ("hub", "servos") if link == "serial" else ("servos",)
+        for pty in ptys:
+            path = tmp_path / pty
+            assert path.is_symlink() and os.readlink(path).startswith("/dev/pts/") and path.is_char_device()
+        sockets = ("control.sock", "i2c.sock") if link == "i2c" else ("control.sock",)
+        assert all(stat.S_ISSOCK(os.lstat(tmp_path / name).st_mode) for name in sockets)
+        assert sorted(os.listdir(tmp_path)) == sorted(DEVICES[link] + ("notes.txt",))
+        assert hand.status()["tactile_link"] == link and ("hub" in hand.status()) == (link == "serial")
     finally:
         hand.close()
     assert os.listdir(tmp_path) == ["notes.txt"] and (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_the_directories_start_made_are_removed_with_the_devices_and_one_it_found_is_kept(tmp_path):
+    made = tmp_path / "a" / "hand"
+    hand = EmulatedHand(EmulatorPaths(made), EmulatorSettings(), clock_ns=Clock()).start()
+    assert sorted(os.listdir(made)) == sorted(DEVICES["serial"])
+    hand.close()
+    assert os.listdir(tmp_path) == []
+    found = tmp_path / "found"
+    found.mkdir()
+    EmulatedHand(EmulatorPaths(found), EmulatorSettings(), clock_ns=Clock()).start().close()
+    assert os.listdir(tmp_path) == ["found"] and os.listdir(found) == []
+
+
+def test_a_failed_start_removes_the_directory_it_made(tmp_path):
+    """A control socket path too long for a Unix socket: start fails, and leaves nothing."""
+    root = tmp_path / ("d" * (110 - len(str(tmp_path))))
+    hand = EmulatedHand(EmulatorPaths(root), EmulatorSettings(), clock_ns=Clock())
+    with pytest.raises(OSError, match="control.sock"):
+        hand.start()
+    hand.close()
+    assert os.listdir(tmp_path) == []
 
 
 def test_a_regular_file_at_hub_is_refused_and_nothing_is_created(tmp_path):
@@ -160,21 +192,25 @@ def test_a_second_hand_on_a_live_dir_is_refused_and_leaves_the_first_alone(rig, 
     assert {n: os.readlink(tmp_path / n) if os.path.lexists(tmp_path / n) else None for n in links} == links
 
 
-# ---- one world, three devices -----------------------------------------------------------------
-def test_one_world_drives_servos_hub_and_i2c_alike(rig):
-    r = rig("horizontal")
-    bus, serial, i2c = r.bus(), r.serial(), r.i2c()
+# ---- one world, the servos and either tactile link -----------------------------------------------
+def test_one_world_drives_the_servos_and_the_pads_alike_on_either_link(rig, tmp_path):
+    """Two hands on the same world and seed, one per tactile link: the hub's first frame and the
+    I2C bus's first scan carry the same counts, those of the world's pinch."""
+    serial_rig = rig("horizontal", "serial", tmp_path / "serial")
+    i2c_rig = rig("horizontal", "i2c", tmp_path / "i2c")
+    bus, serial, i2c = serial_rig.bus(), serial_rig.serial(), i2c_rig.i2c()
     states = bus.read_state()
-    for name, rad in r.hand.world.positions.items():
+    for name, rad in serial_rig.hand.world.positions.items():
         assert states[name].position_rad == pytest.approx(rad, abs=RAD_PER_TICK)
     assert states["fingers"].position_rad > 3.0  # the 1 N pinch pose: beyond the index contact at 3.0 rad
-    r.tick()
-    frames = read_frames(serial, r.clock, 1)
-    scan = i2c.scan()  # same tick: nothing ticks between the frame and the scan
+    serial_rig.tick()
+    i2c_rig.tick()
+    frames = read_frames(serial, serial_rig.clock, 1)
+    scan = i2c.scan()  # the i2c hand's first tick: nothing ticks between it and the scan
     assert [f.sequence for f in frames] == [0] and set(frames[0].counts) == set(scan) == set(FINGERS)
     for finger in FINGERS:
         np.testing.assert_array_equal(frames[0].counts[finger], scan[finger], err_msg=finger)
-    forces = r.hand.status()["forces_n"]
+    forces = serial_rig.hand.status()["forces_n"]
     assert forces["thumb"] == pytest.approx(1.0, abs=1e-3) and forces["index"] == pytest.approx(1.0, abs=1e-3)
     assert forces["middle"] == 0.0
     middle = scan["middle"].astype(int)
@@ -184,7 +220,7 @@ def test_one_world_drives_servos_hub_and_i2c_alike(rig):
 
 
 def test_motion_closes_the_grasp_and_loads_the_servos(rig):
-    r = rig("grasp")
+    r = rig("pinch_grasp")
     bus = r.bus()
     bus.set_velocities({"fingers": 60.0, "thumb_flexion": 60.0})
     r.hand.servos.sync()  # sync write has no status packet: let the servos take it before time moves
@@ -231,9 +267,9 @@ def test_hub_unplug_replug_and_timed_unplug(rig, tmp_path):
     hub = r.hand.status()["hub"]
     assert not os.path.lexists(tmp_path / "hub") and (hub["plugged"], hub["unplugs"]) == (False, 1)
     assert serial.read(r.clock.ns) == [] and not serial.connected and "lost" in serial.last_error
-    sent = r.hand.hub.frames_sent
+    sent = r.hand.hub.state.frames_sent
     r.tick(3)
-    assert r.hand.hub.frames_sent == sent  # nothing goes out while unplugged
+    assert r.hand.hub.state.frames_sent == sent  # nothing goes out while unplugged
     r.hand.apply("hub-replug")
     assert os.readlink(tmp_path / "hub").startswith("/dev/pts/") and r.hand.status()["hub"]["plugged"]
     r.clock.advance(0.1)  # past the backend's reopen backoff (0.05 s on the same clock)
@@ -249,6 +285,68 @@ def test_hub_unplug_replug_and_timed_unplug(rig, tmp_path):
     r.tick()
     hub = r.hand.status()["hub"]
     assert (tmp_path / "hub").is_symlink() and (hub["plugged"], hub["unplugs"]) == (True, 2)
+
+
+def test_hub_faults_while_the_tick_runs_leave_the_servos_answering(tmp_path):
+    """The hub unplugged and plugged back 100 times, with garbage and corrupted frames, from another
+    thread while the emulator ticks on the real clock (as the control socket does while it runs):
+    every servo transaction succeeds and the tick goes on. The hub's pty used to be closed under a
+    frame being written, which ended the tick and with it the whole emulator, servos included."""
+    hand = EmulatedHand(EmulatorPaths(tmp_path), EmulatorSettings(world="horizontal")).start()
+    stop, failures = threading.Event(), []
+
+    def run() -> None:
+        try:
+            hand.run(stop)
+        except BaseException as exc:  # the regression: anything the tick raised
+            failures.append(exc)
+
+    ticker = threading.Thread(target=run)
+    ticker.start()
+    try:
+        motors = MotorMap.from_lists(["fingers", "thumb_flexion", "thumb_rotation"], [1, 2, 3],
+                                     [0.0, 0.0, -2.0], [20.0, 20.0, 2.0], [100.0] * 3).motors
+        bus = DynamixelBus(str(tmp_path / "servos"), 1_000_000, motors, retries=3)
+        bus.open()
+        reads = 0
+        for _ in range(100):
+            hand.apply("hub-garbage", bytes=10)
+            hand.apply("hub-crc", frames=1)
+            hand.apply("hub-unplug", seconds=0.0)
+            bus.read_state()
+            hand.apply("hub-replug")
+            bus.read_state()
+            reads += 2
+        assert ticker.is_alive() and failures == []
+        assert (bus.stats.reads, bus.stats.comm_failures) == (reads, 0)
+        assert hand.status()["hub"]["unplugs"] == 100
+        bus.close()
+    finally:
+        stop.set()
+        ticker.join(5.0)
+        hand.close()
+    assert failures == []
+
+
+@pytest.mark.parametrize("link, command, args, other", [
+    ("serial", "i2c-nack", {"finger": "index"}, "i2c"),
+    ("serial", "i2c-glitch", {"finger": "index", "count": 1}, "i2c"),
+    ("serial", "i2c-clear", {}, "i2c"),
+    ("i2c", "hub-unplug", {"seconds": 1.0}, "serial"),
+    ("i2c", "hub-replug", {}, "serial"),
+    ("i2c", "hub-garbage", {"bytes": 10}, "serial"),
+    ("i2c", "hub-crc", {"frames": 1}, "serial"),
+])
+def test_a_fault_of_the_other_tactile_link_is_refused_with_the_reason(rig, link, command, args, other):
+    r = rig("horizontal", link)
+    before = r.hand.status()
+    with pytest.raises(FaultError) as info:
+        r.hand.apply(command, **args)
+    message = str(info.value)
+    assert message.startswith(f"{command}: ") and f"tactile link {link}" in message
+    assert f"--tactile-link {other}" in message and f"tactile_backend:={other}" in message
+    assert r.hand.status() == before  # nothing changed
+    assert r.hand.request(command, args) == {"ok": False, "error": message}  # as prisma-hand-fault gets it
 
 
 # ---- servo and I2C faults ---------------------------------------------------------------------
@@ -269,7 +367,7 @@ def test_servo_error_silent_and_clear_through_the_dynamixel_bus(rig):
 
 
 def test_i2c_nack_clear_and_glitch_through_the_i2c_backend(rig):
-    r = rig("horizontal")
+    r = rig("horizontal", "i2c")
     i2c = r.i2c()
     r.tick()
     assert set(i2c.scan()) == set(FINGERS)
@@ -312,12 +410,12 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     assert bus.read_state()["fingers"].position_rad > 3.0
     bus.set_velocities({"fingers": 30.0})
     r.hand.servos.sync()
-    assert r.hand.apply("world", name="grasp").startswith("world grasp")
+    assert r.hand.apply("world", name="pinch_grasp").startswith("world pinch_grasp")
     r.clock.advance(0.5)  # posed at rest: the goal velocity was zeroed
     assert all(s.position_rad == pytest.approx(0.0, abs=RAD_PER_TICK) for s in bus.read_state().values())
     r.tick()
     status = r.hand.status()
-    assert status["world"] == "grasp" and all(f == 0.0 for f in status["forces_n"].values())
+    assert status["world"] == "pinch_grasp" and all(f == 0.0 for f in status["forces_n"].values())
 
 
 @pytest.mark.parametrize("command, args, named", [
@@ -334,7 +432,7 @@ def test_bad_fault_values_raise_fault_error_naming_them(rig, command, args, name
     assert named in str(info.value)
     status = r.hand.status()  # nothing was changed
     assert status["world"] == "hand" and status["servos"]["fingers"]["hardware_error"] == 0
-    assert r.hand.hub.corrupt_pending == 0
+    assert r.hand.hub.state.corrupt_pending == 0
 
 
 # ---- console scripts --------------------------------------------------------------------------
@@ -375,7 +473,32 @@ def test_cli_running_emulator_answers_faults_and_stops_on_sigint(tmp_path):
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=5) == 0 and time.monotonic() - start < 2.5  # lingers 1 s by default
         assert "emulated hand stopped after" in proc.stdout.read()
-        assert os.listdir(d) == []  # hub, servos, i2c.sock and control.sock removed
+        assert os.listdir(d) == []  # hub, servos and control.sock removed
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+
+
+def test_cli_on_sigterm_removes_what_it_made_and_refuses_faults_of_the_other_link(tmp_path):
+    """`--tactile-link i2c`: the bus socket and no hub; hub-unplug is refused in one line naming the
+    link; SIGTERM (what `ros2 launch` sends) removes the devices and the directories it created."""
+    d = tmp_path / "made" / "hand"
+    proc = subprocess.Popen(["prisma-hand-emulator", "--dir", str(d), "--tactile-link", "i2c", "--linger", "0",
+                             "--seconds", "20"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert select.select([proc.stdout], [], [], 10.0)[0], "the emulator printed nothing in 10 s"
+        assert f"i2c {d / 'i2c.sock'}" in proc.stdout.readline()
+        assert sorted(os.listdir(d)) == sorted(DEVICES["i2c"])
+        done = run_cli("prisma-hand-fault", "--dir", str(d), "hub-unplug", "--seconds", "1")
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+        assert lines[0].startswith("prisma-hand-fault: error: hub-unplug: ") and "tactile link i2c" in lines[0]
+        status = json.loads(run_cli("prisma-hand-fault", "--dir", str(d), "status").stdout)
+        assert status["tactile_link"] == "i2c" and "hub" not in status and status["i2c"]["nacks"] == 0
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=5) == 0
+        assert os.listdir(tmp_path) == []
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -12,6 +12,8 @@ name still see the real one: matplotlib's format from the extension, rosbags' st
 from the bag directory's name, scipy's `.mat` suffix. Every temporary thing lives in that one
 directory: an error or KeyboardInterrupt removes it, and only a killed process leaves it behind,
 named so that it never looks like a finished output, and a rerun (another pid) does not trip over it.
+An output that cannot be created there or renamed into place raises `OutputError` (an OSError)
+naming the path and the reason; the console scripts' `command` wrapper prints it as one line.
 
 Imports only the standard library: every console script uses this, several before argparse runs.
 """
@@ -23,6 +25,15 @@ from pathlib import Path
 from types import TracebackType
 
 PARTIAL = ".partial-"
+
+
+class OutputError(OSError):
+    """An output that could not be created or put in place; the message names the path and the reason."""
+
+
+def _output_error(exc: OSError, path: Path) -> OutputError:
+    failed = exc.filename if exc.filename is not None else path
+    return OutputError(f"cannot create {failed} ({exc.strerror or exc}); choose another location")
 
 
 def staging_dir(path: str | Path, pid: int | None = None) -> Path:
@@ -70,11 +81,14 @@ class atomic_output:  # noqa: N801 - used like a function: `with atomic_output(p
 
     def open(self) -> Path:
         self._check_target()
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        if self.stage.exists() or self.stage.is_symlink():
-            # only this process uses this pid's name: a leftover of an earlier process that had it
-            _remove(self.stage)
-        self.stage.mkdir()
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+            if self.stage.exists() or self.stage.is_symlink():
+                # only this process uses this pid's name: a leftover of an earlier process that had it
+                _remove(self.stage)
+            self.stage.mkdir()
+        except OSError as exc:
+            raise _output_error(exc, self.stage) from exc
         self._open = True
         return self.path
 
@@ -92,7 +106,10 @@ class atomic_output:  # noqa: N801 - used like a function: `with atomic_output(p
                 raise IsADirectoryError(f"{self.target} is a directory; not replacing it with a file")
             if staged_dir and not target_dir and (self.target.exists() or self.target.is_symlink()):
                 raise NotADirectoryError(f"{self.target} is a file; not replacing it with a directory")
-            self._swap(target_dir)
+            try:
+                self._swap(target_dir)
+            except OSError as exc:
+                raise _output_error(exc, self.target) from exc
         except BaseException:
             self.abort()
             raise

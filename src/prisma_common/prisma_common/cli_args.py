@@ -16,8 +16,15 @@ names the value and says what to do, never a traceback:
 UserError; `command` prints it the same way and returns 2, prints `prog: interrupted` and returns
 130 on ctrl-C, and lets every other exception through with its traceback (a bug, not a mistake).
 
-Imports only the standard library (and no other module of this package): `--help` of every tool
-must stay fast, so torch, matplotlib, scipy and rosbags are imported inside the commands.
+An output that cannot be created where it is named (a directory that cannot be made there, a name
+too long for the file system, a read-only mount) is found before any work as well: the output
+checks make and remove the directories and the staging directory `atomic_output` would write it
+in. One that fails later all the same (the disk filled up, the directory went away) comes out of
+`atomic_output` as `OutputError`, which `command` prints as one line too.
+
+Imports only the standard library (and of this package only `atomic`, itself standard library
+only): `--help` of every tool must stay fast, so torch, matplotlib, scipy and rosbags are imported
+inside the commands.
 """
 from __future__ import annotations
 
@@ -29,6 +36,8 @@ import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
+
+from .atomic import OutputError, staging_dir
 
 # matplotlib's savefig formats that need nothing beyond matplotlib and Pillow (a matplotlib
 # dependency); the extension picks the format.
@@ -103,12 +112,27 @@ def unit_interval(text: str) -> float:
 
 
 # ----------------------------------------------------------------------------------------- paths
+def _looked_at(check: Callable[[str], Path]) -> Callable[[str], Path]:
+    """A path check that says, as its own error, why a path cannot even be looked at (a name too
+    long for the file system, a loop of symlinks): stat raises OSError for those."""
+
+    @functools.wraps(check)
+    def run(text: str) -> Path:
+        try:
+            return check(text)
+        except OSError as exc:
+            raise argparse.ArgumentTypeError(f"{text}: {exc.strerror or exc}; choose another path") from None
+
+    return run
+
+
 def _path(text: str) -> Path:
     if not text:
         raise argparse.ArgumentTypeError("an empty path; give a file or directory name")
     return Path(text).expanduser()
 
 
+@_looked_at
 def existing_file(text: str) -> Path:
     path = _path(text)
     if path.is_dir():
@@ -120,6 +144,7 @@ def existing_file(text: str) -> Path:
     return path
 
 
+@_looked_at
 def existing_dir(text: str) -> Path:
     path = _path(text)
     if not path.exists():
@@ -129,6 +154,7 @@ def existing_dir(text: str) -> Path:
     return path
 
 
+@_looked_at
 def existing_path(text: str) -> Path:
     path = _path(text)
     if not path.exists():
@@ -154,21 +180,62 @@ def check_bundle_dir(path: Path) -> None:
 
 
 def _check_writable_parent(path: Path, text: str) -> None:
-    """The nearest existing ancestor must be a writable directory (missing ones are created)."""
+    """The nearest existing ancestor must be a writable directory (missing ones are created), and
+    `path` must be creatable there (`_check_creatable`)."""
     parent = path.absolute().parent
-    while not parent.exists():
+    while not parent.exists() and not parent.is_symlink():
         parent = parent.parent
     if not parent.is_dir():
         raise argparse.ArgumentTypeError(f"{text}: {parent} is a file, not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"{text}: cannot write in {parent} (permission denied); "
                                          f"choose another location")
+    _check_creatable(path, text)
+
+
+def _check_creatable(path: Path, text: str, inside: bool = False) -> None:
+    """Make what writing `path` through `atomic_output` makes, then remove it again: the missing
+    directories above it, its staging directory and an entry of its name in there (with `inside`,
+    a staging directory inside `path`, a directory the tool writes its files into). os.access
+    cannot tell that /proc takes no new directory, that a name is too long for the file system or
+    that a read-only mount refuses even root; trying can. ArgumentTypeError naming the path that
+    could not be made and the reason; nothing is left behind either way."""
+    target = path.absolute()
+    stage = staging_dir(target / ".probe" if inside else target)
+    missing = []
+    directory = stage.parent
+    while not directory.exists() and not directory.is_symlink():
+        missing.append(directory)
+        directory = directory.parent
+    made: list[Path] = []
+    try:
+        for directory in reversed(missing):
+            directory.mkdir()
+            made.append(directory)
+        if stage.exists() or stage.is_symlink():
+            return  # a killed run's leftover under this pid: atomic_output clears and reuses it
+        stage.mkdir()
+        made.append(stage)
+        entry = stage / target.name
+        entry.mkdir()
+        made.append(entry)
+    except OSError as exc:
+        failed = exc.filename if exc.filename is not None else stage
+        raise argparse.ArgumentTypeError(f"{text}: cannot create {failed} ({exc.strerror or exc}); "
+                                         f"choose another location") from None
+    finally:
+        for directory in reversed(made):
+            try:
+                directory.rmdir()
+            except OSError:
+                pass
 
 
 def output_file(*suffixes: str) -> Callable[[str], Path]:
     """A file to write (replaced if it exists), with one of `suffixes` when any are given."""
     allowed = tuple(s.lower() for s in suffixes)
 
+    @_looked_at
     def check(text: str) -> Path:
         path = _path(text)
         if path.is_dir():
@@ -187,6 +254,7 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
 image_file = output_file(*IMAGE_SUFFIXES)
 
 
+@_looked_at
 def output_dir(text: str) -> Path:
     """A directory to write into (created if missing)."""
     path = _path(text)
@@ -195,11 +263,13 @@ def output_dir(text: str) -> Path:
     if path.exists():
         if not os.access(path, os.W_OK | os.X_OK):
             raise argparse.ArgumentTypeError(f"{text}: cannot write in it (permission denied)")
+        _check_creatable(path, text, inside=True)
     else:
         _check_writable_parent(path, text)
     return path
 
 
+@_looked_at
 def new_path(text: str) -> Path:
     """An output that must not exist yet (the tool refuses to replace it)."""
     path = _path(text)
@@ -212,7 +282,13 @@ def new_path(text: str) -> Path:
 def check_replaceable_dir(path: Path, allowed: Iterable[str], what: str, option: str) -> None:
     """`path` may be written as a whole (replacing what is there): it is missing, empty, or a
     directory holding only `allowed` entries (an earlier output of the same kind). UserError otherwise."""
-    allowed = set(allowed)
+    try:
+        _check_replaceable_dir(path, set(allowed), what, option)
+    except OSError as exc:  # the path cannot even be looked at (a name too long, a loop of symlinks)
+        raise UserError(f"{option} {path}: {exc.strerror or exc}; choose another path") from None
+
+
+def _check_replaceable_dir(path: Path, allowed: set[str], what: str, option: str) -> None:
     if not path.exists() and not path.is_symlink():
         try:
             _check_writable_parent(path, f"{option} {path}")
@@ -228,6 +304,10 @@ def check_replaceable_dir(path: Path, allowed: Iterable[str], what: str, option:
                         f"give a new or empty directory")
     if not os.access(path.absolute().parent, os.W_OK | os.X_OK):
         raise UserError(f"{option} {path}: cannot replace it, {path.absolute().parent} is not writable")
+    try:
+        _check_creatable(path, f"{option} {path}")
+    except argparse.ArgumentTypeError as exc:
+        raise UserError(str(exc)) from None
 
 
 def check_bundle_out(path: Path, option: str = "--out") -> None:
@@ -251,8 +331,9 @@ def _known(names: Iterable[str]) -> tuple[type[BaseException], ...]:
 def command(prog: str, *user_errors: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
     """Decorate a console script's main(argv) -> exit status.
 
-    UserError, and the exception types named in `user_errors` ('module:Class', e.g. a bundle
-    loader's BundleError), print `prog: error: <message>` and return 2; KeyboardInterrupt prints
+    UserError, atomic_output's OutputError (an output that could not be created) and the exception
+    types named in `user_errors` ('module:Class', e.g. a bundle loader's BundleError), print
+    `prog: error: <message>` and return 2; KeyboardInterrupt prints
     `prog: interrupted` and returns 130. Anything else keeps its traceback."""
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
@@ -264,7 +345,7 @@ def command(prog: str, *user_errors: str) -> Callable[[Callable[..., int]], Call
                 print(f"{prog}: interrupted", file=sys.stderr)
                 return 130
             except Exception as exc:
-                if isinstance(exc, UserError) or isinstance(exc, _known(user_errors)):
+                if isinstance(exc, (UserError, OutputError)) or isinstance(exc, _known(user_errors)):
                     print(f"{prog}: error: {exc}", file=sys.stderr)
                     return 2
                 raise

@@ -5,7 +5,7 @@ import os
 
 import pytest
 
-from prisma_common.atomic import atomic_output, staging_dir
+from prisma_common.atomic import OutputError, atomic_output, staging_dir
 
 
 def leftovers(directory):
@@ -109,3 +109,19 @@ def test_a_leftover_of_a_killed_run_with_the_same_pid_is_cleared(tmp_path):
         assert not staged.exists()
         staged.write_bytes(b"whole")
     assert target.read_bytes() == b"whole" and not stale.exists()
+
+
+@pytest.mark.parametrize("where, named, reason", [
+    ("/proc/prisma-no-such-dir/out.png", "/proc/prisma-no-such-dir", "No such file or directory"),
+    ("{tmp}/" + "x" * 300 + ".png", "x" * 300, "File name too long"),
+], ids=["no-directory-in-proc", "name-too-long"])
+def test_an_output_that_cannot_be_created_raises_output_error_naming_it(tmp_path, where, named, reason):
+    """/proc takes no new directory (not even root's) and no file system takes a 300-byte name:
+    OutputError, an OSError, names the path and the reason; nothing is left behind."""
+    with pytest.raises(OutputError) as info:
+        with atomic_output(where.replace("{tmp}", str(tmp_path))) as staged:
+            staged.write_bytes(b"never")
+    assert isinstance(info.value, OSError)
+    message = str(info.value)
+    assert message.startswith("cannot create ") and named in message and f"({reason})" in message
+    assert list(tmp_path.iterdir()) == []

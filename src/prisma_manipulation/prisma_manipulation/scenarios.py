@@ -1,5 +1,9 @@
 """The paper's scenarios (docs/manipulation.md) as ready closed loops (tests, bench, plots and the CLI).
 
+Their names are the scenarios' names everywhere: prisma-sim, prisma-manip-scenarios, the hand
+emulator's worlds (`prisma-hand-emulator --world`, `hand.launch.py emulator_world:=`,
+`prisma-hand-fault world`).
+
 Each is a world to start from and the goal a client sends the manipulation node, run through the
 node's own cores (`closed_loop.ClosedLoop`); every setting not in the goal is the node's default
 configuration (`ManipulationConfig`).
@@ -7,9 +11,9 @@ configuration (`ManipulationConfig`).
 - vertical: same start; Manipulate vertical at 10 rpm.
 - disturbance: same start; at 0.5 s an external push slips the object 4 mm toward the thumb pad's
   right side; Manipulate hold at 20 rpm restores the left side.
-- grasp: hand open, a foam ball presented on a stand; Grasp pinch (60 rpm, 0.8 N / 1.0 N).
-- lateral: a card against the side of the index; Grasp lateral: the fingers close to the lateral
-  fist by position, then the thumb flexes to 1 N.
+- pinch_grasp: hand open, a foam ball presented on a stand; Grasp pinch (60 rpm, 0.8 N / 1.0 N).
+- lateral_grasp: a card against the side of the index; Grasp lateral: the fingers close to the
+  lateral fist by position, then the thumb flexes to 1 N.
 - combined: pinch held, Manipulate hold with use_force; the object slips to a narrower section
   (grasp force drops) and is pushed sideways; the thumb restores 1 N while rotation restores the
   contact side.
@@ -30,7 +34,7 @@ from .manipulation_core import GraspRequest, ManipulateRequest
 if TYPE_CHECKING:
     from prisma_force_estimator.inference import ForceEstimator
 
-SCENARIO_NAMES = ("horizontal", "vertical", "disturbance", "grasp", "lateral", "combined")
+SCENARIO_NAMES = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
 
 
 @dataclass(frozen=True)
@@ -51,8 +55,8 @@ def _specs(k: float, speed_rpm: float | None) -> dict[str, ScenarioSpec]:
         "horizontal": ScenarioSpec(manipulate("horizontal", 20.0, 10.0), 10.0, 0.3),
         "vertical": ScenarioSpec(manipulate("vertical", 10.0, 15.0), 15.0, 0.3),
         "disturbance": ScenarioSpec(manipulate("hold", 20.0, 3.0), 4.0, 0.0),
-        "grasp": ScenarioSpec(grasp("pinch"), 10.0, 0.5),
-        "lateral": ScenarioSpec(grasp("lateral"), 10.0, 0.5),
+        "pinch_grasp": ScenarioSpec(grasp("pinch"), 10.0, 0.5),
+        "lateral_grasp": ScenarioSpec(grasp("lateral"), 10.0, 0.5),
         "combined": ScenarioSpec(manipulate("hold", 20.0, 3.0, use_force=True), 4.0, 0.0),
     }
 
@@ -99,10 +103,10 @@ def scenario_world(name: str) -> HandWorld:
         return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0)])
     if name == "combined":
         return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
-    if name == "grasp":
+    if name == "pinch_grasp":
         # presented on a stand that does not let go: each phase's force stays what it reached
         return HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
-    if name == "lateral":
+    if name == "lateral_grasp":
         # a card against the side of the index: the fingers close to the lateral fist by position
         return HandWorld(obj="lateral_card")
     raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")

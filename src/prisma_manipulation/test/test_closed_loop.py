@@ -138,7 +138,7 @@ def _check_grasp(tr, c, which):
 
 
 def test_pinch_grasp_with_ground_truth_force_reaches_targets_without_overshoot():
-    sc = build("grasp")
+    sc = build("pinch_grasp")
     tr = sc.run()
     c = sc.controller
     assert c.reason == "force_reached" and c.success
@@ -153,7 +153,7 @@ def test_pinch_grasp_at_60_rpm_100_hz_with_the_estimators_forces():
     from prisma_force_estimator.inference import ForceEstimator
 
     estimator = ForceEstimator.from_bundle(BUNDLE)
-    sc = build("grasp", estimator=estimator)
+    sc = build("pinch_grasp", estimator=estimator)
     assert sc.loop.period_ns == 10_000_000 and sc.request.speed_rpm == 60.0
     tr = sc.run()
     c = sc.controller

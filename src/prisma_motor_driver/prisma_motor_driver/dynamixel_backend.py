@@ -2,7 +2,8 @@
 
 One GroupSyncRead of Present Current/Velocity/Position (126..135) and one of Hardware Error Status
 (70) per cycle; goals go out with GroupSyncWrite. Mode changes follow the firmware rule: torque off,
-write Operating Mode (EEPROM), torque on. Communication errors (no status packet, corrupt status)
+write Operating Mode (EEPROM), torque on. Communication errors (no status packet, corrupt status,
+a sync read answered with a block of another length: the late status of an earlier instruction)
 are retried a bounded number of times and counted; exhausting the retries raises BusError. A
 port that fails underneath (the adapter unplugged: EIO from the read, the write or the SDK's
 input flush) raises BusError at once, naming the port and the OS reason.
@@ -94,8 +95,21 @@ class DynamixelBus:
 
     # ---- reading ---------------------------------------------------------------------------
     def read_state(self, stamp_ns: int = 0) -> dict[str, MotorState]:
-        self._retry(self._state_reader.txRxPacket, "sync read present state")
-        self._retry(self._error_reader.txRxPacket, "sync read hardware error status")
+        attempts = self.retries + 1
+        for attempt in range(attempts):
+            self._retry(self._state_reader.txRxPacket, "sync read present state")
+            self._retry(self._error_reader.txRxPacket, "sync read hardware error status")
+            wrong = self._wrong_length_blocks()
+            if wrong is None:
+                break
+            # a status packet of another length: the late answer of an earlier instruction to that
+            # servo (one that timed out on a busy computer), taken by the SDK for this one's
+            self.stats.corrupt_status += 1
+            if attempt + 1 < attempts:
+                self.stats.retries += 1
+        else:
+            self.stats.comm_failures += 1
+            raise BusError(f"sync read: {wrong} after {attempts} attempts")
         self.stats.reads += 1
         states = {}
         for name, c in self.motors.items():
@@ -115,6 +129,16 @@ class DynamixelBus:
                 hardware_error=int(error),
             )
         return states
+
+    def _wrong_length_blocks(self) -> str | None:
+        """What the last sync reads got of another length than asked, None if nothing."""
+        for name, c in self.motors.items():
+            for reader, what, length in ((self._state_reader, "present state", ct.STATE_LENGTH),
+                                         (self._error_reader, "hardware error status", 1)):
+                block = reader.data_dict.get(c.servo_id)
+                if block is not None and len(block) != length:
+                    return f"{name} (id {c.servo_id}) answered {len(block)} bytes of {what}, not {length}"
+        return None
 
     # ---- commands --------------------------------------------------------------------------
     def set_velocities(self, rpm: Mapping[str, float]) -> None:

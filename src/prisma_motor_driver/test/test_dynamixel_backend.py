@@ -231,6 +231,36 @@ def test_dropped_status_packet_is_retried_and_counted(rig):
     bus.read_state()
 
 
+def test_a_late_status_of_an_earlier_instruction_is_retried_not_taken_for_the_present_state(rig):
+    """On a busy computer a servo's answer can come after the host gave up on it: the SDK then takes
+    that status packet (a ping's 3 bytes here) for the next instruction's. The sync read is read
+    again, counted as a corrupt status; it used to end the motor driver with a ValueError."""
+    emu, bus, _ = rig
+    handle = emu._handle
+    late = []
+
+    def answer_late_first(packet):
+        reply = handle(packet)
+        if late and packet.instruction == sdk.INST_SYNC_READ:
+            return late.pop() + reply
+        return reply
+
+    emu._handle = answer_late_first
+    late.append(encode_status(1, 0, bytes([0x20, 0x04, 46])))  # fingers' answer to a ping
+    states = bus.read_state()
+    assert set(states) == set(IDS) and not late
+    assert (bus.stats.corrupt_status, bus.stats.retries, bus.stats.comm_failures) == (1, 1, 0)
+    # every attempt answered so: one clear error naming the servo and the lengths, counted
+    emu._handle = lambda packet: encode_status(1, 0, b"\x00\x00\x00") + handle(packet) \
+        if packet.instruction == sdk.INST_SYNC_READ else handle(packet)
+    # (the SDK's slice of the short packet holds its 3 parameters and its 2 CRC bytes)
+    with pytest.raises(BusError, match=r"fingers \(id 1\) answered 5 bytes of present state, not 10 after 3 attempts"):
+        bus.read_state()
+    assert bus.stats.comm_failures == 1
+    emu._handle = handle
+    assert set(bus.read_state()) == set(IDS)
+
+
 def test_dropped_write_status_is_retried(rig):
     emu, bus, _ = rig
     emu.drop_status(3, 1)

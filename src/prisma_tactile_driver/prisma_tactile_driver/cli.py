@@ -6,7 +6,9 @@
         the pad model's response: force sweep with hysteresis, contact location map, shear skew
     prisma-tactile-hub-emulator --link /tmp/ttyPRISMA [--rate 100] [--seconds 0]
         plays the Arduino hub on a pseudo-terminal (scripted contacts through the pad model), so
-        `tactile_driver` with backend:=serial port:=/tmp/ttyPRISMA runs without hardware
+        `tactile_driver` with backend:=serial port:=/tmp/ttyPRISMA runs without hardware; stops on
+        ctrl-C or SIGTERM and removes its link (frames nobody reads are dropped, as an adapter's
+        buffer does, so it never waits on the link)
 (also: python -m prisma_tactile_driver.cli calset|pad-plot|hub-emulator ...)
 
 Arguments are checked before any work (exit 2 with a one-line message); every file is written
@@ -14,7 +16,9 @@ under a temporary name and renamed when complete (an existing one is replaced).
 """
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -157,7 +161,7 @@ def hub_emulator_main(argv: list[str] | None = None) -> int:
 
 
     from .protocol import encode_frame
-    from .pty_hub import PtyHubPort
+    from .pty_hub import ADAPTER_BUFFER_BYTES, PtyHubPort
     from .sim_backend import SimHubBackend
 
     if not args.link.parent.is_dir():
@@ -170,23 +174,31 @@ def hub_emulator_main(argv: list[str] | None = None) -> int:
         raise UserError(f"--link {exc}") from None
     except OSError as exc:  # no permission to create the link there
         raise UserError(f"--link {args.link}: {exc.strerror or exc}; choose another path") from None
+    stop = threading.Event()
+    # SIGTERM (`ros2 launch`, kill) ends the run as ctrl-C does: the link is removed on the way out
+    # (a signal handler can only be set from the main thread; the tests also run this in another)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set()) if in_main else None
     print(f"hub on {where} at {args.rate:g} Hz; Ctrl-C to stop", flush=True)
     sim = SimHubBackend(ScriptedContactSource(), FINGERS)
     period = 1.0 / args.rate
     start = time.monotonic()
-    sequence = 0
+    sequence = dropped = 0
     try:
-        while not args.seconds or time.monotonic() - start < args.seconds:
+        while not stop.is_set() and (not args.seconds or time.monotonic() - start < args.seconds):
             stamp_ns = int(sequence * period * 1e9)
             [reading] = sim.read(stamp_ns)
-            port.write(encode_frame(sequence, reading.counts))
+            if not port.offer(encode_frame(sequence, reading.counts), ADAPTER_BUFFER_BYTES):
+                dropped += 1
             sequence += 1
-            time.sleep(max(0.0, start + sequence * period - time.monotonic()))
+            stop.wait(max(0.0, start + sequence * period - time.monotonic()))
     except KeyboardInterrupt:
         pass
     finally:
         port.close()
-    print(f"sent {sequence} frames")
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
+    print(f"sent {sequence - dropped} frames" + (f"; {dropped} dropped, nobody read them" if dropped else ""))
     return 0
 
 

@@ -21,6 +21,8 @@ import tty
 from pathlib import Path
 
 PTS_DIR = "/dev/pts/"
+# what a USB-serial adapter holds for a host that does not read (the emulators drop frames beyond it)
+ADAPTER_BUFFER_BYTES = 4096
 
 
 def is_pty_link(path: str | Path) -> bool:
@@ -122,6 +124,16 @@ class PtyHubPort:
         while view:
             written = os.write(self._open_fds()[0], view)
             view = view[written:]
+
+    def offer(self, data: bytes, buffer_bytes: int) -> bool:
+        """Write `data` unless the other end already holds more than `buffer_bytes` - len(data)
+        unread bytes; False (nothing written) then. A USB-serial adapter buffers only so much for
+        a host that does not read, and an emulator must not block on a link nobody reads: its
+        other devices and its own shutdown would wait behind it."""
+        if self.pending() + len(data) > buffer_bytes:
+            return False
+        self.write(data)
+        return True
 
     def pending(self) -> int:
         """Bytes written but not yet read by the other end."""

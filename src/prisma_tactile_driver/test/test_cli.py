@@ -1,5 +1,9 @@
 """ROS-free tactile CLIs: calibration set, pad plot, pty hub emulator."""
 import os
+import select
+import signal
+import subprocess
+import sys
 import threading
 import time
 
@@ -44,6 +48,28 @@ def test_hub_emulator_feeds_the_serial_backend(tmp_path):
     assert np.all(np.diff([f.sequence for f in frames]) == 1)
     assert frames[0].fingers == ("thumb", "index", "middle", "ring", "little")
     assert backend.counters()["crc_errors"] == 0
+
+
+def test_hub_emulator_nobody_reads_then_sigterm_removes_its_link(tmp_path):
+    """Nobody opens the link: the frames beyond the adapter's buffer are dropped, not waited on, so
+    SIGTERM (what `ros2 launch` and kill send) ends the run at once, exit 0, and the link is gone."""
+    link = tmp_path / "ttyPRISMA"
+    code = "import sys; from prisma_tactile_driver.cli import hub_emulator_main as m; sys.exit(m())"
+    proc = subprocess.Popen([sys.executable, "-c", code, "--link", str(link), "--rate", "1000", "--seconds", "20"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert select.select([proc.stdout], [], [], 10.0)[0], "the emulator printed nothing in 10 s"
+        assert proc.stdout.readline().startswith(f"hub on {link}")
+        time.sleep(0.5)  # 500 frames of 78 bytes: ten times what the link holds
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=5) == 0, proc.stderr.read()
+        out = proc.stdout.read()
+        assert "dropped, nobody read them" in out and "Traceback" not in proc.stderr.read()
+        assert list(tmp_path.iterdir()) == []
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
 
 
 # --link: nothing but the emulator's own link is ever replaced or removed --------------------------
