@@ -30,7 +30,7 @@ niceness" and the nodes run at the default priority.
 import tempfile
 from pathlib import Path
 
-from launch import LaunchDescription
+from launch import LaunchDescription, Substitution
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
 from launch.event_handlers import OnShutdown
@@ -40,8 +40,7 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 
-def rviz_for_this_hand(context, config_dir: PathJoinSubstitution, namespace: LaunchConfiguration,
-                       frame_prefix: LaunchConfiguration) -> list:
+def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
     """rviz2 with config/hand.rviz; under a namespace the fixed frame and the model's TF prefix
     follow the hand's frame prefix (the config's topics are relative, so they follow the namespace)."""
     prefix = frame_prefix.perform(context)
@@ -92,16 +91,20 @@ def generate_launch_description():
         DeclareLaunchArgument("emulator_world", default_value="hand",
                               description="The emulator's object and pose: hand (as sim:=true) or a "
                                           "prisma-sim scenario (grasp, lateral, horizontal, ...)"),
-        DeclareLaunchArgument("frame_prefix",
-                              default_value=PythonExpression(["'", namespace, "/' if '", namespace, "' else ''"]),
+        DeclareLaunchArgument("frame_prefix", default_value="auto",
                               description="Put in front of every frame of the hand: its TF frames and the "
-                                          "frame_id of its messages (default: '<namespace>/' under a namespace)"),
+                                          "frame_id of its messages; auto: '<namespace>/' under a namespace, "
+                                          "none at the root"),
         DeclareLaunchArgument("rviz", default_value="false", choices=["true", "false"],
                               description="Open RViz with the hand model, its taxels, contacts and forces"),
         DeclareLaunchArgument("nice", default_value="-5",
                               description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
     ]
-    frame_prefix = LaunchConfiguration("frame_prefix")
+    # "auto" is resolved here, not in the argument's default: a default computed from another argument
+    # would leak from the first of two hands included in one launch file into the second
+    given_prefix = LaunchConfiguration("frame_prefix")
+    frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
+                                     "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
     pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
     # every hand node starts under `nice -n <nice>`: the priority covers all its threads (DDS too)
     prefix = ["nice -n ", LaunchConfiguration("nice")]
