@@ -93,7 +93,8 @@ class TestHandTf(unittest.TestCase):
                     ros.collect(HandWrench, f"{namespace}/prisma/hand/wrench"),
                     ros.collect(HandContact, f"{namespace}/prisma/hand/contact")]
             joints = ros.collect(JointState, f"{namespace}/joint_states")
-            self.assertTrue(ros.spin_until(lambda: all(len(s) >= 3 for s in streams + hand + [joints]), 90.0),
+            every = streams + hand + [joints]
+            self.assertTrue(ros.spin_until(lambda every=every: all(len(s) >= 3 for s in every), 90.0),
                             f"{namespace or '/'}: a stream of the hand is silent")
             frames = {m.header.frame_id for s in streams for m in s}
             frames |= {t.header.frame_id for m in hand[0] for t in m.samples}
@@ -109,7 +110,8 @@ class TestHandTf(unittest.TestCase):
     def test_2_two_hands_two_trees_no_clash(self):
         ros = self.ros
         tf = ros.collect(TFMessage, "/tf")
-        static = ros.collect(TFMessage, "/tf_static", QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        static = ros.collect(TFMessage, "/tf_static",
+                             QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         ros.spin_for(2.0)
         self.assertTrue(static and tf)
         parents: dict[str, set[str]] = {}

@@ -22,10 +22,13 @@ Beside them: robot_state_publisher (the hand's description from prisma_descripti
 `<namespace>/`, and the drivers stamp their messages with it) and tactile_markers (the pads drawn in
 RViz, idle until a display subscribes). rviz:=true opens RViz with the hand, its taxels and forces.
 
-The four nodes run at nice -5 (`nice:=0` for the default priority): the hand's control path comes
-before a plotting tool or a recorder on the same cores. Without the right to raise priority (not
-root, no `nice` limit in /etc/security/limits.conf; README, "On the robot") `nice` says "cannot set
-niceness" and the nodes run at the default priority.
+The control path (the four nodes, and the emulator with hardware:=emulated) runs with real-time
+scheduling, SCHED_FIFO rt_priority:=20, ahead of every ordinary process: a plotting tool, a recorder,
+a browser on the same cores cannot hold up the taxel, wrench and motor streams until a goal stops
+sensor_stale (prisma_common/scheduling.py). Where real-time scheduling is not permitted (not root, no
+`rtprio` limit in /etc/security/limits.conf; README, "On the robot") the nodes run at nice:=-5 if
+that is permitted, else at the default priority, and say so in their first log line. rt_priority:=0
+asks for niceness only.
 """
 import tempfile
 from pathlib import Path
@@ -97,8 +100,11 @@ def generate_launch_description():
                                           "none at the root"),
         DeclareLaunchArgument("rviz", default_value="false", choices=["true", "false"],
                               description="Open RViz with the hand model, its taxels, contacts and forces"),
+        DeclareLaunchArgument("rt_priority", default_value="20",
+                              description="SCHED_FIFO priority of the control path (1-99; 0: no real-time scheduling)"),
         DeclareLaunchArgument("nice", default_value="-5",
-                              description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
+                              description="Niceness of the control path where real-time scheduling is not asked for "
+                                          "or not permitted (-20..19; lower runs first)"),
     ]
     # "auto" is resolved here, not in the argument's default: a default computed from another argument
     # would leak from the first of two hands included in one launch file into the second
@@ -106,19 +112,19 @@ def generate_launch_description():
     frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
                                      "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
     pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
-    # every hand node starts under `nice -n <nice>`: the priority covers all its threads (DDS too)
-    prefix = ["nice -n ", LaunchConfiguration("nice")]
+    # read by each process at start, before its threads exist (prisma_common/scheduling.py)
+    priority = {"PRISMA_RT_PRIORITY": LaunchConfiguration("rt_priority"), "PRISMA_NICE": LaunchConfiguration("nice")}
 
     tactile_sim = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames}],
         condition=simulated,
     )
     tactile_hardware = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
                      "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str),
@@ -127,13 +133,13 @@ def generate_launch_description():
     )
     motors_sim = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
         condition=simulated,
     )
     motors_hardware = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": LaunchConfiguration("motor_backend"),
                      "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
@@ -143,11 +149,11 @@ def generate_launch_description():
         cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup",
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world")],
-        name="hand_emulator", output="screen", prefix=prefix, condition=emulated,
+        name="hand_emulator", output="screen", additional_env=priority, condition=emulated,
     )
     tactile_emulated = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
                      "port": ParameterValue(PathJoinSubstitution([emulator_dir, "hub"]), value_type=str),
@@ -157,7 +163,7 @@ def generate_launch_description():
     )
     motors_emulated = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": "dynamixel",
                      "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}],
@@ -165,13 +171,13 @@ def generate_launch_description():
     )
     force_estimator = Node(
         package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="force_estimator",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="force_estimator",
         parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
                     {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
     )
     manipulation = Node(
         package="prisma_manipulation", executable="manipulation", name="manipulation",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="manipulation",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="manipulation",
         parameters=[PathJoinSubstitution([config, "manipulation.yaml"]), {"frame_id_format": pad_frames}],
     )
     description = ParameterValue(
