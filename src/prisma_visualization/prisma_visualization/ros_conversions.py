@@ -64,7 +64,7 @@ def pad_markers(types: Types, drawing: PadDrawing, config: TactileMarkersConfig)
                           for i, kind in ((CONTACT, SPHERE), (FORCE, ARROW), (LABEL, TEXT))]
     x, y, z = drawing.contact
     dot = config.taxel_pitch * 0.6
-    shaft = config.taxel_pitch * 0.3
+    shaft = config.taxel_pitch * 0.5
     above = arrow[0]
     return markers + [
         _marker(types, drawing, CONTACT, SPHERE, pose=_pose(types, (x, y, z + config.cell_thickness)),
