@@ -13,23 +13,16 @@ without them or ROS 2 (fails under PRISMA_REQUIRE_ROS=1, or PRISMA_ROS_GUI=1 for
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
-import tempfile
-import time
 import unittest
-from pathlib import Path
 
 import pytest
 
 from ros_harness import RosHarness, assert_clean_shutdown, include_launch, output_of, require_ros
+from virtual_display import require_rviz, start_display, stop_display
 
 require_ros()
-
-if shutil.which("Xvfb") is None or shutil.which("rviz2") is None:
-    if os.environ.get("PRISMA_ROS_GUI") == "1":
-        raise RuntimeError("PRISMA_ROS_GUI=1 but Xvfb or rviz2 is missing: RViz cannot start")
-    pytest.skip("RViz needs Xvfb and rviz2: PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh", allow_module_level=True)
+require_rviz()
 
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
@@ -39,27 +32,15 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 SUCCEEDED = 4
-DISPLAY_FILE = Path(tempfile.gettempdir()) / f"prisma_rviz_display_{os.getpid()}"
 XVFB: list[subprocess.Popen] = []
-
-
-def start_display() -> str:
-    """A virtual X server of this test's own (Xvfb picks a free display number)."""
-    with DISPLAY_FILE.open("w") as out:
-        XVFB.append(subprocess.Popen(["Xvfb", "-displayfd", str(out.fileno()), "-screen", "0", "1280x800x24",
-                                      "-nolisten", "tcp"], pass_fds=(out.fileno(),), stderr=subprocess.DEVNULL))
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline and not DISPLAY_FILE.read_text().strip():
-        time.sleep(0.1)
-    number = DISPLAY_FILE.read_text().strip()
-    assert number, "Xvfb did not start"
-    return f":{number}"
 
 
 @pytest.mark.launch_test
 def generate_test_description():
     # RViz, started by the launch, inherits the display from this process
-    os.environ["DISPLAY"] = start_display()
+    display, xvfb = start_display()
+    XVFB.append(xvfb)
+    os.environ["DISPLAY"] = display
     os.environ["LIBGL_ALWAYS_SOFTWARE"] = "1"  # Mesa's software renderer: no GPU here
     return launch.LaunchDescription([include_launch("hand.launch.py", sim="true", rviz="true"),
                                      launch_testing.actions.ReadyToTest()])
@@ -110,7 +91,5 @@ class TestHandRvizShutdown(unittest.TestCase):
 
     def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
         for xvfb in XVFB:
-            xvfb.terminate()
-            xvfb.wait(timeout=10)
-        DISPLAY_FILE.unlink(missing_ok=True)
+            stop_display(xvfb)
         assert_clean_shutdown(proc_info, proc_output)
