@@ -26,6 +26,10 @@ rclpy's default executor) one after the other in the same invocation, in the sam
   status mentioning "stale" at WARN or above, or a grasp ended with sensor_stale.
 - glove at 7.3 frames/s: `ros2 launch prisma_bringup glove.launch.py` (sim backend), CPU of
   glove_driver and glove_perception over `cpu_s`, then frame counts at the probe.
+- tactile markers: on one launched sim graph, the CPU of tactile_markers and of the hand nodes with
+  nobody watching the markers, then, alternating, with a display's subscription on them (ros_relay.py
+  watch) and with the relay role `markers` (the same inputs, the same MarkerArray at the same rate,
+  nothing computed) watched instead.
 
 Every process started here runs in its own process group and is stopped with SIGINT, then SIGTERM,
 then SIGKILL; none outlives the run.
@@ -52,6 +56,8 @@ HERE = Path(__file__).resolve().parent
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_NODES = ("tactile_driver", "force_estimator", "manipulation", "motor_driver")
 GLOVE_NODES = ("glove_driver", "glove_perception")
+MARKER_TOPIC = "/prisma/tactile_markers"
+RELAY_MARKER_TOPIC = "/prisma/relay_markers"
 # the relay role standing in for each node (bench/ros_relay.py)
 RELAY_ROLE = {"tactile_driver": "sensor", "force_estimator": "force", "manipulation": "manipulation",
               "motor_driver": "motor", "glove_driver": "glove_driver", "glove_perception": "glove_perception"}
@@ -729,6 +735,63 @@ def run_glove(control: Control, kind: str, out: Path, settle_s: float = 5.0, cpu
     return result
 
 
+def _watched(log: Path) -> dict:
+    """What a `ros_relay.py watch` received, from its last line."""
+    words = log.read_text().strip().splitlines()[-1].split() if log.is_file() and log.read_text().strip() else []
+    if len(words) >= 5 and words[0] == "watch:":
+        count, seconds = int(words[1]), float(words[4])
+        return {"messages": count, "seconds": seconds, "rate_hz": round(count / seconds, 1) if seconds else None}
+    return {"messages": None}
+
+
+def run_markers(control: Control, out: Path, repeat: int, settle_s: float = 4.0, cpu_s: float = 12.0,
+                quiet: tuple[float | None, float] = (None, 0.0)) -> dict:
+    """tactile_markers on the launched sim graph: idle (nobody watches), then `repeat` times watched
+    by a display and, right after, the relay role `markers` watched instead."""
+    before = wait_quiet(*quiet)
+    logdir = out / f"markers_{time.strftime('%H%M%S')}"
+    logdir.mkdir(parents=True, exist_ok=True)
+    launch = start("hand_launch", ["ros2", "launch", "prisma_bringup", "hand.launch.py", "sim:=true"], logdir)
+    procs = [launch]
+    try:
+        pids = node_pids(launch.popen.pid, HAND_NODES + ("tactile_markers",))
+        control.wait_publishers(["/prisma/hand/taxels", "/joint_states"], 90.0, procs)
+        time.sleep(settle_s)
+        result: dict = {"machine_before": before, "idle": measure_cpu(pids, cpu_s), "real": [], "relay": []}
+        relay_cmd = [sys.executable, str(HERE / "ros_relay.py")]
+        for i in range(repeat):
+            print(f"markers watched, run {i + 1}/{repeat}", flush=True)
+            watch = start(f"watch_real_{i}", relay_cmd + ["watch", "--topic", MARKER_TOPIC], logdir)
+            time.sleep(settle_s)
+            cpu = measure_cpu(pids, cpu_s)
+            stop([watch])
+            result["real"].append({**cpu, "watched": _watched(watch.log)})
+            print(f"relay markers watched, run {i + 1}/{repeat}", flush=True)
+            relay = start(f"relay_markers_{i}", relay_cmd + ["markers"], logdir)
+            watch = start(f"watch_relay_{i}", relay_cmd + ["watch", "--topic", RELAY_MARKER_TOPIC], logdir)
+            time.sleep(settle_s)
+            cpu = measure_cpu({**pids, "relay_markers": relay.popen.pid}, cpu_s)
+            stop([watch, relay])
+            result["relay"].append({**cpu, "watched": _watched(watch.log)})
+            _check_alive(procs)
+    finally:
+        stop(procs)
+    real = [r["processes"]["tactile_markers"]["cpu_pct"] for r in result["real"]]
+    relay = [r["processes"]["relay_markers"]["cpu_pct"] for r in result["relay"]]
+    graph = lambda row: sum(row["processes"][n]["cpu_pct"] for n in HAND_NODES + ("tactile_markers",))  # noqa: E731
+    result["summary"] = {
+        "tactile_markers_idle_pct": result["idle"]["processes"]["tactile_markers"]["cpu_pct"],
+        "tactile_markers_watched_pct": _median_spread(real),
+        "relay_markers_watched_pct": _median_spread(relay),
+        "ratio": _median_spread([a / max(1e-9, b) for a, b in zip(real, relay)]),
+        "graph_idle_pct": round(graph(result["idle"]), 1),
+        "graph_watched_pct": _median_spread([graph(r) for r in result["real"]]),
+        "markers_hz": [r["watched"].get("rate_hz") for r in result["real"]],
+        "relay_markers_hz": [r["watched"].get("rate_hz") for r in result["relay"]],
+    }
+    return result
+
+
 def relay_entities(control: Control, out: Path, settle_s: float = 3.0, cpu_s: float = 12.0,
                    quiet: tuple[float | None, float] = (None, 0.0)) -> dict:
     """CPU of the relay chain at 100 Hz with the manipulation relay bare and with the node's idle
@@ -1073,6 +1136,18 @@ def markdown(results: dict) -> str:
             out.append(f"| {node} | {_cell(real)} | {_cell(relay)} | {_cell(ratio)} |")
         rates = [g["rates_hz"].get("/stag/frame") for g in results["glove"] if g["kind"] == "real"]
         out += ["", f"/stag/frame at the probe: {rates} frames/s.", ""]
+    if results.get("markers"):
+        m = results["markers"]["summary"]
+        out += ["### Tactile markers (% of one core; median (min-max) of the watched runs)", "",
+                "| | tactile_markers | relay (same inputs and MarkerArray, nothing computed) | ratio |",
+                "|---|---|---|---|",
+                f"| nobody watching | {m['tactile_markers_idle_pct']} | - | - |",
+                f"| a display watching | {_cell(m['tactile_markers_watched_pct'])} | "
+                f"{_cell(m['relay_markers_watched_pct'])} | {_cell(m['ratio'])} |", "",
+                f"The hand graph's four nodes and tactile_markers together: {m['graph_idle_pct']} % of one core "
+                f"with nobody watching the markers, {_cell(m['graph_watched_pct'])} % with a display watching. "
+                f"MarkerArrays received by the display: {m['markers_hz']} /s (relay {m['relay_markers_hz']} /s).",
+                ""]
     if results.get("entities"):
         out += ["### The manipulation relay with the node's idle entities (% of one core)", "",
                 "| relay manipulation | CPU |", "|---|---|"]
@@ -1102,7 +1177,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="scan rates (Hz), comma separated; '' = no sweep")
     parser.add_argument("--sweep-s", type=float, default=12.0, help="probe recording per sweep rate (s)")
     parser.add_argument("--parts", default="hand,sweep,glove,entities,profile",
-                        help="which measurements, comma separated (hand, sweep, glove, entities, profile)")
+                        help="which measurements, comma separated (hand, sweep, glove, entities, profile, "
+                             "markers)")
     parser.add_argument("--quiet-below", type=float,
                         help="before each run, wait until the machine uses at most this CPU %% (of one core)")
     parser.add_argument("--quiet-wait", type=float, default=600.0, help="... for at most this many seconds")
@@ -1125,9 +1201,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: {missing}", file=sys.stderr)
         return 2
     parts = set(args.parts.split(","))
-    unknown = parts - {"hand", "sweep", "glove", "entities", "profile"}
+    unknown = parts - {"hand", "sweep", "glove", "entities", "profile", "markers"}
     if unknown:
-        parser.error(f"unknown --parts {sorted(unknown)}; choose from hand, sweep, glove, entities, profile")
+        parser.error(f"unknown --parts {sorted(unknown)}; choose from hand, sweep, glove, entities, profile, "
+                     "markers")
     if "profile" in parts and shutil.which("py-spy") is None:
         parser.error("--parts profile needs py-spy on PATH (pip install py-spy)")
     quiet = (args.quiet_below, args.quiet_wait)
@@ -1164,6 +1241,10 @@ def main(argv: list[str] | None = None) -> int:
                     results["glove"].append(run_glove(control, kind, args.out, cpu_s=max(args.cpu_s, 20.0),
                                                       quiet=quiet))
             print(json.dumps(results["glove"], indent=1), flush=True)
+        if "markers" in parts:
+            print("tactile markers, idle and watched, beside the relay", flush=True)
+            results["markers"] = run_markers(control, args.out, args.repeat, cpu_s=args.cpu_s, quiet=quiet)
+            print(json.dumps(results["markers"]["summary"], indent=1), flush=True)
         if "entities" in parts:
             print("relay manipulation with and without the node's idle entities", flush=True)
             results["entities"] = relay_entities(control, args.out, cpu_s=args.cpu_s, quiet=quiet)

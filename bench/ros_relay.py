@@ -16,6 +16,14 @@ building the outgoing message from the incoming one (stamp and frame id copied):
                                                                                  (frame_rate_hz)
     glove_perception     glove_perception  /stag/frame                           /stag/object, /stag/hand_pose,
                                                                                  /stag/weight per frame
+    markers              tactile_markers   /prisma/hand/contact, /prisma/hand/   /prisma/relay_markers
+                                           wrench (the real graph's)             (MarkerArray, rate_hz 30)
+    watch                a display         --topic (MarkerArray)                 -
+
+`markers` runs beside the real hand graph, as tactile_markers does, and sends the same MarkerArray
+(per finger a 9-cell CUBE_LIST, a SPHERE, an ARROW and a TEXT marker) with the newest ContactState's
+frame id and voltages copied in, nothing computed. `watch` subscribes to a MarkerArray topic as RViz
+does (which is what wakes tactile_markers) and prints how many it received when stopped.
 
 The MoveMotors hop: `manipulation` sends one velocity goal per `goal_every` index wrenches (10: the
 real node's 0.1 s goal refresh at 100 Hz) and writes the stamp of the wrench that triggered it into
@@ -31,15 +39,24 @@ import argparse
 import sys
 
 import rclpy
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3, WrenchStamped
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors
-from prisma_msgs.msg import ContactState, GloveFrame, ObjectEstimate, TaxelArray, WeightEstimate
+from prisma_msgs.msg import (
+    ContactState,
+    GloveFrame,
+    HandContact,
+    HandWrench,
+    ObjectEstimate,
+    TaxelArray,
+    WeightEstimate,
+)
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import Header
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
@@ -216,12 +233,70 @@ class GlovePerception(Node):
         self._weight_pub.publish(WeightEstimate(header=msg.header, grams=100.0, baseline_grams=0.0))
 
 
+class Markers(Node):
+    """tactile_markers: keeps the newest ContactState and wrench per finger; a timer at rate_hz
+    publishes one MarkerArray of the same markers the node sends (nothing computed)."""
+
+    def __init__(self, rate_hz: float) -> None:
+        super().__init__("relay_markers")
+        self._pub = self.create_publisher(MarkerArray, "prisma/relay_markers", DEPTH)
+        self._contacts: dict[str, ContactState] = {}
+        self._wrenches: dict[str, WrenchStamped] = {}
+        self.create_subscription(HandContact, "prisma/hand/contact", self._on_contact, DEPTH)
+        self.create_subscription(HandWrench, "prisma/hand/wrench", self._on_wrench, DEPTH)
+        self.create_timer(1.0 / rate_hz, self._on_display)
+
+    def _on_contact(self, msg: HandContact) -> None:
+        for contact in msg.contacts:
+            self._contacts[contact.finger] = contact
+
+    def _on_wrench(self, msg: HandWrench) -> None:
+        self._wrenches.update(zip(msg.fingers, msg.wrenches))
+
+    def _on_display(self) -> None:
+        markers = []
+        for finger, contact in self._contacts.items():
+            header = Header(frame_id=contact.header.frame_id)
+            cells = [Point(x=(i % 3 - 1) * 0.004, y=(i // 3 - 1) * 0.004, z=0.0005) for i in range(9)]
+            colours = [ColorRGBA(r=1.0, g=float(v) / 3.3, b=0.1, a=1.0) for v in contact.voltages]
+            force = self._wrenches[finger].wrench.force.z if finger in self._wrenches else 0.0
+            pose = Pose(orientation=Quaternion(w=1.0))
+            markers += [
+                Marker(header=header, ns=finger, id=0, type=Marker.CUBE_LIST, pose=pose, frame_locked=True,
+                       scale=Vector3(x=0.0036, y=0.0036, z=0.001), points=cells, colors=colours,
+                       text=f"{contact.header.stamp.sec} {contact.safe}"),
+                Marker(header=header, ns=finger, id=1, type=Marker.SPHERE, pose=pose, frame_locked=True,
+                       scale=Vector3(x=0.0024, y=0.0024, z=0.0024), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)),
+                Marker(header=header, ns=finger, id=2, type=Marker.ARROW, pose=pose, frame_locked=True,
+                       points=[Point(z=0.02 * force), Point()], scale=Vector3(x=0.002, y=0.004, z=0.004),
+                       color=ColorRGBA(g=1.0, a=1.0)),
+                Marker(header=header, ns=finger, id=3, type=Marker.TEXT_VIEW_FACING, pose=pose, frame_locked=True,
+                       scale=Vector3(z=0.005), color=ColorRGBA(g=1.0, a=1.0), text=f"{force:.2f} N"),
+            ]
+        if markers:
+            self._pub.publish(MarkerArray(markers=markers))
+
+
+class Watch(Node):
+    """A display's subscription to a MarkerArray topic; says how many arrived when stopped."""
+
+    def __init__(self, topic: str) -> None:
+        super().__init__("relay_watch")
+        self.received = 0
+        self.create_subscription(MarkerArray, topic, self._on_markers, DEPTH)
+
+    def _on_markers(self, msg: MarkerArray) -> None:
+        self.received += 1
+
+
 def build(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("role", choices=["sensor", "force", "manipulation", "motor", "glove_driver",
-                                         "glove_perception"])
-    parser.add_argument("--rate-hz", type=float, default=100.0,
-                        help="sensor: scan rate; motor: /joint_states rate (default 100)")
+                                         "glove_perception", "markers", "watch"])
+    parser.add_argument("--rate-hz", type=float, default=None,
+                        help="sensor: scan rate; motor: /joint_states rate (default 100); markers: display rate "
+                             "(default 30)")
+    parser.add_argument("--topic", default="/prisma/tactile_markers", help="watch: the MarkerArray topic")
     parser.add_argument("--goal-every", type=int, default=10,
                         help="manipulation: one MoveMotors goal per this many index wrenches (0 = none)")
     parser.add_argument("--like-node", action="store_true",
@@ -234,12 +309,14 @@ def build(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
 
 def main(argv: list[str] | None = None) -> int:
     args, ros_args = build(sys.argv[1:] if argv is None else argv)
+    if args.rate_hz is None:
+        args.rate_hz = 30.0 if args.role == "markers" else 100.0
     if args.rate_hz <= 0 or args.frame_rate_hz <= 0 or args.poll_rate_hz <= 0:
         print(f"rates must be > 0 (got --rate-hz {args.rate_hz}, --frame-rate-hz {args.frame_rate_hz}, "
               f"--poll-rate-hz {args.poll_rate_hz})", file=sys.stderr)
         return 2
     rclpy.init(args=ros_args)
-    node = None
+    node = started = None
     try:
         node = {
             "sensor": lambda: Sensor(args.rate_hz),
@@ -248,11 +325,17 @@ def main(argv: list[str] | None = None) -> int:
             "motor": lambda: Motor(args.rate_hz),
             "glove_driver": lambda: GloveDriver(args.frame_rate_hz, args.poll_rate_hz),
             "glove_perception": GlovePerception,
+            "markers": lambda: Markers(args.rate_hz),
+            "watch": lambda: Watch(args.topic),
         }[args.role]()
+        started = node.get_clock().now()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # SIGINT / SIGTERM from the benchmark: a normal stop
     finally:
+        if isinstance(node, Watch) and started is not None:
+            seconds = (node.get_clock().now() - started).nanoseconds / 1e9
+            print(f"watch: {node.received} messages in {seconds:.1f} s", flush=True)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

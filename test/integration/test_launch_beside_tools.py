@@ -1,8 +1,11 @@
-"""The hand graph with the robot's own tools running beside it: `hand.launch.py sim:=true`, rqt_plot
-(the executable, plotting the thumb threshold against taxel 3, as the README's rqt section starts
-it) and `ros2 bag record` of the README's topic list. Ten consecutive pinch Grasp goals, each
-followed by opening the hand, all end SUCCEEDED `force_reached`: no goal is stopped by a stream
-starved of CPU (sensor_stale) and none is retried. Then the bag holds every topic of the list.
+"""The hand graph with the robot's own tools running beside it, ten consecutive pinch Grasp goals
+each followed by opening the hand, all SUCCEEDED `force_reached`: no goal is stopped by a stream
+starved of CPU (sensor_stale) and none is retried.
+- `hand.launch.py sim:=true`, rqt_plot (the executable, plotting the thumb threshold against taxel
+  3, as the README's rqt section starts it) and `ros2 bag record` of the README's topic list; then
+  the bag holds every topic of the list.
+- `hand.launch.py sim:=true rviz:=true`: RViz with the shipped configuration (software rendering on
+  a virtual display), the tactile markers drawn for it at the display rate.
 
 rqt_plot needs PyQt5 (`PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh`; apt's python3-pyqt5 on a
 robot); it renders on Qt's offscreen platform when there is no display. Skips without ROS 2 or
@@ -16,6 +19,7 @@ import os
 import pytest
 
 from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
+from virtual_display import require_rviz, virtual_display
 
 require_ros()
 
@@ -53,8 +57,7 @@ def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros,
     hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true")
     tools: list[NodeProcess] = []
     try:
-        grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=90.0)
-        move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=30.0)
+        ros.action_client(Grasp, "/prisma/grasp", wait_sec=90.0)  # the graph is up
         tools.append(NodeProcess(["ros2", "run", "rqt_plot", "rqt_plot", *PLOTTED], env=env))
         # rqt_plot's first start on a machine builds matplotlib's font cache: allow for it
         assert ros.spin_until(lambda: any(name.startswith("rqt_gui_py_node") for name in contact_readers(ros)),
@@ -65,14 +68,7 @@ def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros,
         joints = ros.collect(JointState, "/joint_states")
         assert ros.spin_until(lambda: len(joints) > 50, 30.0)
 
-        outcomes = []
-        for _ in range(GRASPS):
-            result = ros.result(ros.send_until_accepted(grasp, GRASP, timeout_sec=60.0))
-            outcomes.append((result.status, result.result.reason))
-            for motor in ("thumb_flexion", "fingers"):
-                opened = ros.result(ros.send_until_accepted(
-                    move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
-                assert opened.result.success, opened.result.reason
+        outcomes = grasp_and_open_ten_times(ros)
         for tool in tools:
             assert tool.proc.poll() is None, f"{tool.args} exited: {tool.output[-2000:]}"
     finally:
@@ -86,3 +82,40 @@ def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros,
     assert info.returncode == 0, info.output
     for topic in BAG_TOPICS:
         assert f"Topic: {topic} |" in info.output, f"{topic} not in the bag:\n{info.output}"
+
+
+def grasp_and_open_ten_times(ros) -> list[tuple[int, str]]:
+    grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=90.0)
+    move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=30.0)
+    outcomes = []
+    for _ in range(GRASPS):
+        result = ros.result(ros.send_until_accepted(grasp, GRASP, timeout_sec=60.0))
+        outcomes.append((result.status, result.result.reason))
+        for motor in ("thumb_flexion", "fingers"):
+            opened = ros.result(ros.send_until_accepted(
+                move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
+            assert opened.result.success, opened.result.reason
+    return outcomes
+
+
+def test_ten_pinch_grasps_with_rviz_and_the_tactile_markers_beside_the_graph(ros):
+    require_rviz()
+    from visualization_msgs.msg import MarkerArray
+
+    ros.capture_logs()
+    with virtual_display() as env:
+        hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true", "rviz:=true", env=env)
+        try:
+            # RViz subscribes to the markers, and tactile_markers (idle until then) draws for it
+            readers = lambda: {i.node_name for i in ros.probe.get_subscriptions_info_by_topic("/prisma/tactile_markers")}  # noqa: E731,E501
+            assert ros.spin_until(lambda: "rviz2" in readers(), 120.0), hand.output[-3000:]
+            markers = ros.collect(MarkerArray, "/prisma/tactile_markers")
+            joints = ros.collect(JointState, "/joint_states")
+            assert ros.spin_until(lambda: len(joints) > 50 and len(markers) > 10, 30.0)
+            outcomes = grasp_and_open_ten_times(ros)
+            assert hand.proc.poll() is None, hand.output[-3000:]
+            assert "rviz2" in readers()  # RViz is still up and watching
+        finally:
+            stop_process(hand)
+    ended = ros.logs(name="manipulation", contains="goal ended")
+    assert outcomes == [(SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)

@@ -45,6 +45,8 @@ JAZZY_ROS_PACKAGES = {
     "geometry_msgs", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "rcl_interfaces",
     "rclpy", "ros2bag", "rosbag2_storage_mcap", "rosidl_default_generators", "rosidl_default_runtime",
     "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs", "python_qt_binding", "rqt_plot",
+    # (commit 8468e88) the description, TF and RViz side
+    "joint_state_publisher", "robot_state_publisher", "rviz2", "urdfdom_py", "visualization_msgs", "xacro",
 }
 # ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
 # (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
@@ -61,6 +63,7 @@ MODULE_DEPENDENCY = {
     "smbus2": "python3-smbus2", "torch": "python3-torch", "scipy": "python3-scipy",
     "sklearn": "python3-sklearn", "threadpoolctl": "python3-sklearn",  # a dependency of scikit-learn
     "h5py": "python3-h5py", "matplotlib": "python3-matplotlib", "dynamixel_sdk": "dynamixel_sdk",
+    "urdf_parser_py": "urdfdom_py",
 }
 # Modules with no rosdep key usable on noble: the README's venv installs them with pip, and the
 # package.xml of a package importing one says so in a comment naming it.

@@ -3,7 +3,8 @@
 Data-driven: adding a node (console script in src/<pkg>/setup.py), a launch file, a config file or
 a topic-table row needs no change here.
 
-1. every executable a launch file starts is a console script of the package the launch file names;
+1. every executable a launch file starts is a console script of the package the launch file names
+   (or, for a ROS package outside the workspace, one prisma_bringup depends on and that installs it);
    its parameter files exist in config/ and address that node by name; every parameter given inline
    in the launch file is declared by the node, literal values with the declared type (and the node
    starts with them); every LaunchConfiguration is a declared launch argument; every included
@@ -25,6 +26,7 @@ import importlib
 import inspect
 import re
 import time
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -362,6 +364,30 @@ def _launch_id(entry: LaunchedNode) -> str:
     return f"{entry.launch_file}:{entry.line}:{entry.package}/{entry.executable}"
 
 
+def _in_workspace(entry: LaunchedNode) -> bool:
+    """The node is one of this workspace's (the parameter checks apply), not another ROS package's."""
+    return (ROOT / "src" / entry.package).is_dir()
+
+
+def _check_installed_executable(entry: LaunchedNode) -> None:
+    """An executable of another ROS package: prisma_bringup depends on that package, and (with ROS)
+    the package installs it."""
+    declared = {e.text for e in ET.parse(BRINGUP / "package.xml").getroot()
+                if e.tag in ("depend", "exec_depend")}
+    assert entry.package in declared, (
+        f"{entry.launch_file}:{entry.line}: starts {entry.package}/{entry.executable}, but "
+        f"src/prisma_bringup/package.xml does not depend on {entry.package}")
+    if ROS_AVAILABLE:
+        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+        try:
+            prefix = Path(get_package_prefix(entry.package))
+        except PackageNotFoundError:
+            pytest.fail(f"{entry.launch_file}:{entry.line}: ROS package {entry.package} is not installed")
+        assert (prefix / "lib" / entry.package / entry.executable).exists(), (
+            f"{entry.launch_file}:{entry.line}: {entry.package} has no executable {entry.executable}")
+
+
 @pytest.mark.parametrize("entry", all_launched_nodes(), ids=_launch_id)
 def test_launched_executable_is_a_console_script(entry: LaunchedNode):
     assert entry.package and entry.executable, (
@@ -370,7 +396,9 @@ def test_launched_executable_is_a_console_script(entry: LaunchedNode):
     if (entry.package, entry.executable) in scripts:
         return
     package_dir = ROOT / "src" / entry.package
-    assert package_dir.is_dir(), f"{entry.launch_file}:{entry.line}: no package src/{entry.package}"
+    if not package_dir.is_dir():  # a ROS package of the robot's install (robot_state_publisher, rviz2)
+        _check_installed_executable(entry)
+        return
     module_file = package_dir / entry.package / f"{entry.executable}_node.py"
     assert not module_file.exists(), (
         f"{entry.launch_file}:{entry.line}: {module_file.relative_to(ROOT)} exists but "
@@ -400,7 +428,8 @@ def test_launched_parameter_files_address_the_node_by_name(entry: LaunchedNode):
             f"the node is named '{entry.name}'")
 
 
-@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters], ids=_launch_id)
+@pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.inline_parameters and _in_workspace(e)],
+                         ids=_launch_id)
 def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
     import rclpy
     from rclpy.parameter import Parameter
@@ -533,7 +562,14 @@ def _table_id(row: TableRow) -> str:
     return row.name
 
 
-@pytest.mark.parametrize("row", [r for r in topic_table() if r.name not in SHARED_TOPICS], ids=_table_id)
+def _from_another_package(row: TableRow) -> bool:
+    """The row's source is a node the launch files start from another ROS package (robot_state_publisher)."""
+    launched = _launch_names().get(row.source)
+    return launched is not None and not (ROOT / "src" / launched[0]).is_dir()
+
+
+@pytest.mark.parametrize("row", [r for r in topic_table()
+                                 if r.name not in SHARED_TOPICS and not _from_another_package(r)], ids=_table_id)
 def test_topic_table_row_has_exactly_one_source(nodes, row: TableRow):
     source = _node_named(nodes, row.source)
     if source is None:
@@ -688,7 +724,7 @@ def test_node_core_config_backend_and_converter_modules_are_named_alike_in_every
     `backend.py` and each implementation in `<kind>_backend.py`."""
     problems = []
     nodes = [path for path in sorted((ROOT / "src").glob("*/*/*_node.py")) if path.parent.name != "test"]
-    assert len(nodes) == 6
+    assert len(nodes) == 7
     for node in nodes:
         folder, name = node.parent, node.name.removesuffix("_node.py")
         for expected in (f"{name}_core.py", "node_config.py", "ros_conversions.py"):

@@ -19,18 +19,47 @@ through dynamixel-sdk, tactile_driver backend serial (or i2c) through pyserial (
 `prisma-hand-fault --dir <emulator_dir> ...` injects faults while it runs (those of the other
 tactile link are refused).
 
-The four nodes run at nice -5 (`nice:=0` for the default priority): the hand's control path comes
-before a plotting tool or a recorder on the same cores. Without the right to raise priority (not
-root, no `nice` limit in /etc/security/limits.conf; README, "On the robot") `nice` says "cannot set
-niceness" and the nodes run at the default priority.
+Beside them: robot_state_publisher (the hand's description from prisma_description, /tf and
+/tf_static for every frame the hand's messages name; under a namespace its frames get the prefix
+`<namespace>/`, and the drivers stamp their messages with it) and tactile_markers (the pads drawn in
+RViz, idle until a display subscribes). rviz:=true opens RViz with the hand, its taxels and forces.
+
+The control path (the four nodes, and the emulator with hardware:=emulated) runs with real-time
+scheduling, SCHED_FIFO rt_priority:=20, ahead of every ordinary process: a plotting tool, a recorder,
+a browser on the same cores cannot hold up the taxel, wrench and motor streams until a goal stops
+sensor_stale (prisma_common/scheduling.py). Where real-time scheduling is not permitted (not root, no
+`rtprio` limit in /etc/security/limits.conf; README, "On the robot") the nodes run at nice:=-5 if
+that is permitted, else at the default priority, and say so in their first log line. rt_priority:=0
+asks for niceness only.
 """
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, ExecuteProcess
+import tempfile
+from pathlib import Path
+
+from launch import LaunchDescription, Substitution
+from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
+from launch.event_handlers import OnShutdown
+from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
+
+
+def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
+    """rviz2 with config/hand.rviz; under a namespace the fixed frame and the model's TF prefix
+    follow the hand's frame prefix (the config's topics are relative, so they follow the namespace)."""
+    prefix = frame_prefix.perform(context)
+    config = Path(config_dir.perform(context)) / "hand.rviz"
+    actions: list = []
+    if prefix:
+        text = config.read_text().replace("Fixed Frame: prisma_hand_base", f"Fixed Frame: {prefix}prisma_hand_base")
+        text = text.replace('TF Prefix: ""', f"TF Prefix: {prefix.rstrip('/')}")
+        with tempfile.NamedTemporaryFile("w", prefix="prisma_hand_", suffix=".rviz", delete=False) as out:
+            out.write(text)
+        config = Path(out.name)
+        actions.append(RegisterEventHandler(OnShutdown(on_shutdown=lambda event, context: config.unlink())))
+    return actions + [Node(package="rviz2", executable="rviz2", name="rviz2", namespace=namespace.perform(context),
+                           output="screen", arguments=["-d", str(config)])]
 
 
 def generate_launch_description():
@@ -68,36 +97,52 @@ def generate_launch_description():
                               description="The emulator's object and pose: hand (as sim:=true) or a "
                                           "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
                                           "vertical, disturbance, combined)"),
+        DeclareLaunchArgument("frame_prefix", default_value="auto",
+                              description="Put in front of every frame of the hand: its TF frames and the "
+                                          "frame_id of its messages; auto: '<namespace>/' under a namespace, "
+                                          "none at the root"),
+        DeclareLaunchArgument("rviz", default_value="false", choices=["true", "false"],
+                              description="Open RViz with the hand model, its taxels, contacts and forces"),
+        DeclareLaunchArgument("rt_priority", default_value="20",
+                              description="SCHED_FIFO priority of the control path (1-99; 0: no real-time scheduling)"),
         DeclareLaunchArgument("nice", default_value="-5",
-                              description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
+                              description="Niceness of the control path where real-time scheduling is not asked for "
+                                          "or not permitted (-20..19; lower runs first)"),
     ]
-    # every hand node starts under `nice -n <nice>`: the priority covers all its threads (DDS too)
-    prefix = ["nice -n ", LaunchConfiguration("nice")]
+    # "auto" is resolved here, not in the argument's default: a default computed from another argument
+    # would leak from the first of two hands included in one launch file into the second
+    given_prefix = LaunchConfiguration("frame_prefix")
+    frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
+                                     "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
+    pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
+    # read by each process at start, before its threads exist (prisma_common/scheduling.py)
+    priority = {"PRISMA_RT_PRIORITY": LaunchConfiguration("rt_priority"), "PRISMA_NICE": LaunchConfiguration("nice")}
 
     tactile_sim = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": "sim", "contact_source": "hand_world"}],
+                    {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames}],
         condition=simulated,
     )
     tactile_hardware = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
-                     "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str)}],
+                     "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str),
+                     "frame_id_format": pad_frames}],
         condition=on_robot,
     )
     motors_sim = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
         condition=simulated,
     )
     motors_hardware = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": LaunchConfiguration("motor_backend"),
                      "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
@@ -108,20 +153,21 @@ def generate_launch_description():
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
-        name="hand_emulator", output="screen", prefix=prefix, condition=emulated,
+        name="hand_emulator", output="screen", additional_env=priority, condition=emulated,
     )
     tactile_emulated = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
                      "port": ParameterValue(PathJoinSubstitution([emulator_dir, "hub"]), value_type=str),
-                     "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]), value_type=str)}],
+                     "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]), value_type=str),
+                     "frame_id_format": pad_frames}],
         condition=emulated,
     )
     motors_emulated = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="motor_driver",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
                     {"backend": "dynamixel",
                      "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}],
@@ -129,16 +175,32 @@ def generate_launch_description():
     )
     force_estimator = Node(
         package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="force_estimator",
+        namespace=namespace, output="screen", additional_env=priority, exec_name="force_estimator",
         parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
                     {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
     )
     manipulation = Node(
         package="prisma_manipulation", executable="manipulation", name="manipulation",
-        namespace=namespace, output="screen", prefix=prefix, exec_name="manipulation",
-        parameters=[PathJoinSubstitution([config, "manipulation.yaml"])],
+        namespace=namespace, output="screen", additional_env=priority, exec_name="manipulation",
+        parameters=[PathJoinSubstitution([config, "manipulation.yaml"]), {"frame_id_format": pad_frames}],
     )
+    description = ParameterValue(
+        Command(["xacro ", PathJoinSubstitution([FindPackageShare("prisma_description"), "urdf",
+                                                  "prisma_hand.urdf.xacro"])]), value_type=str)
+    robot_state_publisher = Node(
+        package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
+        namespace=namespace, output="screen",
+        parameters=[{"robot_description": description, "frame_prefix": frame_prefix}],
+    )
+    tactile_markers = Node(
+        package="prisma_visualization", executable="tactile_markers", name="tactile_markers",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "tactile_markers.yaml"])],
+    )
+    rviz = OpaqueFunction(function=rviz_for_this_hand, args=[config, namespace, frame_prefix],
+                          condition=IfCondition(LaunchConfiguration("rviz")))
 
     nodes = [tactile_sim, tactile_hardware, motors_sim, motors_hardware,
-             emulator, tactile_emulated, motors_emulated, force_estimator, manipulation]
+             emulator, tactile_emulated, motors_emulated, force_estimator, manipulation,
+             robot_state_publisher, tactile_markers, rviz]
     return LaunchDescription(declared_arguments + nodes)

@@ -28,6 +28,7 @@ from prisma_common.cli_args import (
     positive_float,
     positive_int,
 )
+from prisma_common.scheduling import apply_priority_from_env
 
 from .hand_emulator import DEFAULT_DIR, TACTILE_LINKS, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings
 
@@ -53,6 +54,10 @@ def emulator_main(argv: list[str] | None = None) -> int:
                         help="after Ctrl-C or SIGTERM keep the devices up this long (default 1 s): drivers "
                              "shut down with it still turn their torque off; a second signal stops at once")
     args = parser.parse_args(argv)
+    try:  # the emulated hardware is on the control path too (hand.launch.py hardware:=emulated)
+        scheduling = apply_priority_from_env()
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
 
     try:
         if args.dir.exists() and not args.dir.is_dir():
@@ -85,7 +90,7 @@ def emulator_main(argv: list[str] | None = None) -> int:
     try:
         pads = f"hub {paths.hub}" if args.tactile_link == "serial" else f"i2c {paths.i2c}"
         print(f"emulated hand ({args.world}, {args.rate:g} Hz): servos {paths.servos}, {pads}, "
-              f"control {paths.control}", flush=True)
+              f"control {paths.control}" + (f"; {scheduling}" if scheduling else ""), flush=True)
         ticks = hand.run(stop)
     finally:
         hand.close()

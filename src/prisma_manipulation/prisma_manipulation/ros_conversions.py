@@ -115,6 +115,11 @@ def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
                                                          stop_time=_f32(done.stop_time_s))
 
 
+def hand_contact_samples(msg: Any) -> list[tuple[str, Any]]:
+    """(finger, ContactState) pairs of a prisma_msgs/HandContact."""
+    return [(str(contact.finger), contact) for contact in msg.contacts]
+
+
 def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:
     """(finger, WrenchStamped) pairs of a prisma_msgs/HandWrench; a malformed message (fingers and
     wrenches of different lengths) pairs up to the shorter list."""

@@ -10,6 +10,13 @@ Two clocks, two questions:
   the hub is unplugged or the motor driver is gone.
 A goal is granted `stale_ns` from its start before a stream that never arrived counts as silent.
 
+A check that comes more than half of `stale_ns` after the previous one was held up with the node
+(its process got no CPU): messages that arrived meanwhile still wait in the node's queues, behind
+this check, so their streams only look silent. Silence is then counted from the end of the hold-up,
+as from a goal's start; ages by stamp are judged as always. Only an isolated hold-up is forgiven: a
+check held up right after another one judges silence by receipt alone, so a node starved for good
+still stops the motors (and the motor driver's goal lease stops them in any case).
+
 `fresh` asks the same two questions before a goal is accepted, without that grace: a goal is only
 accepted once every stream it needs (and /joint_states) is flowing.
 """
@@ -35,10 +42,21 @@ class SensorWatchdog:
         self._reference_ns: int | None = None
         self._joint_receipt_ns: int | None = None
         self._armed_ns: int | None = None
+        self._last_check_ns: int | None = None
+        self._resumed_ns: int | None = None  # end of the last forgiven hold-up
+        self._held_up = False  # the previous check was held up
+
+    def _note_check(self, now_ns: int) -> None:
+        held_up = self._last_check_ns is not None and now_ns - self._last_check_ns > self.stale_ns // 2
+        if held_up:  # forgiven once; held up again right after, silence counts by receipt alone
+            self._resumed_ns = None if self._held_up else now_ns
+        self._held_up = held_up
+        self._last_check_ns = now_ns
 
     def arm(self, now_ns: int) -> None:
         """A goal starts: streams get `stale_ns` from now to (re)appear."""
         self._armed_ns = now_ns
+        self._last_check_ns, self._resumed_ns, self._held_up = now_ns, None, False
 
     def disarm(self) -> None:
         self._armed_ns = None
@@ -75,7 +93,8 @@ class SensorWatchdog:
         """None when every named stream is fresh, else a description of the first stale one."""
         if self._armed_ns is None:
             return None
-        grace_from = self._armed_ns
+        self._note_check(now_ns)
+        grace_from = max(self._armed_ns, self._resumed_ns or self._armed_ns)
         joint_seen = self._joint_receipt_ns if self._joint_receipt_ns is not None else grace_from
         if now_ns - max(joint_seen, grace_from) > self.stale_ns:
             return f"/joint_states silent for {(now_ns - joint_seen) / 1e6:.0f} ms"

@@ -207,6 +207,8 @@ def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
         core = _core()
         core.start_grasp(GraspRequest("pinch"), 0)
         if trigger == "stale":
+            for t in range(20, 100, 20):  # the watchdog's ticks: nothing arrives
+                core.check(t * MS)
             actions = core.check(101 * MS)
         elif trigger == "cancel":
             actions = core.cancel(5 * MS)

@@ -10,10 +10,14 @@ def test_watchdog_age_by_header_stamps_and_silence_by_receipt():
     w = SensorWatchdog(100 * MS)
     assert w.check(["taxels/thumb"], 10**9) is None  # not armed: no goal
     w.arm(0)
-    assert w.check(["taxels/thumb"], 90 * MS) is None  # grace for a stream not seen yet
+    for t in (20, 40, 60, 80):
+        assert w.check(["taxels/thumb"], t * MS) is None  # grace for a stream not seen yet
     w.reference(100 * MS, 100 * MS)
+    assert w.check(["taxels/thumb"], 100 * MS) is None
     assert "taxels/thumb silent for 110 ms" == w.check(["taxels/thumb"], 110 * MS)
     w.arm(200 * MS)
+    w.check(["taxels/thumb"], 220 * MS)
+    w.check(["taxels/thumb"], 260 * MS)
     w.reference(300 * MS, 300 * MS)
     w.sample("taxels/thumb", 250 * MS, 300 * MS)
     assert w.check(["taxels/thumb"], 300 * MS) is None  # 50 ms old
@@ -21,7 +25,50 @@ def test_watchdog_age_by_header_stamps_and_silence_by_receipt():
     assert w.check(["taxels/thumb"], 310 * MS) == "taxels/thumb 110 ms older than /joint_states"
     w.sample("taxels/thumb", 305 * MS, 320 * MS)
     assert w.check(["taxels/thumb"], 320 * MS) is None
-    assert w.check(["taxels/thumb"], 450 * MS) == "/joint_states silent for 150 ms"
+    for t in range(340, 420, 20):  # the watchdog ticks every 20 ms: taxels arrive, /joint_states stops
+        w.sample("taxels/thumb", t * MS, t * MS)
+        assert w.check(["taxels/thumb"], t * MS) is None
+    assert w.check(["taxels/thumb"], 420 * MS) == "/joint_states silent for 120 ms"
+
+
+def tick(w: SensorWatchdog, streams: list[str], start_ms: int, end_ms: int, deliver: bool = True) -> list:
+    """Checks every 20 ms from start_ms to end_ms (exclusive), the streams delivering just before each."""
+    verdicts = []
+    for t in range(start_ms, end_ms, 20):
+        if deliver:
+            w.reference(t * MS, t * MS)
+            for name in streams:
+                w.sample(name, t * MS, t * MS)
+        verdicts.append(w.check(streams, t * MS))
+    return verdicts
+
+
+def test_a_check_held_up_with_the_node_does_not_count_the_hold_up_as_silence():
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    assert tick(w, ["taxels/thumb"], 0, 200) == [None] * 10
+    # the process got no CPU from 180 to 330 ms: the watchdog tick comes first, the messages that
+    # arrived meanwhile are still queued behind it
+    assert w.check(["taxels/thumb"], 330 * MS) is None  # 150 ms since the last receipts
+    w.reference(329 * MS, 331 * MS)  # then the queue drains: the streams were not silent
+    w.sample("taxels/thumb", 328 * MS, 332 * MS)
+    assert tick(w, ["taxels/thumb"], 350, 450) == [None] * 5
+    # a stream that really stopped at the hold-up is reported a stale window after the node resumed
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    tick(w, ["taxels/thumb"], 0, 200)
+    assert w.check(["taxels/thumb"], 330 * MS) is None
+    verdicts = [(t, w.check(["taxels/thumb"], t * MS)) for t in range(350, 470, 20)]
+    assert [t for t, v in verdicts if v is None] == [350, 370, 390, 410, 430]
+    assert verdicts[-1] == (450, "/joint_states silent for 270 ms")
+
+
+def test_a_node_held_up_check_after_check_is_not_forgiven():
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    tick(w, ["taxels/thumb"], 0, 200)
+    assert w.check(["taxels/thumb"], 260 * MS) is None  # held up 80 ms: forgiven
+    assert w.check(["taxels/thumb"], 330 * MS) == "/joint_states silent for 150 ms"  # held up again: judged
 
 
 def test_watchdog_freshness_for_admission_has_no_grace():

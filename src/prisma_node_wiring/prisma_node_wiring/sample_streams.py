@@ -73,7 +73,14 @@ class FingerAndHandInput:
             stream_subscription(node, finger_type, f"prisma/{f}/{kind}", functools.partial(self._on_finger, f),
                                 **kwargs)
             for f in sorted(self._fingers)]
-        self._hand_sub = stream_subscription(node, hand_type, self.hand_topic, self._on_hand, **kwargs)
+        self._hand_sub: Subscription | None = stream_subscription(node, hand_type, self.hand_topic,
+                                                                  self._on_hand, **kwargs)
+
+    def close(self) -> None:
+        """Destroy every subscription (a node that reads the streams only while it is watched)."""
+        for sub in self._finger_subs + ([self._hand_sub] if self._hand_sub is not None else []):
+            self._node.destroy_subscription(sub)
+        self._finger_subs, self._hand_sub = [], None
 
     def _on_finger(self, finger: str, msg: Any) -> None:
         if self.state.take_finger(finger, ns_from_stamp(msg.header.stamp)):

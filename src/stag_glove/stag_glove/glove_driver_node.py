@@ -1,6 +1,7 @@
 """glove_driver: reads the STAG glove (serial readout board, synthetic glove, or a dataset file)
-and publishes /stag/frame (GloveFrame) and /stag/image (sensor_msgs/Image 32FC1, for
-rqt_image_view), /diagnostics, and the ~/capture_empty_hand service.
+and publishes /stag/frame (GloveFrame), /stag/image (sensor_msgs/Image 32FC1, the pressures),
+/stag/pressure_map (rgb8: the pressures drawn on the hand's layout, for rqt_image_view or RViz's
+Image display; drawn only while someone watches), /diagnostics, and the ~/capture_empty_hand service.
 
     ros2 run stag_glove glove_driver --ros-args --params-file config/glove_driver.yaml
 """
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import functools
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import GloveFrame
 from rclpy.node import Node
@@ -23,7 +25,8 @@ from .glove_driver_core import GloveDriver
 from .layout import load_layout
 from .node_config import GloveDriverConfig
 from .processing import FrameProcessor, NormalisationConfig
-from .ros_conversions import glove_frame_to_msg, pressure_image_msg
+from .pressure_map import PressureMap
+from .ros_conversions import glove_frame_to_msg, pressure_image_msg, pressure_map_to_msg
 
 
 class GloveDriverNode(Node):
@@ -35,15 +38,17 @@ class GloveDriverNode(Node):
         # fails here, at start, with the parameter's name and value when one is invalid
         cfg = self.config = GloveDriverConfig.from_parameters(
             {name: self.get_parameter(name).value for name in defaults})
-        mask = None
+        mask = regions = None
         if cfg.layout_file:
             try:
-                mask = load_layout(cfg.layout_file).mask
+                layout = load_layout(cfg.layout_file)
             except (OSError, ValueError) as exc:
                 raise ParameterError("layout_file", cfg.layout_file, str(exc)) from None
+            mask, regions = layout.mask, layout.region_index
             if mask.shape != (cfg.rows, cfg.cols):
                 raise ParameterError("layout_file", cfg.layout_file,
                                      f"layout is {mask.shape[0]}x{mask.shape[1]}, glove is {cfg.rows}x{cfg.cols}")
+        self.pressure_map = PressureMap(mask if mask is not None else np.ones((cfg.rows, cfg.cols), bool), regions)
         processor = FrameProcessor(NormalisationConfig(cfg.normalisation_low, cfg.normalisation_high,
                                                        cfg.short_threshold, cfg.contact_margin), mask=mask)
         hardware_id = {"serial": f"{cfg.port}@{cfg.baudrate}", "sim": f"sim/seed{cfg.sim_seed}",
@@ -59,6 +64,7 @@ class GloveDriverNode(Node):
 
         self._frame_pub = self.create_publisher(GloveFrame, "stag/frame", 10)
         self._image_pub = self.create_publisher(Image, "stag/image", 10)
+        self._map_pub = self.create_publisher(Image, "stag/pressure_map", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._capture_service = self.create_service(Trigger, "~/capture_empty_hand", self._on_capture)
         self._poll_timer = self.create_timer(1.0 / cfg.poll_rate_hz, self._on_poll)
@@ -72,6 +78,9 @@ class GloveDriverNode(Node):
         for frame in self.driver.poll(self._now_ns()):
             self._frame_pub.publish(glove_frame_to_msg(self.types, frame, self.config.frame_id))
             self._image_pub.publish(pressure_image_msg(frame, self.types, self.config.frame_id))
+            if self._map_pub.get_subscription_count():  # drawing costs ~2 ms a frame: only for a viewer
+                image = self.pressure_map.draw(frame.pressure, frame.shorted)
+                self._map_pub.publish(pressure_map_to_msg(self.types, image, frame.stamp_ns, self.config.frame_id))
         for error in self.driver.backend.take_errors():  # each new one once, with port and OS reason
             self.get_logger().error(error)
 

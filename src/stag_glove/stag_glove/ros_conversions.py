@@ -55,6 +55,15 @@ def pressure_image_msg(frame: ProcessedFrame, types: Types, frame_id: str) -> An
                encoding="32FC1", is_bigendian=0, step=int(cols * 4), data=sequence_field(cls, data, np.uint8))
 
 
+def pressure_map_to_msg(types: Types, image: np.ndarray, stamp_ns: int, frame_id: str) -> Any:
+    """sensor_msgs/Image, encoding rgb8, of a drawn pressure map (pressure_map.PressureMap.draw)."""
+    cls = types("sensor_msgs/msg/Image")
+    height, width, _ = image.shape
+    data = np.ascontiguousarray(image, dtype=np.uint8).reshape(-1)
+    return cls(header=make_header(types, stamp_ns, frame_id), height=int(height), width=int(width),
+               encoding="rgb8", is_bigendian=0, step=int(width * 3), data=sequence_field(cls, data, np.uint8))
+
+
 def image_to_pressure(msg: Any) -> np.ndarray:
     if msg.encoding != "32FC1":
         raise ValueError(f"expected a 32FC1 image, got {msg.encoding!r}")

@@ -36,6 +36,28 @@ def test_config_yaml_matches_declared_defaults():
     assert node_parameters(DRIVER_YAML, "glove_driver") == GloveDriverConfig().as_parameters()
 
 
+def test_pressure_map_is_drawn_only_for_a_viewer(ros, driver_cls):
+    """/stag/pressure_map: the frame's pressures on the layout (rgb8), published while subscribed."""
+    from stag_glove.layout import load_layout
+    from stag_glove.pressure_map import PressureMap
+
+    frames = ros.collect(GloveFrame, "/stag/frame")
+    node = ros.node(driver_cls, params_files=[DRIVER_YAML], params={"sim_short_probability": 0.0}, sim_time=True)
+    ros.advance(0.5, step=POLL_STEP)
+    assert node._map_pub.get_subscription_count() == 0 and frames  # nobody watches: nothing drawn
+    maps = ros.collect(Image, "/stag/pressure_map")
+    assert ros.spin_until(lambda: node._map_pub.get_subscription_count() == 1)
+    ros.advance(1.0, step=POLL_STEP)
+    assert ros.spin_until(lambda: len(maps) >= 5)
+    image = maps[-1]
+    frame = next(f for f in frames if stamp_ns(f) == stamp_ns(image))
+    layout = load_layout(CONFIG / "glove" / "layout.yaml")
+    expected = PressureMap(layout.mask, layout.region_index).draw(np.asarray(frame.pressure).reshape(32, 32))
+    assert (image.encoding, image.height, image.width, image.step, image.header.frame_id) == (
+        "rgb8", 384, 384, 1152, "stag_glove")
+    np.testing.assert_array_equal(np.asarray(image.data, np.uint8).reshape(384, 384, 3), expected)
+
+
 def test_sim_driver_publishes_frames_and_32fc1_images_at_7_3_hz(ros, driver_cls):
     frames = ros.collect(GloveFrame, "/stag/frame")
     images = ros.collect(Image, "/stag/image")

@@ -1,0 +1,25 @@
+from setuptools import find_packages, setup
+
+package_name = "prisma_visualization"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs pytest (setuptools >= 72 ignores tests_require)
+    zip_safe=True,
+    maintainer="PRISMA developers",
+    maintainer_email="dev@prisma-hand.org",
+    description="RViz views of the hand: the fingertip taxels, contact and force drawn on the model.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "tactile_markers = prisma_visualization.tactile_markers_node:main",
+        ],
+    },
+)

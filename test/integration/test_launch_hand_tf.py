@@ -1,0 +1,162 @@
+"""launch_testing: the hand as ROS sees a robot. `hand.launch.py sim:=true` beside a second hand under
+`namespace:=left`, each with robot_state_publisher and the description from prisma_description.
+
+- Every frame id on the graph's messages (per-finger and per-hand taxels, wrench, contact) has a
+  transform from its hand's base through tf2: prisma_<finger>_pad from prisma_hand_base, and
+  left/prisma_<finger>_pad from left/prisma_hand_base; /joint_states names only joints of the
+  description.
+- Two trees, no clash: every frame of /tf and /tf_static has one parent, the left hand's frames all
+  start with left/, the two bases are not connected, and each hand has its own /robot_description.
+- During a pinch Grasp the thumb pad moves as the coupling says: its transform at each /joint_states
+  stamp is the description's forward kinematics at those motor positions, and where the pinch
+  closes it travels the simulator's 8 mm per rad of thumb flexion.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import unittest
+
+import numpy as np
+import pytest
+
+from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from prisma_msgs.action import Grasp  # noqa: E402
+from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
+from rclpy.time import Time  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+from tf2_msgs.msg import TFMessage  # noqa: E402
+from tf2_ros import Buffer, TransformListener  # noqa: E402
+from urdf_parser_py.urdf import URDF  # noqa: E402
+
+from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
+from urdf_kinematics import link_poses  # noqa: E402
+
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+HANDS = {"": "", "/left": "left/"}  # namespace -> frame prefix
+SUCCEEDED = 4
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
+                                     include_launch("hand.launch.py", sim="true", namespace="left"),
+                                     launch_testing.actions.ReadyToTest()])
+
+
+def translation(transform) -> np.ndarray:
+    t = transform.transform.translation
+    return np.array([t.x, t.y, t.z])
+
+
+class TestHandTf(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.ros = RosHarness()
+        cls.buffer = Buffer(cache_time=Duration(seconds=60))
+        cls.listener = TransformListener(cls.buffer, cls.ros.probe, spin_thread=False)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.ros.shutdown()
+
+    def description(self, namespace: str) -> URDF:
+        received = []
+        self.ros.probe.create_subscription(String, f"{namespace}/robot_description", received.append, LATCHED)
+        self.assertTrue(self.ros.spin_until(lambda: received, 60.0), f"no {namespace}/robot_description")
+        return URDF.from_xml_string(received[0].data)
+
+    def lookup(self, target: str, source: str, stamp: Time | None = None, timeout_sec: float = 10.0):
+        stamp = stamp or Time()
+        ok = self.ros.spin_until(lambda: self.buffer.can_transform(target, source, stamp), timeout_sec)
+        self.assertTrue(ok, f"no transform {target} <- {source} at {stamp.nanoseconds}")
+        return self.buffer.lookup_transform(target, source, stamp)
+
+    def test_1_every_frame_on_the_hands_messages_has_a_transform_from_its_base(self):
+        ros = self.ros
+        for namespace, prefix in HANDS.items():
+            streams = [ros.collect(TaxelArray, f"{namespace}/prisma/{f}/taxels") for f in FINGERS]
+            streams += [ros.collect(WrenchStamped, f"{namespace}/prisma/{f}/wrench") for f in FINGERS]
+            streams += [ros.collect(ContactState, f"{namespace}/prisma/{f}/contact") for f in FINGERS]
+            hand = [ros.collect(HandTaxels, f"{namespace}/prisma/hand/taxels"),
+                    ros.collect(HandWrench, f"{namespace}/prisma/hand/wrench"),
+                    ros.collect(HandContact, f"{namespace}/prisma/hand/contact")]
+            joints = ros.collect(JointState, f"{namespace}/joint_states")
+            every = streams + hand + [joints]
+            self.assertTrue(ros.spin_until(lambda every=every: all(len(s) >= 3 for s in every), 90.0),
+                            f"{namespace or '/'}: a stream of the hand is silent")
+            frames = {m.header.frame_id for s in streams for m in s}
+            frames |= {t.header.frame_id for m in hand[0] for t in m.samples}
+            frames |= {w.header.frame_id for m in hand[1] for w in m.wrenches}
+            frames |= {c.header.frame_id for m in hand[2] for c in m.contacts}
+            self.assertEqual(frames, {f"{prefix}prisma_{f}_pad" for f in FINGERS})
+            base = f"{prefix}prisma_hand_base"
+            for frame in sorted(frames):
+                self.lookup(base, frame, timeout_sec=30.0)
+            moving = {j.name for j in self.description(namespace).joints if j.type != "fixed"}
+            self.assertLessEqual({name for m in joints for name in m.name}, moving)
+
+    def test_2_two_hands_two_trees_no_clash(self):
+        ros = self.ros
+        tf = ros.collect(TFMessage, "/tf")
+        static = ros.collect(TFMessage, "/tf_static",
+                             QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        ros.spin_for(2.0)
+        self.assertTrue(static and tf)
+        parents: dict[str, set[str]] = {}
+        for message in tf + static:
+            for transform in message.transforms:
+                parents.setdefault(transform.child_frame_id, set()).add(transform.header.frame_id)
+        self.assertEqual({child: p for child, p in parents.items() if len(p) > 1}, {})
+        left = {frame for frame in parents if frame.startswith("left/")}
+        right = set(parents) - left
+        self.assertEqual({frame.removeprefix("left/") for frame in left}, right)  # same robot, own names
+        self.assertEqual(len(right), len(self.description("").links) - 1)  # every link but the root
+        self.assertTrue(all(parents[f].pop().startswith("left/") for f in left))
+        self.assertFalse(self.buffer.can_transform("prisma_hand_base", "left/prisma_hand_base", Time()))
+        self.assertEqual(len(self.description("/left").joints), len(self.description("").joints))
+
+    def test_3_during_a_pinch_grasp_the_thumb_pad_moves_as_the_coupling_says(self):
+        ros = self.ros
+        robot = self.description("")
+        client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+        joints = ros.collect(JointState, "/joint_states")
+        result = ros.result(ros.send_until_accepted(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
+        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        samples = [(m.header.stamp, dict(zip(m.name, m.position))) for m in joints]
+        flexing = [(stamp, motors) for stamp, motors in samples if motors["thumb_flexion"] > 0.05]
+        self.assertGreater(len(flexing), 20)
+        # the transform at every 5th sample's stamp is the description's kinematics at its motors
+        for stamp, motors in flexing[::5]:
+            measured = translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(stamp)))
+            expected = link_poses(robot, motors)["prisma_thumb_pad"][:3, 3]
+            np.testing.assert_allclose(measured, expected, atol=1e-5)
+        # where the pinch closes on the ball, the pad travels the simulator's mm per motor rad
+        contact_rad = OBJECTS["pinch_ball"].thumb_contact_rad
+        near = [(stamp, motors) for stamp, motors in flexing if abs(motors["thumb_flexion"] - contact_rad) < 0.3]
+        self.assertGreaterEqual(len(near), 2, "no /joint_states sample near the thumb's contact angle")
+        (first_stamp, first), (last_stamp, last) = near[0], near[-1]
+        moved_mm = 1e3 * np.linalg.norm(
+            translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(last_stamp)))
+            - translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(first_stamp))))
+        turned_rad = last["thumb_flexion"] - first["thumb_flexion"]
+        self.assertGreater(turned_rad, 0.2)
+        self.assertAlmostEqual(moved_mm / turned_rad, HandWorldParams().thumb_travel_mm_per_rad,
+                               delta=0.05 * HandWorldParams().thumb_travel_mm_per_rad)
+
+
+@launch_testing.post_shutdown_test()
+class TestHandTfShutdown(unittest.TestCase):
+    def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)

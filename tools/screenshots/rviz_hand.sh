@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# RViz on the sim graph with the hand holding the ball after a pinch Grasp: the model moving with
+# /joint_states, the taxels coloured by the contact monitor's decision, the contact points and the
+# normal-force arrows (config/hand.rviz), taken on a virtual X server:
+#
+#     PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh && source install/setup.bash
+#     tools/screenshots/rviz_hand.sh [OUT.png]        # default docs/img/rviz_hand_pinch.png
+#
+# Run from the repository root with ROS 2 and the built workspace sourced. Needs Xvfb, xwd and
+# ImageMagick's convert (apt-get install -y xvfb x11-apps imagemagick) and rviz2 (in the ROS tree;
+# on a robot apt install ros-jazzy-rviz2); Mesa's software renderer draws it (LIBGL_ALWAYS_SOFTWARE=1).
+# The graph and RViz run on a ROS domain and a display of their own; all of it is stopped at the end.
+# The shipped configuration is used as it is but for the camera, brought close to the pinch, and the
+# model drawn half transparent so that the pads between thumb and index show.
+set -euo pipefail
+
+out="${1:-docs/img/rviz_hand_pinch.png}"
+missing=()
+for tool in Xvfb xwd convert ros2 rviz2; do
+  command -v "$tool" >/dev/null || missing+=("$tool")
+done
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "rviz_hand.sh: missing ${missing[*]} (apt-get install -y xvfb x11-apps imagemagick;" \
+       "PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh; source install/setup.bash)" >&2
+  exit 1
+fi
+config="$(ros2 pkg prefix prisma_bringup 2>/dev/null)/share/prisma_bringup/config/hand.rviz"
+[ -f "$config" ] || { echo "rviz_hand.sh: no $config: colcon build, source install/setup.bash" >&2; exit 1; }
+
+width=1280 height=800
+export ROS_DOMAIN_ID=$((101 + $$ % 130))  # this script's graph only
+export RCUTILS_COLORIZED_OUTPUT=0 LIBGL_ALWAYS_SOFTWARE=1
+work=$(mktemp -d)
+groups=()  # process groups started here
+cleanup() {
+  for pgid in "${groups[@]}"; do kill -INT -- "-$pgid" 2>/dev/null || true; done
+  sleep 5
+  for pgid in "${groups[@]}"; do kill -KILL -- "-$pgid" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  ros2 daemon stop >/dev/null 2>&1 || true
+  rm -rf "$work"
+}
+trap cleanup EXIT
+
+setsid Xvfb -displayfd 1 -screen 0 "${width}x${height}x24" -nolisten tcp >"$work/display" 2>/dev/null &
+groups+=($!)
+for _ in $(seq 100); do [ -s "$work/display" ] && break; sleep 0.1; done
+[ -s "$work/display" ] || { echo "rviz_hand.sh: Xvfb did not start" >&2; exit 1; }
+export DISPLAY=":$(head -n1 "$work/display")"
+
+setsid ros2 launch prisma_bringup hand.launch.py sim:=true >"$work/hand.log" 2>&1 &
+groups+=($!)
+echo "rviz_hand.sh: hand.launch.py started; pinch Grasp..."
+for attempt in 1 2 3; do
+  if timeout 90 ros2 action send_goal /prisma/grasp prisma_msgs/action/Grasp "{grasp: pinch}" \
+       >"$work/grasp.log" 2>&1 && grep -q "force_reached" "$work/grasp.log"; then
+    break
+  fi
+  [ "$attempt" = 3 ] && { echo "rviz_hand.sh: the pinch Grasp did not reach its force" >&2; cat "$work/grasp.log" >&2; exit 1; }
+  sleep 3
+done
+
+# the shipped view, closer: the pinch seen from the thumb's side, slightly from above
+python3 - "$config" "$work/hand.rviz" <<'EOF'
+import re
+import sys
+text = open(sys.argv[1]).read()
+text = re.sub(r"(?m)^      Distance: [0-9.]+", "      Distance: 0.14", text)
+text = re.sub(r"(?m)^      Pitch: [-0-9.]+", "      Pitch: 0.3", text)
+text = re.sub(r"(?m)^      Yaw: [-0-9.]+", "      Yaw: 0.5", text)
+text = re.sub(r"Focal Point:\n        X: [-0-9.]+\n        Y: [-0-9.]+\n        Z: [-0-9.]+",
+              "Focal Point:\n        X: 0.027\n        Y: 0.068\n        Z: 0.128", text)
+text = text.replace("    - Alpha: 1\n      Class: rviz_default_plugins/RobotModel",
+                    "    - Alpha: 0.45\n      Class: rviz_default_plugins/RobotModel")
+open(sys.argv[2], "w").write(text)
+EOF
+setsid rviz2 -d "$work/hand.rviz" >"$work/rviz.log" 2>&1 &
+groups+=($!)
+echo "rviz_hand.sh: rviz2 started; waiting for it to draw..."
+sleep 20  # start, description, TF and the first MarkerArrays under software rendering
+if grep -E "\[(ERROR|WARN)\]|No transform|dropping message" "$work/rviz.log" >&2; then
+  echo "rviz_hand.sh: rviz2 reported the problems above" >&2
+  exit 1
+fi
+mkdir -p "$(dirname "$out")"
+tmp="$out.partial-$$.png"
+xwd -root -silent | convert xwd:- -crop "${width}x$((height - 24))+0+0" +repage -colors 128 "$tmp"
+mv "$tmp" "$out"
+echo "rviz_hand.sh: wrote $out"
