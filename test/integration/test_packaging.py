@@ -279,6 +279,23 @@ def test_bringup_installs_all_of_launch_and_config(monkeypatch, tmp_path, where)
     assert "share/prisma_bringup/config/models/cnn2/model.pt" in installed
 
 
+def test_the_top_level_links_are_walked_once():
+    """launch/ and config/ at the root are links to prisma_bringup's folders: ruff checks each launch
+    file once (by its path in the package) and colcon finds each package once."""
+    ruff = subprocess.run([sys.executable, "-m", "ruff", "check", "--show-files", "."], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    if ruff.returncode != 0 and "No module named ruff" in ruff.stderr:
+        pytest.skip("ruff is not installed (pip install -e '.[test]')")
+    checked = [Path(line) for line in ruff.stdout.splitlines() if line.endswith(".py")]
+    launch_files = [p for p in checked if p.name.endswith(".launch.py")]
+    assert sorted(launch_files) == sorted((BRINGUP / "launch").resolve() / p.name for p in launch_files)
+    assert len(launch_files) == len(list((BRINGUP / "launch").glob("*.launch.py")))
+    if shutil.which("colcon"):
+        listed = subprocess.run(["colcon", "list", "--names-only"], cwd=ROOT, capture_output=True, text=True,
+                                timeout=120).stdout.split()
+        assert sorted(listed) == sorted([*PACKAGES, "prisma_integration_tests"])
+
+
 # ---------------------------------------------------------------------------------------------
 # the wheel
 
