@@ -42,7 +42,8 @@ from prisma_tactile_driver.node_config import TactileDriverConfig  # noqa: E402
 from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig  # noqa: E402
 
 LAUNCH_FILES = ("hand.launch.py", "glove.launch.py")
-THIRD_PARTY = {"robot_state_publisher"}  # started by hand.launch.py, not this suite's: not checked here
+# packages (and node names) of nodes the launch files start that are not this suite's: not checked here
+THIRD_PARTY = {"robot_state_publisher"}
 RCLPY_OWN = {"use_sim_time", "start_type_description_service"}  # declared by rclpy itself
 CONFIGS = {"tactile_driver": TactileDriverConfig, "force_estimator": ForceEstimatorConfig,
            "motor_driver": MotorDriverConfig, "manipulation": ManipulationConfig,
@@ -55,12 +56,17 @@ CHOICES = "one of: "
 
 
 def launched_node_names() -> set[str]:
-    """The `name=` of every Node(...) in the launch files."""
+    """The `name=` of every Node(...) of this suite in the launch files (a node of a THIRD_PARTY
+    package is left out whatever its name)."""
     names = set()
     for launch_file in LAUNCH_FILES:
         for call in ast.walk(ast.parse((LAUNCH / launch_file).read_text())):
             if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
-                name = next((k.value for k in call.keywords if k.arg == "name"), None)
+                keywords = {k.arg: k.value for k in call.keywords}
+                package = keywords.get("package")
+                if isinstance(package, ast.Constant) and package.value in THIRD_PARTY:
+                    continue
+                name = keywords.get("name")
                 assert isinstance(name, ast.Constant), f"{launch_file}:{call.lineno}: Node without a literal name"
                 names.add(name.value)
     return names
