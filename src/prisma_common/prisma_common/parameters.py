@@ -41,10 +41,6 @@ def check_fingers(fingers: list[str], name: str = "fingers") -> None:
         raise ParameterError(name, fingers, "each finger at most once")
 
 
-def _number(value: float) -> str:
-    return str(value)
-
-
 @dataclass(frozen=True)
 class ParameterSpec:
     """What a parameter is and which values it takes: the one place its description, unit, bounds,
@@ -68,7 +64,7 @@ class ParameterSpec:
         if self.bounds is None:
             return ""
         low, high = self.bounds
-        return f"{'(' if self.open_low else '['}{_number(low)}, {_number(high)}{')' if self.open_high else ']'}"
+        return f"{'(' if self.open_low else '['}{low}, {high}{')' if self.open_high else ']'}"
 
     def constraints(self) -> str:
         """What a ParameterDescriptor's ranges cannot carry, in words: the choices, an excluded end
@@ -104,8 +100,8 @@ class ParameterSpec:
             below = value <= low if self.open_low else value < low
             above = value >= high if self.open_high else value > high
             if below or above:
-                raise ParameterError(name, value, f"must be {'>' if self.open_low else '>='} {_number(low)} "
-                                                  f"and {'<' if self.open_high else '<='} {_number(high)}")
+                raise ParameterError(name, value, f"must be {'>' if self.open_low else '>='} {low} "
+                                                  f"and {'<' if self.open_high else '<='} {high}")
         if self.choices and value not in self.choices:
             raise ParameterError(name, value, f"expected one of {'|'.join(self.choices)}")
 
