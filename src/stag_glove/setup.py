@@ -12,7 +12,7 @@ BRINGUP = os.path.relpath(os.path.join(os.path.dirname(os.path.realpath(__file__
 
 setup(
     name=package_name,
-    version="0.1.0",
+    version="0.2.0",
     packages=find_packages(exclude=["test"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),

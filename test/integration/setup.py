@@ -6,7 +6,7 @@ package_name = "prisma_integration_tests"
 # in this folder (pytest in this directory, configured by the repository's pyproject.toml).
 setup(
     name=package_name,
-    version="0.1.0",
+    version="0.2.0",
     packages=[],
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),

@@ -12,7 +12,7 @@ ActionClients on the launched graph over DDS (the tests run in order, on one lau
    (or aborted) naming the goal in the way; the node then serves the other one;
 4. goals beyond the configured limits are rejected, the log naming the value;
 5. `ros2 param set /manipulation k 0.7` shows in every ContactState stamped after it, `k 2.0` is
-   refused and changes nothing;
+   refused by rclpy's range check and changes nothing;
 6. the tactile driver's tare Trigger answers with the baselines: each the mean of the last 100
    voltages of its taxel.
 After the launch is stopped (SIGINT to every node, as Ctrl-C on `ros2 launch`): every node exits 0
@@ -284,7 +284,9 @@ class TestHandActions(unittest.TestCase):
         for m in after:  # Algorithm 1 with the new k: v_t = k * mean voltage
             self.assertAlmostEqual(m.threshold, np.float32(0.7) * m.mean_voltage, places=5)
 
-        self.assertEqual(self.param_set("2.0"), "Setting parameter failed: parameter k: k 2.0 outside (0.0, 1.5]")
+        # refused by rclpy's range check: k's descriptor advertises [0.0, 1.5]
+        self.assertEqual(self.param_set("2.0"),
+                         "Setting parameter failed: Parameter k out of range Min: 0.0, Max: 1.5, value: 2.0")
         refused_ns = time.time_ns()
         self.assertEqual({round(m.k, 6) for m in self.contacts_after(refused_ns)}, {0.7})
         self.assertTrue(ros.set_parameters("/manipulation", k=K)[0].successful)

@@ -37,7 +37,7 @@ from prisma_common.parameters import ParameterError  # noqa: E402
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
 from prisma_hand_sim.hand_world import OBJECTS, HandWorld, released  # noqa: E402
 from prisma_hand_sim.pad_model import PadModel  # noqa: E402
-from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S  # noqa: E402
+from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S, GraspRequest  # noqa: E402
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
 from prisma_motor_driver.motor_driver_node import MotorDriverNode  # noqa: E402
 from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
@@ -592,11 +592,32 @@ def test_contact_state_on_every_sample_when_idle_and_k_at_run_time(ros, hand):
     assert ros.spin_until(lambda: len(seen["thumb"]) == samples + 2)
     assert seen["thumb"][-1].k == pytest.approx(0.95)
     assert seen["thumb"][-1].threshold == pytest.approx(0.95 * seen["thumb"][-1].mean_voltage, rel=1e-5)
+    # outside the advertised range: rclpy's own check refuses it; the excluded end: the config's check
     (bad,) = ros.set_parameters(f"{NS}/manipulation", k=2.0)
-    assert not bad.successful and bad.reason.startswith("parameter k: ") and "2.0" in bad.reason
+    assert (bad.successful, bad.reason) == (False, "Parameter k out of range Min: 0.0, Max: 1.5, value: 2.0")
+    (zero,) = ros.set_parameters(f"{NS}/manipulation", k=0.0)
+    assert (zero.successful, zero.reason) == (False, "invalid parameter 'k' = 0.0: must be > 0.0 and <= 1.5")
     (fixed,) = ros.set_parameters(f"{NS}/manipulation", max_force_n=9.0)
-    assert not fixed.successful and fixed.reason == "max_force_n cannot change at run time; only k"
+    assert (fixed.successful, fixed.reason) == (False, "Trying to set a read-only parameter: max_force_n.")
     assert h.manipulation.core.k_parameter == 0.95
+
+
+def test_live_parameters_reach_the_core_through_the_start_checks(ros, hand):
+    """The watchdog's stale timeout, min_mean_voltage and the goal defaults change at run time and
+    reach the running core; a change the config refuses (a goal default above max_speed_rpm) leaves
+    everything as it was, with the config's message."""
+    h = hand(pinched_world())
+    core = h.manipulation.core
+    results = ros.set_parameters(f"{NS}/manipulation", stale_timeout=0.25, min_mean_voltage=0.3,
+                                 grasp_speed_rpm=40.0)
+    assert [r.successful for r in results] == [True, True, True]
+    assert core.watchdog.stale_ns == 250_000_000 and core.monitor.min_mean_voltage == 0.3
+    assert core.config.grasp_speed_rpm == 40.0 and h.manipulation.config.grasp_speed_rpm == 40.0
+    assert core.resolve_grasp(GraspRequest("pinch"))[0].speed_rpm == 40.0  # the default of the next goal
+    (refused,) = ros.set_parameters(f"{NS}/manipulation", horizontal_speed_rpm=80.0)
+    assert (refused.successful, refused.reason) == (
+        False, "invalid parameter 'horizontal_speed_rpm' = 80.0: above max_speed_rpm 70.0")
+    assert core.config.horizontal_speed_rpm == 20.0
 
 
 def test_joint_states_at_100_hz_in_si_units(ros, hand):
@@ -626,6 +647,18 @@ def test_invalid_parameters_fail_at_start_naming_them(ros):
         ros.node(ManipulationNode, namespace=NS, params={"k": 2.0})
     with pytest.raises(ParameterError, match=r"motor_ids \[1, 1, 3\] are not unique"):
         ros.node(MotorDriverNode, namespace=NS, params={"motor_ids": [1, 1, 3]})
+
+
+def test_motor_driver_position_goal_settings_change_at_run_time_its_limits_do_not(ros):
+    motor = ros.node(MotorDriverNode, namespace=NS)
+    results = ros.set_parameters(f"{NS}/motor_driver", position_tolerance=0.05, position_profile_rpm=45.0)
+    assert [r.successful for r in results] == [True, True]
+    assert (motor.core.runner.position_tolerance_rad, motor.core.runner.profile_rpm) == (0.05, 45.0)
+    for name, value in (("max_positions", [9.0, 7.0, 4.0]), ("max_velocities_rpm", [90.0, 90.0, 90.0]),
+                        ("backend", "dynamixel")):
+        (refused,) = ros.set_parameters(f"{NS}/motor_driver", **{name: value})
+        assert (refused.successful, refused.reason) == (False, f"Trying to set a read-only parameter: {name}.")
+    assert motor.core.bus.motors["thumb_rotation"].max_position_rad == 3.0
 
 
 def test_sim_stack_tactile_driver_fed_by_motor_driver_through_hand_world(ros):

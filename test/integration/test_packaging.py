@@ -7,7 +7,8 @@
   installs them where `ros2 run` looks (lib/<package>/);
 - prisma_bringup's setup.py installs all of its launch/ and config/ under share/prisma_bringup;
 - the wheel (`pip install .`) carries the model bundles, the glove layout and the message
-  definitions under share/, where share_data finds them; share_data's lookup order;
+  definitions under share/, where share_data finds them, and LICENSE; share_data's lookup order;
+- the top-level launch/ and config/ links are walked once (ruff, colcon);
 - with the workspace built and sourced: the scripts and data are where ROS looks.
 No test here needs the network.
 """
@@ -282,6 +283,23 @@ def test_bringup_installs_all_of_launch_and_config(monkeypatch, tmp_path, where)
     assert "share/prisma_bringup/config/models/cnn2/model.pt" in installed
 
 
+def test_the_top_level_links_are_walked_once():
+    """launch/ and config/ at the root are links to prisma_bringup's folders: ruff checks each launch
+    file once (by its path in the package) and colcon finds each package once."""
+    ruff = subprocess.run([sys.executable, "-m", "ruff", "check", "--show-files", "."], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    if ruff.returncode != 0 and "No module named ruff" in ruff.stderr:
+        pytest.skip("ruff is not installed (pip install -e '.[test]')")
+    checked = [Path(line) for line in ruff.stdout.splitlines() if line.endswith(".py")]
+    launch_files = [p for p in checked if p.name.endswith(".launch.py")]
+    assert sorted(launch_files) == sorted((BRINGUP / "launch").resolve() / p.name for p in launch_files)
+    assert len(launch_files) == len(list((BRINGUP / "launch").glob("*.launch.py")))
+    if shutil.which("colcon"):
+        listed = subprocess.run(["colcon", "list", "--names-only"], cwd=ROOT, capture_output=True, text=True,
+                                timeout=120).stdout.split()
+        assert sorted(listed) == sorted([*PACKAGES, "prisma_integration_tests"])
+
+
 # ---------------------------------------------------------------------------------------------
 # the wheel
 
@@ -310,7 +328,7 @@ def wheel_names(tmp_path_factory) -> set[str]:
     tree = work / "tree"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
     shutil.copytree(SRC, tree / "src", ignore=ignore)
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, tree / name)
     cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(work / "dist"), str(tree)]
     # setuptools >= 70.1 builds wheels itself: no isolated build env, so no download
@@ -332,6 +350,8 @@ def test_wheel_carries_bundles_layout_and_message_definitions(wheel_names):
             "config/glove/layout.yaml"} <= WHEEL_SHARE["share/prisma_bringup/"]
     assert {"msg/TaxelArray.msg", "action/Grasp.action"} <= WHEEL_SHARE["share/prisma_msgs/"]
     assert "prisma_common/share_data.py" in wheel_names
+    # the Apache-2.0 text in the wheel's metadata (setuptools picks LICENSE up by name)
+    assert any(n.split("/")[0].endswith(".dist-info") and n.endswith("/LICENSE") for n in wheel_names)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
 from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_node_wiring.node_parameters import declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples, taxel_frame_from_msg
@@ -35,12 +36,8 @@ class ForceEstimatorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("force_estimator", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = ForceEstimatorConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
-        # fails here, at start, naming the parameter and value when one is invalid
-        self.config = ForceEstimatorConfig.from_parameters(
-            {name: self.get_parameter(name).value for name in defaults})
-        cfg = self.config
+        # fails here, at start, naming the parameter and value when one is invalid (all read-only)
+        cfg = self.config = declare_config(self, ForceEstimatorConfig)
         self.bundle_paths = {finger: str(resolve_bundle_path(path)) for finger, path in cfg.bundles().items()}
         # BundleError (path + mismatch) propagates: the node does not start without its network
         estimators = build_estimators(self.bundle_paths, threads=cfg.torch_threads, precision=cfg.network_precision)

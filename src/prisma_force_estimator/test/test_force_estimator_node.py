@@ -175,6 +175,14 @@ def test_invalid_parameters_fail_at_start(ros, node_cls, bundles, name, value, m
         ros.node(node_cls, params={"model_bundle": str(bundles["cnn2"]), name: value})
 
 
+def test_every_parameter_is_read_only_after_start(ros, node_cls, bundles):
+    ros.node(node_cls, params={"model_bundle": str(bundles["cnn2"])})
+    for name, value in (("batch_window", 0.01), ("model_bundle", str(bundles["cnn"])),
+                        ("finger_bundles.thumb", str(bundles["cnn"])), ("network_precision", "float32")):
+        (refused,) = ros.set_parameters("/force_estimator", **{name: value})
+        assert (refused.successful, refused.reason) == (False, f"Trying to set a read-only parameter: {name}.")
+
+
 def test_behind_the_simulated_tactile_driver_every_scan_gets_wrenches(ros, node_cls, bundles):
     from prisma_tactile_driver.tactile_driver_node import TactileDriverNode
     taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in FINGERS}

@@ -187,6 +187,16 @@ class ManipulationCore:
         self.monitor.set_k(check_k(k))
         self.k_parameter = self.monitor.k
 
+    def reconfigure(self, config: ManipulationConfig) -> None:
+        """Live parameters changed (validated by ManipulationConfig): k and min_mean_voltage apply
+        from the next sample, stale_timeout from the watchdog's next check, the goal defaults and
+        controller settings from the next goal (a running one keeps what it started with)."""
+        if config.k != self.k_parameter:
+            self.set_k(config.k)
+        self.monitor.min_mean_voltage = config.min_mean_voltage
+        self.watchdog.stale_ns = int(round(config.stale_timeout * 1e9))
+        self.config = config
+
     @property
     def busy(self) -> bool:
         return self.controller is not None

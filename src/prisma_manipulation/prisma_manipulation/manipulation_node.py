@@ -8,7 +8,8 @@ Subscribes /prisma/hand/taxels and /prisma/hand/wrench (Fz = normal force), or t
 /prisma/<finger>/taxels and /prisma/<finger>/wrench until those speak, and /joint_states; publishes
 each sample's ContactState on /prisma/<finger>/contact (while subscribed) and those of each received
 scan together on /prisma/hand/contact.
-The parameter `k` can be changed at run time (`ros2 param set /manipulation k 0.7`).
+k, min_mean_voltage, stale_timeout and the goal defaults can be changed at run time
+(`ros2 param set /manipulation k 0.7`); the other parameters are read-only (node_config.py says why).
 Goals are accepted only when every stream they need flows and the MoveMotors server is up; motion
 goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when this node
 dies (docs/manipulation.md, "Safety").
@@ -19,7 +20,6 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -30,11 +30,11 @@ from sensor_msgs.msg import JointState
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
 from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_from_msg, velocity_goal
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
-from .contact_monitor import check_k
 from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
 from .node_config import ManipulationConfig
 from .ros_conversions import (
@@ -55,13 +55,11 @@ from .ros_conversions import (
 class ManipulationNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("manipulation", **kwargs)
-        defaults = ManipulationConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        self.config = ManipulationConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
+        self.config = declare_config(self, ManipulationConfig)
         self.core = ManipulationCore(self.config)
         self.types = robot_types(get_message, get_action)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        accept_live_changes(self, ManipulationConfig, self._reconfigure)
 
         self._goal = None  # ServerGoalHandle of the running Grasp/Manipulate goal
         self._goal_done: Future | None = None
@@ -94,19 +92,9 @@ class ManipulationNode(Node):
         return self.get_clock().now().nanoseconds
 
     # ---- parameters ------------------------------------------------------------------------
-    def _on_set_parameters(self, params) -> SetParametersResult:
-        params = [p for p in params if p.name != "use_sim_time"]  # rclpy's own, always allowed
-        for p in params:
-            if p.name != "k":
-                return SetParametersResult(successful=False, reason=f"{p.name} cannot change at run time; only k")
-            try:
-                check_k(p.value)
-            except (TypeError, ValueError) as exc:
-                return SetParametersResult(successful=False, reason=f"parameter k: {exc}")
-        for p in params:
-            self.core.set_k(p.value)
-            self.get_logger().info(f"k = {p.value}")
-        return SetParametersResult(successful=True)
+    def _reconfigure(self, config: ManipulationConfig) -> None:
+        self.config = config
+        self.core.reconfigure(config)
 
     # ---- sensor input ----------------------------------------------------------------------
     def _on_taxels(self, finger: str, msg: TaxelArray) -> None:

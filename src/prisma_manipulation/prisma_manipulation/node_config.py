@@ -1,82 +1,121 @@
-"""Parameters of the motor_driver and manipulation nodes: defaults (= config/*.yaml) and validation.
+"""Parameters of the manipulation node: defaults (= config/manipulation.yaml), their specs
+(description, unit, bounds, live or read-only) and validation.
 
 `from_parameters` raises ParameterError naming the parameter and the bad value, so a node with an
-invalid parameter fails at start with that message.
+invalid parameter fails at start with that message, and a run-time change with it is refused.
+
+Live (changeable while the node runs, through the same checks): k and min_mean_voltage (Algorithm 1,
+from the next sample, also during a goal: tuning K while rqt_plot draws the threshold is how the
+paper's experiments were run), the watchdog's stale_timeout (from its next check), and the goal
+defaults and controller settings with hold_min_k (from the next goal: a running goal keeps what it
+started with). Read-only: what the node is built from at start (fingers, topics, the watchdog
+timer, the motor limits shared with motor_driver) and the goal limits max_speed_rpm / max_force_n,
+the envelope every goal is checked against, which only a restart with a new configuration widens.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_common.parameters import ParameterError, Params, check_positive
+from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
 from prisma_motor_driver.backend import (
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MIN_POSITIONS,
     MotorConfig,
     MotorMap,
 )
+from prisma_motor_driver.control_table import VELOCITY_LIMIT_MAX_RPM
 
 from .contact_monitor import DEFAULT_K, K_RANGE
+
+MAX_FORCE_N = 10.0  # the highest force any parameter may name: twice the calibrated range of the pads
+MAX_TIMEOUT_S = 600.0
+SPEED = (0.0, VELOCITY_LIMIT_MAX_RPM)
+FORCE = (0.0, MAX_FORCE_N)
+TIMEOUT = (0.0, MAX_TIMEOUT_S)
+BELOW_MAX_SPEED = "at most max_speed_rpm"
+BELOW_MAX_FORCE = "at most max_force_n"
+GOAL_SPEEDS = ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm", "force_speed_rpm")
+GOAL_FORCES = ("grasp_finger_force", "grasp_thumb_force", "force_target_n")
 
 
 @dataclass
 class ManipulationConfig(Params):
-    fingers: list = field(default_factory=lambda: list(FINGERS))
-    frame_id_format: str = "prisma_{finger}_pad"
-    k: float = DEFAULT_K  # Algorithm 1 threshold factor, changeable at run time
-    min_mean_voltage: float = 0.55  # below it a pad is "not in contact" (feasible = false)
-    monitored_finger: str = "thumb"  # the pad Manipulate goals steer by
-    stale_timeout: float = 0.1  # s
-    watchdog_period: float = 0.02  # s
-    max_speed_rpm: float = 70.0  # goals asking more are rejected
-    max_force_n: float = 3.0  # goals asking more are rejected
-    hold_min_k: float = 0.6  # the hold needs K above this (docs/manipulation.md)
+    fingers: list = parameter(list(FINGERS), "fingertip pads whose taxels and wrenches this node takes",
+                              rules=f"distinct names of {', '.join(FINGERS)}")
+    frame_id_format: str = parameter("prisma_{finger}_pad", "header.frame_id of each ContactState",
+                                     rules="contains {finger}, replaced by the finger's name")
+    k: float = parameter(DEFAULT_K, "Algorithm 1 threshold factor: a taxel is safe while its voltage >= k x its "
+                                    "pad's mean voltage", bounds=K_RANGE, open_low=True, live=True)
+    min_mean_voltage: float = parameter(0.55, "below this mean voltage a pad is not in contact "
+                                              "(ContactState.feasible false)", unit="V", bounds=(0.0, 3.3),
+                                        open_high=True, live=True)
+    monitored_finger: str = parameter("thumb", "the pad Manipulate goals steer by", choices=FINGERS,
+                                      rules="one of fingers")
+    stale_timeout: float = parameter(0.1, "watchdog: taxels, wrenches or /joint_states older or silent this long "
+                                          "abort the goal with sensor_stale", unit="s", bounds=(0.0, 1.0),
+                                     open_low=True, live=True)
+    watchdog_period: float = parameter(0.02, "how often the watchdog checks", unit="s", bounds=(0.0, 1.0),
+                                       open_low=True)
+    max_speed_rpm: float = parameter(70.0, "goals asking for a faster motor speed are rejected", unit="rpm",
+                                     bounds=SPEED, open_low=True)
+    max_force_n: float = parameter(3.0, "goals asking for a larger force are rejected", unit="N", bounds=FORCE,
+                                   open_low=True)
+    hold_min_k: float = parameter(0.6, "hold goals need k above this (docs/manipulation.md)",
+                                  bounds=K_RANGE, open_high=True, live=True)
     # defaults for goal fields left at 0
-    grasp_finger_force: float = 0.8
-    grasp_thumb_force: float = 1.0
-    grasp_speed_rpm: float = 60.0
-    grasp_timeout: float = 10.0
-    horizontal_speed_rpm: float = 20.0
-    vertical_speed_rpm: float = 10.0
-    hold_speed_rpm: float = 20.0
-    manipulate_timeout: float = 30.0
+    grasp_finger_force: float = parameter(0.8, "Grasp finger_force when the goal leaves it 0", unit="N",
+                                          bounds=FORCE, open_low=True, live=True, rules=BELOW_MAX_FORCE)
+    grasp_thumb_force: float = parameter(1.0, "Grasp thumb_force when the goal leaves it 0", unit="N",
+                                         bounds=FORCE, open_low=True, live=True, rules=BELOW_MAX_FORCE)
+    grasp_speed_rpm: float = parameter(60.0, "Grasp speed_rpm when the goal leaves it 0", unit="rpm",
+                                       bounds=SPEED, open_low=True, live=True, rules=BELOW_MAX_SPEED)
+    grasp_timeout: float = parameter(10.0, "Grasp timeout when the goal leaves it 0", unit="s", bounds=TIMEOUT,
+                                     open_low=True, live=True)
+    horizontal_speed_rpm: float = parameter(20.0, "Manipulate horizontal speed_rpm when the goal leaves it 0",
+                                            unit="rpm", bounds=SPEED, open_low=True, live=True,
+                                            rules=BELOW_MAX_SPEED)
+    vertical_speed_rpm: float = parameter(10.0, "Manipulate vertical speed_rpm when the goal leaves it 0",
+                                          unit="rpm", bounds=SPEED, open_low=True, live=True, rules=BELOW_MAX_SPEED)
+    hold_speed_rpm: float = parameter(20.0, "Manipulate hold speed_rpm when the goal leaves it 0", unit="rpm",
+                                      bounds=SPEED, open_low=True, live=True, rules=BELOW_MAX_SPEED)
+    manipulate_timeout: float = parameter(30.0, "Manipulate timeout when the goal leaves it 0", unit="s",
+                                          bounds=TIMEOUT, open_low=True, live=True)
     # controller details
-    contact_force_n: float = 0.1  # a pad "touches" above this (power grasp averaging)
-    lateral_closure: float = 7.0  # rad of the fingers motor for the lateral grasp's fist
-    force_target_n: float = 1.0  # use_force: thumb force the combined controller keeps
-    force_band_n: float = 0.15  # ...restored when it drops more than this below the target
-    force_speed_rpm: float = 20.0
+    contact_force_n: float = parameter(0.1, "a pad touches above this force (the power grasp averages those)",
+                                       unit="N", bounds=FORCE, open_low=True, live=True)
+    lateral_closure: float = parameter(7.0, "fingers motor position of the lateral grasp's fist", unit="rad",
+                                       bounds=(0.0, 20.0), open_low=True, live=True)
+    force_target_n: float = parameter(1.0, "use_force: thumb force kept during a manipulation", unit="N",
+                                      bounds=FORCE, open_low=True, live=True, rules=BELOW_MAX_FORCE)
+    force_band_n: float = parameter(0.15, "use_force: restored when the thumb force falls this far below the target",
+                                    unit="N", bounds=FORCE, open_low=True, live=True, rules="below force_target_n")
+    force_speed_rpm: float = parameter(20.0, "use_force: thumb flexion speed restoring the force", unit="rpm",
+                                       bounds=SPEED, open_low=True, live=True, rules=BELOW_MAX_SPEED)
     # the motor_driver's motors and limits (keep equal to config/motor_driver.yaml)
-    motor_names: list = field(default_factory=lambda: list(MOTOR_NAMES))
-    min_positions: list = field(default_factory=lambda: list(DEFAULT_MIN_POSITIONS))
-    max_positions: list = field(default_factory=lambda: list(DEFAULT_MAX_POSITIONS))
-    limit_margin: float = 0.02  # rad: a motor this close to its limit counts as at the limit
-    move_action: str = "prisma/motors/move"  # relative: follows the node namespace
+    motor_names: list = parameter(list(MOTOR_NAMES), "the motor driver's motors (as config/motor_driver.yaml)",
+                                  rules=f"each of {', '.join(MOTOR_NAMES)} once")
+    min_positions: list = parameter(list(DEFAULT_MIN_POSITIONS), "lowest position of each motor "
+                                    "(as config/motor_driver.yaml)", unit="rad",
+                                    rules="one entry per motor, in the order of motor_names")
+    max_positions: list = parameter(list(DEFAULT_MAX_POSITIONS), "highest position of each motor "
+                                    "(as config/motor_driver.yaml)", unit="rad",
+                                    rules="one entry per motor, in the order of motor_names; above min_positions")
+    limit_margin: float = parameter(0.02, "a motor this close to a limit counts as at the limit", unit="rad",
+                                    bounds=(0.0, 1.0), open_low=True)
+    move_action: str = parameter("prisma/motors/move", "the motor driver's MoveMotors action (relative: follows the "
+                                                       "node's namespace)")
 
-    def validate(self) -> None:
-        for f in self.fingers:
-            if f not in FINGERS:
-                raise ParameterError("fingers", self.fingers, f"{f!r} is not one of {list(FINGERS)}")
+    def check_rules(self) -> None:
+        check_fingers(self.fingers)
         if self.monitored_finger not in self.fingers:
             raise ParameterError("monitored_finger", self.monitored_finger, f"must be one of fingers {self.fingers}")
-        if not (isinstance(self.k, float) and K_RANGE[0] < self.k <= K_RANGE[1]):
-            raise ParameterError("k", self.k, f"must be in ({K_RANGE[0]}, {K_RANGE[1]}]")
-        if not 0 <= self.min_mean_voltage < 3.3:
-            raise ParameterError("min_mean_voltage", self.min_mean_voltage, "must be in [0, 3.3) V")
         if "{finger}" not in self.frame_id_format:
             raise ParameterError("frame_id_format", self.frame_id_format, "must contain {finger}")
-        for name in ("stale_timeout", "watchdog_period", "max_speed_rpm", "max_force_n", "grasp_finger_force",
-                     "grasp_thumb_force", "grasp_speed_rpm", "grasp_timeout", "horizontal_speed_rpm",
-                     "vertical_speed_rpm", "hold_speed_rpm", "manipulate_timeout", "contact_force_n",
-                     "lateral_closure", "force_target_n", "force_band_n", "force_speed_rpm", "limit_margin"):
-            check_positive(name, getattr(self, name))
-        if not 0 <= self.hold_min_k < K_RANGE[1]:
-            raise ParameterError("hold_min_k", self.hold_min_k, f"must be in [0, {K_RANGE[1]})")
-        for name in ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm",
-                     "force_speed_rpm"):
+        for name in GOAL_SPEEDS:
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
-        for name in ("grasp_finger_force", "grasp_thumb_force", "force_target_n"):
+        for name in GOAL_FORCES:
             if getattr(self, name) > self.max_force_n:
                 raise ParameterError(name, getattr(self, name), f"above max_force_n {self.max_force_n}")
         if self.force_band_n >= self.force_target_n:

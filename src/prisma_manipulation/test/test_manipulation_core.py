@@ -220,6 +220,27 @@ def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
     assert core.on_move_result("joint_limit", 0) == []
 
 
+def test_live_parameters_apply_when_they_should():
+    """reconfigure (the node's live parameters): k and min_mean_voltage from the next sample, the
+    watchdog's timeout from its next check, goal defaults from the next goal; a running goal's own k
+    gives way only to a change of k itself."""
+    from dataclasses import replace
+
+    core = _core()
+    core.start_grasp(GraspRequest("pinch"), 0)
+    core.reconfigure(replace(core.config, stale_timeout=0.2, grasp_speed_rpm=40.0, min_mean_voltage=2.0))
+    assert core.busy and not any(isinstance(a, Finished) for a in core.check(150 * MS))  # stale after 200 ms now
+    ev, _ = core.on_taxels("thumb", 160 * MS, _volts(), 160 * MS)
+    assert ev.mean_voltage < 2.0 and not ev.feasible  # below the new min_mean_voltage
+    assert core.resolve_grasp(GraspRequest("pinch"))[0].speed_rpm == 40.0
+    assert core.check(361 * MS)[-1].reason == "sensor_stale"  # /joint_states silent for 361 ms
+    core.start_manipulate(ManipulateRequest("horizontal", k=0.9), 400 * MS)
+    core.reconfigure(replace(core.config, grasp_timeout=5.0))
+    assert core.monitor.k == 0.9  # another parameter changed: the goal keeps its k
+    core.reconfigure(replace(core.config, k=0.7))
+    assert core.monitor.k == 0.7 and core.k_parameter == 0.7
+
+
 def test_motor_commands_are_leased_and_refreshed_while_they_hold():
     """The motor driver stops a MoveMotors goal after MOVE_LEASE_S (0.3 s); the core re-sends the
     running command every 0.1 s, so the motors stop within 0.3 s of the last refresh when it dies."""

@@ -48,6 +48,8 @@ RPM_PER_VELOCITY_UNIT = 0.229
 TICKS_PER_REV = 4096
 MA_PER_CURRENT_UNIT = 2.69  # XM430 series
 VELOCITY_LIMIT_MAX = 1023  # units (234 rpm): the top of the Velocity Limit range
+# the fastest speed a parameter may name, in whole rpm (1023 x 0.229 = 234.27)
+VELOCITY_LIMIT_MAX_RPM = float(math.floor(VELOCITY_LIMIT_MAX * RPM_PER_VELOCITY_UNIT))
 MODEL_XM430_W350 = 1020
 
 # Hardware Error Status bits (address 70).

@@ -51,6 +51,13 @@ class MotorDriverCore:
         self._next_attempt_ns = start_ns
         self._last_states: dict[str, MotorState] = {}
 
+    def reconfigure(self, config: MotorDriverConfig) -> None:
+        """Live parameters changed (validated by MotorDriverConfig): the position-goal speed from the
+        next goal, the position tolerance from the next tick."""
+        self.runner.profile_rpm = config.position_profile_rpm
+        self.runner.position_tolerance_rad = config.position_tolerance
+        self.config = config
+
     def connect(self, now_ns: int) -> str | None:
         """Try to open the bus when the backoff allows; returns the error text or None."""
         if self.connected or now_ns < self._next_attempt_ns:

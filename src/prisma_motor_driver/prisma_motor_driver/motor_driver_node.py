@@ -2,6 +2,9 @@
 the MoveMotors action /prisma/motors/move (cancel = stop) and /diagnostics.
 
     ros2 run prisma_motor_driver motor_driver --ros-args --params-file config/motor_driver.yaml
+
+position_profile_rpm and position_tolerance can be changed at run time; the other parameters are
+read-only (node_config.py says why).
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from sensor_msgs.msg import JointState
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import stream_publisher
 
@@ -31,10 +35,8 @@ from .ros_conversions import joint_state_to_msg, move_feedback_to_msg, move_goal
 class MotorDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("motor_driver", **kwargs)
-        defaults = MotorDriverConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        self.config = MotorDriverConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
+        self.config = declare_config(self, MotorDriverConfig)
         self.types = robot_types(get_message, get_action)
         now = self._now_ns()
         # under use_sim_time the clock reads 0 until the first /clock: the sim motors then take their
@@ -42,6 +44,7 @@ class MotorDriverNode(Node):
         self.core = MotorDriverCore(self.config, bus=make_bus(self.config, start_ns=now or None), start_ns=now)
         self.core.connect(self._now_ns())
         self._log_bus_errors()
+        accept_live_changes(self, MotorDriverConfig, self._reconfigure)
 
         self._goal = None  # ServerGoalHandle of the running goal
         self._goal_done: Future | None = None
@@ -62,6 +65,10 @@ class MotorDriverNode(Node):
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
+
+    def _reconfigure(self, config: MotorDriverConfig) -> None:
+        self.config = config
+        self.core.reconfigure(config)
 
     # ---- action ----------------------------------------------------------------------------
     def _on_goal(self, request) -> GoalResponse:

@@ -1,14 +1,17 @@
-"""Parameters of the motor_driver node: defaults (= config/motor_driver.yaml) and validation.
+"""Parameters of the motor_driver node: defaults (= config/motor_driver.yaml), their specs
+(description, unit, bounds, live or read-only) and validation.
 
 `from_parameters` raises ParameterError naming the parameter and the bad value, so a node with an
-invalid parameter fails at start with that message.
+invalid parameter fails at start with that message. Live: the position-goal settings, which the
+goal runner reads at each goal and tick; everything else (bus, motor map, limits, rates) is set up
+at start.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from prisma_common.hand import MOTOR_NAMES
-from prisma_common.parameters import ParameterError, Params, check_positive
+from prisma_common.parameters import ParameterError, Params, parameter
 
 from .backend import (
     DEFAULT_IDS,
@@ -18,39 +21,50 @@ from .backend import (
     MotorConfig,
     MotorMap,
 )
+from .control_table import VELOCITY_LIMIT_MAX_RPM
+
+BACKENDS = ("sim", "dynamixel")
+PER_MOTOR = "one entry per motor, in the order of motor_names"
 
 
 @dataclass
 class MotorDriverConfig(Params):
-    backend: str = "sim"  # sim | dynamixel
-    port: str = "/dev/ttyUSB0"
-    baud: int = 1_000_000
-    retries: int = 3  # per Dynamixel transaction, on timeout / corrupt status
-    motor_names: list = field(default_factory=lambda: list(MOTOR_NAMES))
-    motor_ids: list = field(default_factory=lambda: list(DEFAULT_IDS))
-    min_positions: list = field(default_factory=lambda: list(DEFAULT_MIN_POSITIONS))  # rad
-    max_positions: list = field(default_factory=lambda: list(DEFAULT_MAX_POSITIONS))  # rad
-    max_velocities_rpm: list = field(default_factory=lambda: list(DEFAULT_MAX_VELOCITIES_RPM))
-    directions: list = field(default_factory=lambda: [1, 1, 1])
-    zero_ticks: list = field(default_factory=lambda: [0, 0, 0])
-    rate_hz: float = 100.0  # /joint_states and goal supervision
-    position_profile_rpm: float = 30.0  # position-mode goals move at this speed
-    position_tolerance: float = 0.02  # rad: a position goal is reached within this
-    diagnostics_period: float = 1.0
-    reconnect_backoff_initial: float = 0.5  # s, doubled after each failed reopen
-    reconnect_backoff_max: float = 8.0
-    sim_initial_positions: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    backend: str = parameter("sim", "motor bus: dynamixel (X-series, Protocol 2.0) or sim (motor model)",
+                             choices=BACKENDS)
+    port: str = parameter("/dev/ttyUSB0", "serial port of the U2D2 / USB-RS485 adapter (backend dynamixel)")
+    baud: int = parameter(1_000_000, "Dynamixel bus baud rate", unit="baud", bounds=(1, 4_500_000))
+    retries: int = parameter(3, "extra attempts per Dynamixel transaction after a missing or corrupt status packet",
+                             bounds=(0, 10))
+    motor_names: list = parameter(list(MOTOR_NAMES), "the hand's motors, also the /joint_states names",
+                                  rules=f"each of {', '.join(MOTOR_NAMES)} once")
+    motor_ids: list = parameter(list(DEFAULT_IDS), "Dynamixel ID of each motor", rules=f"{PER_MOTOR}; distinct")
+    min_positions: list = parameter(list(DEFAULT_MIN_POSITIONS), "lowest position of each motor from its zero",
+                                    unit="rad", rules=PER_MOTOR)
+    max_positions: list = parameter(list(DEFAULT_MAX_POSITIONS), "highest position of each motor from its zero",
+                                    unit="rad", rules=f"{PER_MOTOR}; above min_positions")
+    max_velocities_rpm: list = parameter(list(DEFAULT_MAX_VELOCITIES_RPM), "fastest velocity goal of each motor",
+                                         unit="rpm", rules=PER_MOTOR)
+    directions: list = parameter([1, 1, 1], "-1 where the servo's positive turn opens the joint, else 1",
+                                 rules=PER_MOTOR)
+    zero_ticks: list = parameter([0, 0, 0], "Present Position (ticks) that means 0 rad (hand open, thumb centred)",
+                                 rules=PER_MOTOR)
+    rate_hz: float = parameter(100.0, "/joint_states and goal supervision rate", unit="Hz", bounds=(0.0, 1000.0),
+                               open_low=True)
+    position_profile_rpm: float = parameter(30.0, "speed of position-mode MoveMotors goals (from the next goal)",
+                                            unit="rpm", bounds=(0.0, VELOCITY_LIMIT_MAX_RPM), open_low=True,
+                                            live=True)
+    position_tolerance: float = parameter(0.02, "a position goal is reached within this of its targets",
+                                          unit="rad", bounds=(0.0, 1.0), open_low=True, live=True)
+    diagnostics_period: float = parameter(1.0, "time between /diagnostics messages", unit="s",
+                                          bounds=(0.0, 60.0), open_low=True)
+    reconnect_backoff_initial: float = parameter(0.5, "wait before reopening a lost bus, doubled after each failure",
+                                                 unit="s", bounds=(0.0, 60.0), open_low=True)
+    reconnect_backoff_max: float = parameter(8.0, "longest wait between reopening attempts", unit="s",
+                                             bounds=(0.0, 600.0), open_low=True)
+    sim_initial_positions: list = parameter([0.0, 0.0, 0.0], "start positions of the simulated motors (backend sim)",
+                                            unit="rad", rules=PER_MOTOR)
 
-    def validate(self) -> None:
-        if self.backend not in ("sim", "dynamixel"):
-            raise ParameterError("backend", self.backend, "must be 'sim' or 'dynamixel'")
-        if not isinstance(self.baud, int) or self.baud <= 0:
-            raise ParameterError("baud", self.baud, "must be a positive integer")
-        if not isinstance(self.retries, int) or self.retries < 0:
-            raise ParameterError("retries", self.retries, "must be an integer >= 0")
-        for name in ("rate_hz", "position_profile_rpm", "position_tolerance", "diagnostics_period",
-                     "reconnect_backoff_initial", "reconnect_backoff_max"):
-            check_positive(name, getattr(self, name))
+    def check_rules(self) -> None:
         for name in self.motor_names:
             if name not in MOTOR_NAMES:
                 raise ParameterError("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")

@@ -119,3 +119,23 @@ def test_a_goal_naming_a_faulted_motor_is_accepted_and_fails_with_the_fault_reas
     outcome = core.start(faulted, 70 * MS)
     assert outcome.failed is None and outcome.preempted.reason == "preempted"
     assert core.runner.goal is faulted
+
+
+def test_position_goal_settings_change_at_run_time():
+    """reconfigure (the node's live parameters): the profile speed of the next position goal, the
+    tolerance from the next tick."""
+    from dataclasses import replace
+
+    from prisma_motor_driver.motor_goals import POSITION
+
+    core = MotorDriverCore(MotorDriverConfig())
+    core.connect(0)
+    core.tick(0)
+    core.reconfigure(replace(core.config, position_profile_rpm=60.0))
+    core.start(MoveGoal(["thumb_rotation"], POSITION, [1.0]), 0)
+    assert core.bus._motor("thumb_rotation").profile_rad_s == pytest.approx(2 * 3.141592653589793)
+    assert core.tick(10 * MS).result is None  # under way, not within 0.02 rad yet
+    core.reconfigure(replace(core.config, position_tolerance=1.0))
+    result = core.tick(20 * MS).result
+    assert result is not None and (result.success, result.reason) == (True, "reached")
+    assert (core.runner.profile_rpm, core.runner.position_tolerance_rad) == (60.0, 1.0)

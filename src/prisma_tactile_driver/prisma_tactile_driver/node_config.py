@@ -1,87 +1,84 @@
-"""tactile_driver parameters: one dataclass holding the defaults, validation naming the bad
-parameter and value, and the backend factory. The node only copies ROS parameters in."""
+"""tactile_driver parameters: one dataclass holding the defaults and their specs (description, unit,
+bounds, live or read-only), validation naming the bad parameter and value, and the backend factory.
+The node only copies ROS parameters in.
+
+Live: stale_timeout (the staleness /diagnostics reports, from its next message). Everything else
+builds the link, the timers and the publishers at start.
+"""
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass
 from typing import Any
 
 from prisma_common.hand import FINGERS
-from prisma_common.parameters import ParameterError, check_fingers
+from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
 from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
 
 from .backend import HubBackend
 
 BACKENDS = ("serial", "i2c", "sim")
 CONTACT_SOURCES = ("scripted", "hand_world")
+I2C_ADDRESSES = (0x08, 0x77)  # 7-bit addresses outside the reserved ones
 
 
 @dataclass
-class TactileDriverConfig:
-    backend: str = "sim"  # serial | i2c | sim
-    fingers: list[str] = field(default_factory=lambda: list(FINGERS))  # fingers on this hub
-    frame_id_format: str = "prisma_{finger}_pad"  # header.frame_id of each finger's TaxelArray
-    rate_hz: float = 100.0  # I2C/sim scan rate (the serial hub sets its own rate in firmware)
-    vref: float = 3.3  # ADC reference: V = vref * counts / 4096
-    tare_samples: int = 100  # ~/tare averages this many most recent samples per finger
-    stale_timeout: float = 0.1  # s without a sample before a finger is reported stale
-    diagnostics_period: float = 1.0  # s between /diagnostics messages
+class TactileDriverConfig(Params):
+    backend: str = parameter("sim", "fingertip hub link: serial (Arduino hub), i2c (the host reads the bus) or "
+                                    "sim (pad model)", choices=BACKENDS)
+    fingers: list[str] = parameter(list(FINGERS), "fingers on this hub",
+                                   rules=f"distinct names of {', '.join(FINGERS)}")
+    frame_id_format: str = parameter("prisma_{finger}_pad", "header.frame_id of each finger's TaxelArray",
+                                     rules="a str.format pattern whose only field is {finger}")
+    rate_hz: float = parameter(100.0, "I2C/sim scan rate (the serial hub sets its own rate in firmware)",
+                               unit="Hz", bounds=(0.0, 1000.0), open_low=True)
+    vref: float = parameter(3.3, "ADC reference: V = vref x counts / 4096", unit="V", bounds=(0.0, 5.0),
+                            open_low=True)
+    tare_samples: int = parameter(100, "~/tare averages this many most recent samples per finger",
+                                  bounds=(1, 10_000))
+    stale_timeout: float = parameter(0.1, "a finger without a sample this long is reported stale in /diagnostics",
+                                     unit="s", bounds=(0.0, 10.0), open_low=True, live=True)
+    diagnostics_period: float = parameter(1.0, "time between /diagnostics messages", unit="s", bounds=(0.0, 60.0),
+                                          open_low=True)
     # serial (Arduino hub)
-    port: str = "/dev/ttyUSB1"  # the Dynamixel adapter (motor_driver) defaults to ttyUSB0
-    baud: int = 1_000_000
-    serial_poll_hz: float = 500.0  # how often the port is drained
-    reconnect_backoff_initial: float = 0.05  # s, doubled per failed reopen
-    reconnect_backoff_max: float = 2.0
+    port: str = parameter("/dev/ttyUSB1", "serial port of the Arduino hub (backend serial; the Dynamixel adapter "
+                                          "defaults to ttyUSB0)")
+    baud: int = parameter(1_000_000, "serial baud rate of the hub", unit="baud", bounds=(1, 4_000_000))
+    serial_poll_hz: float = parameter(500.0, "how often the serial port is drained", unit="Hz",
+                                      bounds=(0.0, 10_000.0), open_low=True)
+    reconnect_backoff_initial: float = parameter(0.05, "wait before reopening a lost port, doubled after each "
+                                                       "failure", unit="s", bounds=(0.0, 60.0), open_low=True)
+    reconnect_backoff_max: float = parameter(2.0, "longest wait between reopening attempts", unit="s",
+                                             bounds=(0.0, 600.0), open_low=True,
+                                             rules="at least reconnect_backoff_initial")
     # direct I2C
-    i2c_bus: int = 1  # /dev/i2c-<n>
-    i2c_socket: str = ""  # the emulated bus of prisma-hand-emulator (a Unix socket); "" = /dev/i2c-<i2c_bus>
-    mux_address: int = 0x70  # TCA9548A
-    adc_address: int = 0x35  # MAX11617
-    finger_channels: list[int] = field(default_factory=lambda: [0, 1, 2, 3, 4])  # per finger, in order
-    i2c_retries: int = 2  # extra attempts per finger and scan after an OSError (NACK)
+    i2c_bus: int = parameter(1, "I2C bus number: /dev/i2c-<i2c_bus> (backend i2c)", bounds=(0, 255))
+    i2c_socket: str = parameter("", "absolute path of prisma-hand-emulator's I2C bus socket; '' = "
+                                    "/dev/i2c-<i2c_bus>")
+    mux_address: int = parameter(0x70, "7-bit address of the TCA9548A mux", bounds=I2C_ADDRESSES)
+    adc_address: int = parameter(0x35, "7-bit address of each pad's MAX11617 ADC", bounds=I2C_ADDRESSES)
+    finger_channels: list[int] = parameter([0, 1, 2, 3, 4], "mux channel of each finger",
+                                           rules="one per finger, in the order of fingers; distinct, 0..7")
+    i2c_retries: int = parameter(2, "extra attempts per finger and scan after an I2C error (NACK)",
+                                 bounds=(0, 10))
     # sim
-    contact_source: str = "scripted"  # scripted | hand_world
-    sim_seed: int = 0
+    contact_source: str = parameter("scripted", "sim contacts: scripted (press/slide/roll/release cycle) or "
+                                                "hand_world (from /joint_states)", choices=CONTACT_SOURCES)
+    sim_seed: int = parameter(0, "seed of the simulated pads' noise", bounds=(0, 2**31 - 1))
 
-    @classmethod
-    def from_parameters(cls, values: dict[str, Any]) -> TactileDriverConfig:
-        known = {f.name for f in fields(cls)}
-        # rclpy hands integer/double arrays over as array.array: store plain lists
-        kwargs: dict[str, Any] = {k: (list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else v)
-                                  for k, v in values.items() if k in known}
-        return cls(**kwargs).validate()
-
-    def as_parameters(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def validate(self) -> TactileDriverConfig:
-        if self.backend not in BACKENDS:
-            raise ParameterError("backend", self.backend, f"expected one of {'|'.join(BACKENDS)}")
+    def check_rules(self) -> None:
         check_fingers(self.fingers)
         try:
             self.frame_id_format.format(finger="thumb")
         except (KeyError, IndexError, ValueError) as exc:
             raise ParameterError("frame_id_format", self.frame_id_format,
                                  f"a str.format pattern whose only field is {{finger}} ({exc})") from None
-        for name in ("rate_hz", "vref", "stale_timeout", "diagnostics_period", "serial_poll_hz",
-                     "reconnect_backoff_initial"):
-            if not getattr(self, name) > 0:
-                raise ParameterError(name, getattr(self, name), "must be > 0")
         if self.reconnect_backoff_max < self.reconnect_backoff_initial:
             raise ParameterError("reconnect_backoff_max", self.reconnect_backoff_max,
                                  f"must be >= reconnect_backoff_initial ({self.reconnect_backoff_initial})")
-        if self.tare_samples < 1:
-            raise ParameterError("tare_samples", self.tare_samples, "must be >= 1")
-        if self.baud <= 0:
-            raise ParameterError("baud", self.baud, "must be > 0")
-        if self.i2c_retries < 0:
-            raise ParameterError("i2c_retries", self.i2c_retries, "must be >= 0")
         if self.i2c_socket:
             self._check_i2c_socket()
-        for name in ("mux_address", "adc_address"):
-            if not 0x08 <= getattr(self, name) <= 0x77:
-                raise ParameterError(name, getattr(self, name), "a 7-bit I2C address 0x08..0x77")
         if len(self.finger_channels) != len(self.fingers):
             raise ParameterError("finger_channels", self.finger_channels,
                                  f"one mux channel per finger ({len(self.fingers)})")
@@ -91,10 +88,6 @@ class TactileDriverConfig:
         duplicates = sorted({ch for ch in self.finger_channels if self.finger_channels.count(ch) > 1})
         if duplicates:
             raise ParameterError("finger_channels", self.finger_channels, f"duplicate mux channel(s) {duplicates}")
-        if self.contact_source not in CONTACT_SOURCES:
-            raise ParameterError("contact_source", self.contact_source,
-                                 f"expected one of {'|'.join(CONTACT_SOURCES)}")
-        return self
 
     def _check_i2c_socket(self) -> None:
         from .i2c_socket import MAX_PATH_BYTES

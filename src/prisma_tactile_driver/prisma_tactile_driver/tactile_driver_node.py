@@ -3,6 +3,8 @@ the same samples once per poll on /prisma/hand/taxels (for the nodes that take a
 /diagnostics at 1 Hz with the link counters, and the ~/tare service.
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
+
+stale_timeout can be changed at run time; the other parameters are read-only (node_config.py says why).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
 from prisma_hand_sim.hand_world import HandWorldContactSource
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
@@ -31,12 +34,8 @@ class TactileDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = TactileDriverConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        self.config = TactileDriverConfig.from_parameters(
-            {name: self.get_parameter(name).value for name in defaults})
-        cfg = self.config
+        cfg = self.config = declare_config(self, TactileDriverConfig)
 
         source = None
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
@@ -58,6 +57,11 @@ class TactileDriverNode(Node):
         self.get_logger().info(
             f"{cfg.backend} backend ({self._hardware_id()}), fingers {', '.join(cfg.fingers)}, "
             f"polling at {poll_hz:g} Hz")
+        accept_live_changes(self, TactileDriverConfig, self._reconfigure)
+
+    def _reconfigure(self, config: TactileDriverConfig) -> None:
+        self.config = config
+        self.hub.stale_timeout_ns = int(config.stale_timeout * 1e9)
 
     def _hardware_id(self) -> str:
         cfg = self.config

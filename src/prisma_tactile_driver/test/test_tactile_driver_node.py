@@ -111,6 +111,19 @@ def test_invalid_parameters_fail_at_start_naming_the_parameter(ros, node_cls, ov
     assert f"'{name}'" in str(info.value) and bad in str(info.value)
 
 
+def test_stale_timeout_changes_at_run_time_the_link_parameters_do_not(ros, node_cls):
+    node = ros.node(node_cls)
+    assert node.hub.stale_timeout_ns == 100_000_000
+    (ok,) = ros.set_parameters("/tactile_driver", stale_timeout=0.5)
+    assert ok.successful and node.hub.stale_timeout_ns == 500_000_000 and node.config.stale_timeout == 0.5
+    (too_long,) = ros.set_parameters("/tactile_driver", stale_timeout=20.0)
+    assert not too_long.successful and too_long.reason.startswith("Parameter stale_timeout out of range")
+    for name, value in (("backend", "serial"), ("rate_hz", 50.0), ("tare_samples", 10)):
+        (refused,) = ros.set_parameters("/tactile_driver", **{name: value})
+        assert (refused.successful, refused.reason) == (False, f"Trying to set a read-only parameter: {name}.")
+    assert node.hub.stale_timeout_ns == 500_000_000 and node.config.rate_hz == 100.0
+
+
 def test_i2c_nacking_finger_goes_stale_while_four_keep_publishing(ros, node_cls, monkeypatch):
     import smbus2
 

@@ -11,7 +11,7 @@ import numpy as np
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
 from .backend import GloveBackend
-from .processing import EmptyHandCalibration, FrameProcessor, ProcessedFrame
+from .processing import EmptyHandCalibration, FrameProcessor, NormalisationConfig, ProcessedFrame
 
 NS = 1_000_000_000
 
@@ -45,6 +45,12 @@ class GloveDriver:
         self._started_ns: int | None = None
         if self.calibration_file is not None and self.calibration_file.exists():
             self.processor.calibration = load_calibration(self.calibration_file, processor.mask)
+
+    def reconfigure(self, normalisation: NormalisationConfig, stale_timeout_s: float) -> None:
+        """Live parameters changed: the frame processing (short threshold, contact margin) from the
+        next frame, the stale timeout from the next /diagnostics."""
+        self.processor.config = normalisation
+        self.stale_timeout_ns = int(stale_timeout_s * NS)
 
     def poll(self, now_ns: int) -> list[ProcessedFrame]:
         if self._started_ns is None:

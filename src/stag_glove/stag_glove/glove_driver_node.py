@@ -4,6 +4,9 @@ and publishes /stag/frame (GloveFrame), /stag/image (sensor_msgs/Image 32FC1, th
 Image display; drawn only while someone watches), /diagnostics, and the ~/capture_empty_hand service.
 
     ros2 run stag_glove glove_driver --ros-args --params-file config/glove_driver.yaml
+
+short_threshold, contact_margin and stale_timeout can be changed at run time; the other parameters
+are read-only (node_config.py says why).
 """
 from __future__ import annotations
 
@@ -19,12 +22,13 @@ from std_srvs.srv import Trigger
 
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.parameters import ParameterError
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 
 from .glove_driver_core import GloveDriver
 from .layout import load_layout
 from .node_config import GloveDriverConfig
-from .processing import FrameProcessor, NormalisationConfig
+from .processing import FrameProcessor
 from .pressure_map import PressureMap
 from .ros_conversions import glove_frame_to_msg, pressure_image_msg, pressure_map_to_msg
 
@@ -33,11 +37,8 @@ class GloveDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("glove_driver", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = GloveDriverConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        cfg = self.config = GloveDriverConfig.from_parameters(
-            {name: self.get_parameter(name).value for name in defaults})
+        cfg = self.config = declare_config(self, GloveDriverConfig)
         mask = regions = None
         if cfg.layout_file:
             try:
@@ -49,8 +50,7 @@ class GloveDriverNode(Node):
                 raise ParameterError("layout_file", cfg.layout_file,
                                      f"layout is {mask.shape[0]}x{mask.shape[1]}, glove is {cfg.rows}x{cfg.cols}")
         self.pressure_map = PressureMap(mask if mask is not None else np.ones((cfg.rows, cfg.cols), bool), regions)
-        processor = FrameProcessor(NormalisationConfig(cfg.normalisation_low, cfg.normalisation_high,
-                                                       cfg.short_threshold, cfg.contact_margin), mask=mask)
+        processor = FrameProcessor(cfg.normalisation(), mask=mask)
         hardware_id = {"serial": f"{cfg.port}@{cfg.baudrate}", "sim": f"sim/seed{cfg.sim_seed}",
                        "replay": f"replay/{cfg.replay_file}"}[cfg.backend]
         # outside the try below: its ParameterError names the backend's own parameter (replay_file)
@@ -70,6 +70,11 @@ class GloveDriverNode(Node):
         self._poll_timer = self.create_timer(1.0 / cfg.poll_rate_hz, self._on_poll)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
         self.get_logger().info(f"{cfg.backend} backend ({hardware_id}), polling at {cfg.poll_rate_hz:g} Hz")
+        accept_live_changes(self, GloveDriverConfig, self._reconfigure)
+
+    def _reconfigure(self, config: GloveDriverConfig) -> None:
+        self.config = config
+        self.driver.reconfigure(config.normalisation(), config.stale_timeout)
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds

@@ -9,7 +9,7 @@ pose is estimated on every non-shorted frame (an empty hand is a pose); the weig
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -89,6 +89,10 @@ class GlovePerception:
         baseline = (weight_bundle.metadata.get("linear_baseline") if weight_bundle is not None else None) or {}
         self._baseline = (float(baseline.get("a", 0.0)), float(baseline.get("b", 0.0)))
 
+    def reconfigure(self, release_frames: int) -> None:
+        """Live parameter changed: frames without contact that release the object, from the next frame."""
+        self.config = replace(self.config, release_frames=release_frames)
+
     def reset(self) -> None:
         self.buffer.clear()
         self._no_contact_run = 0
@@ -103,7 +107,7 @@ class GlovePerception:
             out.pose = self.classify_pose(frame.pressure)
         if not frame.contact:
             self._no_contact_run += 1
-            if self._no_contact_run == self.config.release_frames and self.buffer:
+            if self._no_contact_run >= self.config.release_frames and self.buffer:
                 self.buffer.clear()
                 self.stats.releases += 1
             return out

@@ -3,6 +3,8 @@ buffered contact frames), /stag/hand_pose and /stag/weight, from the model bundl
 Shorted frames are ignored.
 
     ros2 run stag_glove glove_perception --ros-args --params-file config/glove_perception.yaml
+
+release_frames can be changed at run time; the other parameters are read-only (node_config.py says why).
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 
 from prisma_common.parameters import ParameterError
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 
 from .bundle import BundleError, load_bundle
@@ -25,11 +28,8 @@ class GlovePerceptionNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("glove_perception", **kwargs)
         self.types = functools.cache(get_message)  # rosidl imports the class on every call
-        defaults = GlovePerceptionConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        cfg = self.config = GlovePerceptionConfig.from_parameters(
-            {name: self.get_parameter(name).value for name in defaults})
+        cfg = self.config = declare_config(self, GlovePerceptionConfig)
         limit_threads(cfg.threads)  # torch and BLAS threads, before any inference
         bundles = {}
         for kind in ("object", "pose", "weight"):
@@ -48,6 +48,11 @@ class GlovePerceptionNode(Node):
         loaded = ", ".join(f"{k}: {b.path} ({b.n_frames if k == 'object' else 1} frame)"
                            for k, b in bundles.items() if b is not None) or "no models"
         self.get_logger().info(f"{loaded}; selection {cfg.selection}")
+        accept_live_changes(self, GlovePerceptionConfig, self._reconfigure)
+
+    def _reconfigure(self, config: GlovePerceptionConfig) -> None:
+        self.config = config
+        self.perception.reconfigure(config.release_frames)
 
     def _on_frame(self, msg: GloveFrame) -> None:
         frame = glove_frame_from_msg(msg)

@@ -118,6 +118,27 @@ def test_shorted_frames_are_published_flagged(ros, driver_cls):
     assert all(not (np.asarray(m.raw) > 950).any() for m in frames if not m.shorted)
 
 
+def test_processing_thresholds_change_at_run_time_from_the_next_frame(ros, driver_cls):
+    frames = ros.collect(GloveFrame, "/stag/frame")
+    node = ros.node(driver_cls, params={"sim_short_probability": 0.3, "sim_seed": 4}, sim_time=True)
+    ros.advance(4.0, step=POLL_STEP)
+    assert ros.spin_until(lambda: len(frames) == 30)
+    assert any(m.shorted for m in frames) and any(m.contact for m in frames)
+    # no reading exceeds 1023 and no pressure 0..1 exceeds the empty-hand maximum + 1: neither flag again
+    results = ros.set_parameters("/glove_driver", short_threshold=1023, contact_margin=1.0, stale_timeout=5.0)
+    assert [r.successful for r in results] == [True, True, True]
+    assert node.driver.stale_timeout_ns == 5 * 10**9
+    ros.advance(4.0, step=POLL_STEP)
+    assert ros.spin_until(lambda: len(frames) == 59)
+    later = frames[30:]
+    assert any((np.asarray(m.raw) > 950).any() for m in later)  # electrodes still short ...
+    assert not any(m.shorted or m.contact for m in later)  # ... and are no longer flagged
+    (refused,) = ros.set_parameters("/glove_driver", normalisation_low=400.0)
+    assert (refused.successful, refused.reason) == (False, "Trying to set a read-only parameter: normalisation_low.")
+    (out,) = ros.set_parameters("/glove_driver", short_threshold=2000)
+    assert not out.successful and out.reason.startswith("Parameter short_threshold out of range")
+
+
 def test_serial_backend_reads_the_readout_board(ros, driver_cls):
     frames = ros.collect(GloveFrame, "/stag/frame")
     master, slave = os.openpty()

@@ -77,6 +77,20 @@ def test_object_decision_after_n_contact_frames_and_release(bundles):
     assert len(perception.buffer) == 6  # bounded by buffer_size
 
 
+def test_release_frames_changed_while_frames_come(bundles):
+    """Lowered below the frames without contact already seen, the next one releases the object."""
+    perception = GlovePerception(bundles["object"], None, None, PerceptionConfig(buffer_size=6, release_frames=5))
+    for i in range(4):
+        perception.update(frame(i, seed=i))
+    for i in range(3):
+        perception.update(frame(10 + i, contact=False))
+    assert len(perception.buffer) == 4
+    perception.reconfigure(release_frames=2)
+    assert perception.config == PerceptionConfig(buffer_size=6, release_frames=2)
+    perception.update(frame(13, contact=False))
+    assert len(perception.buffer) == 0 and perception.stats.releases == 1
+
+
 def test_perception_rejects_wrong_bundles(bundles):
     with pytest.raises(ValueError, match="'pose' model, given as the object model"):
         GlovePerception(object_bundle=bundles["pose"])

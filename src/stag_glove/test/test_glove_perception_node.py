@@ -84,6 +84,16 @@ def test_perception_node_publishes_object_pose_weight_and_ignores_shorted(ros, p
     assert weights[-1].grams > 0 and weights[-1].header.frame_id == "stag_glove"
 
 
+def test_release_frames_changes_at_run_time_the_models_do_not(ros, perception_cls, tiny_bundles):
+    node = ros.node(perception_cls, params={"object_bundle": tiny_bundles["object"]})
+    (ok,) = ros.set_parameters("/glove_perception", release_frames=5)
+    assert ok.successful and node.perception.config.release_frames == 5 and node.config.release_frames == 5
+    for name, value in (("object_bundle", ""), ("selection", "random"), ("buffer_size", 8)):
+        (refused,) = ros.set_parameters("/glove_perception", **{name: value})
+        assert (refused.successful, refused.reason) == (False, f"Trying to set a read-only parameter: {name}.")
+    assert node.perception.config.selection == "cluster"
+
+
 def test_perception_fails_at_start_on_a_missing_or_mismatched_bundle(ros, perception_cls, tiny_bundles, tmp_path):
     with pytest.raises(ParameterError, match=r"'object_bundle'.*missing"):
         ros.node(perception_cls, params={"object_bundle": str(tmp_path / "missing")})

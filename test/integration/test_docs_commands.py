@@ -1,0 +1,130 @@
+"""The paths and commands README.md and docs/*.md show work as written, from the repository root.
+
+The top-level `launch/` and `config/` are links to prisma_bringup's folders (the design card's
+layout and the ROS package's both), so the documented `config/...` and `launch/...` paths name the
+shipped files from the root:
+
+- every repository path the documents name (`config/...`, `launch/...`, `docs/...`, `src/...`,
+  `test/...`, `bench/...`, `firmware/...`, `tools/...`; globs match something, `a|b|c` alternatives
+  each, placeholders such as `<node>` skipped) exists;
+- the commands that take under a minute and need nothing running run as shown: every
+  `ros2 run <package> <node> --ros-args --params-file config/...` line (in the documents and in the
+  nodes' docstrings) starts its node from the root, which then stops on ctrl-C with exit 0 and no
+  traceback (ROS only); every `prisma-eval-force` line whose bundles are shipped and that writes
+  nothing (no --plots, --json, --table) evaluates them (as `python -m prisma_force_estimator.cli
+  eval`, the checkout's code: the console script on PATH may be another install's).
+The rest (launches, goals, training for minutes, commands on recordings) are run by the launch,
+CLI and training tests; here their paths are checked.
+"""
+from __future__ import annotations
+
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from repo_paths import BRINGUP, ROOT
+from ros_harness import NodeProcess
+
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+NODE_MODULES = sorted(p for p in (ROOT / "src").glob("*/*/*_node.py"))
+REPOSITORY_PATH = re.compile(r"(?<![\w/.$~-])((?:config|launch|docs|src|test|firmware|bench|tools)/[\w./*<>|{}-]*)")
+# named in the documents, not paths of this repository
+NOT_THIS_REPOSITORY = {"src/prisma": "the robot workspace's clone of this repository (README, On the robot)"}
+
+
+def named_paths() -> dict[str, list[str]]:
+    """Repository path as written -> where (file:line) the documents name it."""
+    found: dict[str, list[str]] = {}
+    for document in DOCUMENTS:
+        for number, line in enumerate(document.read_text().splitlines(), 1):
+            for match in REPOSITORY_PATH.finditer(line):
+                path = match.group(1).rstrip(".,;:")
+                if "<" in path or "{" in path or path in NOT_THIS_REPOSITORY:
+                    continue
+                found.setdefault(path, []).append(f"{document.relative_to(ROOT)}:{number}")
+    return found
+
+
+def exists_from_root(path: str) -> bool:
+    first, *others = path.split("|")  # config/models/glove_object|glove_pose|glove_weight
+    candidates = [first] + [str(Path(first).parent / other) for other in others]
+    return all(any(ROOT.glob(c)) if "*" in c else (ROOT / c).exists() for c in candidates)
+
+
+def test_top_level_launch_and_config_are_the_bringup_packages_folders():
+    for name in ("launch", "config"):
+        link = ROOT / name
+        assert link.is_symlink() and not Path(link.readlink()).is_absolute(), f"{name}: a relative link"
+        assert link.resolve() == (BRINGUP / name).resolve()
+    assert (ROOT / "config" / "models" / "cnn2" / "model.pt").is_file()
+    assert (ROOT / "launch" / "hand.launch.py").is_file()
+
+
+def test_the_documents_name_many_repository_paths():
+    paths = named_paths()
+    assert {"config/glove_driver.yaml", "config/models/cnn2", "config/glove/layout.yaml"} <= set(paths)
+    assert len(paths) > 50
+
+
+@pytest.mark.parametrize("path", sorted(named_paths()))
+def test_every_repository_path_the_documents_name_exists_from_the_root(path):
+    assert exists_from_root(path), f"{path} (named at {', '.join(named_paths()[path])}) is not in the repository"
+
+
+def shown_commands(program: str) -> list[tuple[str, str]]:
+    """(file:line, command line) of every one-line command of the documents and the node docstrings that
+    runs `program`."""
+    found = []
+    for source in [*DOCUMENTS, *NODE_MODULES]:
+        for number, line in enumerate(source.read_text().splitlines(), 1):
+            text = line.strip().strip("`")
+            if text.startswith(program + " ") and not text.endswith("\\"):  # not one continued on the next line
+                found.append((f"{source.relative_to(ROOT)}:{number}", text))
+    return found
+
+
+ROS2_RUN = [(where, line) for where, line in shown_commands("ros2 run") if "--params-file config/" in line]
+
+
+def evaluates_shipped_bundles_only(line: str) -> bool:
+    """A prisma-eval-force line whose bundles (the arguments before the first option) are all in the
+    repository and that writes no file."""
+    args = shlex.split(line)[1:]
+    options = [i for i, a in enumerate(args) if a.startswith("-")]
+    bundles = args[:options[0]] if options else args
+    return (bool(bundles) and all("/" in b and exists_from_root(b) for b in bundles)
+            and not {"--plots", "--json", "--table"} & set(args))
+
+
+EVAL = [(where, line) for where, line in shown_commands("prisma-eval-force") if evaluates_shipped_bundles_only(line)]
+
+
+def test_the_runnable_commands_are_found():
+    assert len(ROS2_RUN) >= 8 and {"stag_glove glove_driver", "stag_glove glove_perception",
+                                    "prisma_force_estimator force_estimator"} <= {
+        " ".join(shlex.split(line)[2:4]) for _, line in ROS2_RUN}
+    assert EVAL, "docs/force_estimation.md shows prisma-eval-force on the shipped bundle"
+
+
+@pytest.mark.parametrize("where, line", ROS2_RUN, ids=[w for w, _ in ROS2_RUN])
+def test_ros2_run_with_a_params_file_from_config_starts_the_node(ros, where, line):
+    args = shlex.split(line)
+    node = args[3]  # ros2 run <package> <executable>: each node is named after its executable
+    with NodeProcess(args, cwd=ROOT) as proc:
+        assert proc.wait_for_output(f"[{node}]: ", 60.0), f"{where}: {line}\n{proc.output}"
+        proc.wait_until_spinning(ros, f"/{node}", 60.0)
+        result = proc.interrupt(30.0)
+    assert result.returncode == 0, f"{where}: {line}\n{result.output}"
+    assert "Traceback" not in result.output and "[FATAL]" not in result.output, result.output
+
+
+@pytest.mark.parametrize("where, line", EVAL, ids=[w for w, _ in EVAL])
+def test_prisma_eval_force_on_the_shipped_bundle_runs(where, line):
+    args = [sys.executable, "-m", "prisma_force_estimator.cli", "eval", *shlex.split(line)[1:]]
+    result = subprocess.run(args, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, f"{where}: {line}\n{result.stdout}{result.stderr}"
+    assert "| cnn2 |" in result.stdout and "push_fz ok" in result.stdout, result.stdout

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# rqt_reconfigure on the manipulation node, k with its slider (the FloatingPointRange its
+# ParameterDescriptor advertises), taken on a virtual X server:
+#
+#     PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh && source install/setup.bash
+#     tools/screenshots/rqt_reconfigure.sh [OUT.png]        # default docs/img/rqt_reconfigure_k.png
+#
+# Run from the repository root with ROS 2 and the built workspace sourced. Needs Xvfb, xdotool, xwd
+# and ImageMagick's convert (apt-get install -y xvfb xdotool x11-apps imagemagick), PyQt5 and
+# rqt_reconfigure (in the ROS tree; on a robot: apt install ros-jazzy-rqt-reconfigure). The node and
+# rqt run on a ROS domain of their own and a display of their own; both are stopped at the end.
+set -euo pipefail
+
+out="${1:-docs/img/rqt_reconfigure_k.png}"
+missing=()
+for tool in Xvfb xdotool xwd convert ros2; do
+  command -v "$tool" >/dev/null || missing+=("$tool")
+done
+python3 -c "import PyQt5" 2>/dev/null || missing+=("PyQt5")
+python3 -c "import rqt_reconfigure" 2>/dev/null || missing+=("rqt_reconfigure")
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "rqt_reconfigure.sh: missing ${missing[*]} (apt-get install -y xvfb xdotool x11-apps imagemagick;" \
+       "PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh; source install/setup.bash)" >&2
+  exit 1
+fi
+[ -f config/manipulation.yaml ] || { echo "rqt_reconfigure.sh: run it from the repository root" >&2; exit 1; }
+
+width=1000 height=1180 crop_height=872
+export ROS_DOMAIN_ID=$((101 + $$ % 130))  # this script's graph only
+export RCUTILS_COLORIZED_OUTPUT=0
+work=$(mktemp -d)
+groups=()  # process groups started here: `ros2 run` leaves its node running when only it is stopped
+cleanup() {
+  for pgid in "${groups[@]}"; do kill -INT -- "-$pgid" 2>/dev/null || true; done
+  sleep 1
+  for pgid in "${groups[@]}"; do kill -KILL -- "-$pgid" 2>/dev/null || true; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+
+# a display of its own: Xvfb picks a free number and writes it once it accepts clients
+setsid Xvfb -displayfd 1 -screen 0 "${width}x${height}x24" -nolisten tcp >"$work/display" 2>/dev/null &
+groups+=($!)
+for _ in $(seq 100); do [ -s "$work/display" ] && break; sleep 0.1; done
+[ -s "$work/display" ] || { echo "rqt_reconfigure.sh: Xvfb did not start" >&2; exit 1; }
+export DISPLAY=":$(head -n1 "$work/display")"
+
+setsid ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml \
+  >"$work/manipulation.log" 2>&1 &
+groups+=($!)
+# rqt_reconfigure selects the nodes named on its command line once it discovers them
+setsid ros2 run rqt_reconfigure rqt_reconfigure /manipulation >"$work/rqt.log" 2>&1 &
+groups+=($!)
+
+window=$(timeout 60 xdotool search --sync --onlyvisible --name "rqt_reconfigure") \
+  || { echo "rqt_reconfigure.sh: no rqt_reconfigure window within 60 s" >&2; cat "$work/rqt.log" >&2; exit 1; }
+xdotool windowmove "$window" 0 0 windowsize "$window" "$width" "$height"
+sleep 8  # discovery, the node's selection and its parameter editors
+mkdir -p "$(dirname "$out")"
+tmp="$out.partial-$$.png"
+# the parameter pane; below it rqt's empty message pane
+xwd -root -silent | convert xwd:- -crop "${width}x${crop_height}+0+0" +repage -colors 64 "$tmp"
+mv "$tmp" "$out"
+echo "rqt_reconfigure.sh: wrote $out"
