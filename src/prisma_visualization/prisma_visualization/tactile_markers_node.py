@@ -22,6 +22,7 @@ from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
 from prisma_force_estimator.ros_conversions import wrench_from_msg
 from prisma_manipulation.ros_conversions import contact_state_from_msg, hand_contact_samples, hand_wrench_samples
+from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput
 
@@ -33,12 +34,11 @@ from .tactile_markers_core import TactileMarkers
 class TactileMarkersNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("tactile_markers", **kwargs)
-        defaults = TactileMarkersConfig().as_parameters()
-        self.declare_parameters("", list(defaults.items()))
         # fails here, at start, with the parameter's name and value when one is invalid
-        self.config = TactileMarkersConfig.from_parameters({n: self.get_parameter(n).value for n in defaults})
+        self.config = declare_config(self, TactileMarkersConfig)
         self.types = robot_types(get_message, get_action)
         self.markers = TactileMarkers(self.config)
+        accept_live_changes(self, TactileMarkersConfig, self._reconfigure)
         self._inputs: list[FingerAndHandInput] = []
         self._display_timer = None
         self._publisher = self.create_publisher(
@@ -46,6 +46,14 @@ class TactileMarkersNode(Node):
             event_callbacks=PublisherEventCallbacks(matched=lambda _: self._follow_subscribers()))
         self.get_logger().info(f"{1.0 / self.config.rate_hz * 1e3:.0f} ms display period, "
                                f"fingers {', '.join(self.config.fingers)}; idle until a display subscribes")
+
+    def _reconfigure(self, config: TactileMarkersConfig) -> None:
+        """A live change (display rate, cell height, arrow scale, contact force): from the next drawing."""
+        rate_changed = config.rate_hz != self.config.rate_hz
+        self.config = self.markers.config = config
+        if rate_changed and self._display_timer is not None:
+            self.destroy_timer(self._display_timer)
+            self._display_timer = self.create_timer(1.0 / config.rate_hz, self._on_display)
 
     def _follow_subscribers(self) -> None:
         """Take the contact and wrench streams while the markers have a subscriber, and only then."""

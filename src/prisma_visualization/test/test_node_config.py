@@ -14,10 +14,10 @@ def test_defaults_are_the_shipped_parameter_file():
 
 
 @pytest.mark.parametrize("name, value, message", [
-    ("rate_hz", 0.0, "invalid parameter 'rate_hz' = 0.0: must be a finite number > 0"),
-    ("rate_hz", 500.0, "invalid parameter 'rate_hz' = 500.0: a display rate of at most 100 Hz"),
+    ("rate_hz", 0.0, "invalid parameter 'rate_hz' = 0.0: must be > 0.0 and <= 100.0"),
+    ("rate_hz", 500.0, "invalid parameter 'rate_hz' = 500.0: must be > 0.0 and <= 100.0"),
     ("fingers", ["thumb", "pinky"], "invalid parameter 'fingers' = ['thumb', 'pinky']: 'pinky' is not one of"),
-    ("arrow_m_per_n", -0.02, "invalid parameter 'arrow_m_per_n' = -0.02: must be a finite number > 0"),
+    ("arrow_m_per_n", -0.02, "invalid parameter 'arrow_m_per_n' = -0.02: must be > 0.0 and <= 1.0"),
 ])
 def test_invalid_values_are_named(name, value, message):
     with pytest.raises(ParameterError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
