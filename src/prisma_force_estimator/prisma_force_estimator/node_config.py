@@ -8,6 +8,7 @@ from typing import Any
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, check_fingers
 
+from .bias import DEFAULT_CONTACT_VOLTAGE, DEFAULT_SAMPLES
 from .bundle import DEFAULT_BUNDLE, DEFAULT_PRECISION, PRECISIONS
 
 __all__ = ["ForceEstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
@@ -27,6 +28,8 @@ class ForceEstimatorConfig:
     network_precision: str = DEFAULT_PRECISION
     batch_window: float = 0.005  # s: samples whose stamps lie this close form one batch (one scan)
     diagnostics_period: float = 1.0  # s between /diagnostics messages
+    bias_samples: int = DEFAULT_SAMPLES  # ~/bias: each finger's offset = mean of its last N estimates
+    bias_contact_voltage: float = DEFAULT_CONTACT_VOLTAGE  # V: ~/bias is refused while a pad's taxel mean reaches it
 
     def as_parameters(self) -> dict[str, Any]:
         """Flat ROS parameter names and defaults (overrides as finger_bundles.<finger>)."""
@@ -38,6 +41,8 @@ class ForceEstimatorConfig:
             "network_precision": self.network_precision,
             "batch_window": self.batch_window,
             "diagnostics_period": self.diagnostics_period,
+            "bias_samples": self.bias_samples,
+            "bias_contact_voltage": self.bias_contact_voltage,
         }
         for finger in FINGERS:
             params[OVERRIDE_PREFIX + finger] = self.finger_bundles.get(finger, "")
@@ -77,6 +82,10 @@ class ForceEstimatorConfig:
             raise ParameterError("batch_window", self.batch_window, "must be >= 0")
         if not self.diagnostics_period > 0:
             raise ParameterError("diagnostics_period", self.diagnostics_period, "must be > 0")
+        if isinstance(self.bias_samples, bool) or not isinstance(self.bias_samples, int) or self.bias_samples < 1:
+            raise ParameterError("bias_samples", self.bias_samples, "an integer >= 1")
+        if not 0 < self.bias_contact_voltage < 3.3:
+            raise ParameterError("bias_contact_voltage", self.bias_contact_voltage, "must be in (0, 3.3) V")
         return self
 
     def bundle_for(self, finger: str) -> str:
