@@ -7,7 +7,8 @@
     ros2 launch prisma_bringup hand.launch.py hardware:=emulated   # + tactile_backend:=i2c
 
 sim:=true runs the drivers' sim backends: motor_driver simulates the motors and publishes
-/joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world).
+/joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world)
+with the object sim_object presented to the hand (pinch_ball; none = an empty hand).
 sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
 not given here comes from config/<node>.yaml.
 
@@ -65,6 +66,9 @@ def generate_launch_description():
         DeclareLaunchArgument("emulator_world", default_value="hand",
                               description="The emulator's object and pose: hand (as sim:=true) or a "
                                           "prisma-sim scenario (grasp, lateral, horizontal, ...)"),
+        DeclareLaunchArgument("sim_object", default_value="pinch_ball",
+                              description="sim:=true: the object in the hand's world, pinch_ball, power_ball, "
+                                          "lateral_card or none (an empty hand)"),
         DeclareLaunchArgument("nice", default_value="-5",
                               description="Scheduling niceness of the hand's nodes (-20..19; lower runs first)"),
     ]
@@ -75,7 +79,8 @@ def generate_launch_description():
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
         namespace=namespace, output="screen", prefix=prefix, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": "sim", "contact_source": "hand_world"}],
+                    {"backend": "sim", "contact_source": "hand_world",
+                     "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str)}],
         condition=simulated,
     )
     tactile_hardware = Node(

@@ -10,6 +10,7 @@ from typing import Any
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, check_fingers
 from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
+from prisma_hand_sim.hand_world import OBJECTS
 
 from .backend import HubBackend
 
@@ -24,7 +25,6 @@ class TactileDriverConfig:
     frame_id_format: str = "prisma_{finger}_pad"  # header.frame_id of each finger's TaxelArray
     rate_hz: float = 100.0  # I2C/sim scan rate (the serial hub sets its own rate in firmware)
     vref: float = 3.3  # ADC reference: V = vref * counts / 4096
-    tare_samples: int = 100  # ~/tare averages this many most recent samples per finger
     stale_timeout: float = 0.1  # s without a sample before a finger is reported stale
     diagnostics_period: float = 1.0  # s between /diagnostics messages
     # serial (Arduino hub)
@@ -42,6 +42,7 @@ class TactileDriverConfig:
     i2c_retries: int = 2  # extra attempts per finger and scan after an OSError (NACK)
     # sim
     contact_source: str = "scripted"  # scripted | hand_world
+    sim_object: str = "pinch_ball"  # hand_world: the object presented to the hand; "none" = empty hand
     sim_seed: int = 0
 
     @classmethod
@@ -71,8 +72,6 @@ class TactileDriverConfig:
         if self.reconnect_backoff_max < self.reconnect_backoff_initial:
             raise ParameterError("reconnect_backoff_max", self.reconnect_backoff_max,
                                  f"must be >= reconnect_backoff_initial ({self.reconnect_backoff_initial})")
-        if self.tare_samples < 1:
-            raise ParameterError("tare_samples", self.tare_samples, "must be >= 1")
         if self.baud <= 0:
             raise ParameterError("baud", self.baud, "must be > 0")
         if self.i2c_retries < 0:
@@ -94,6 +93,8 @@ class TactileDriverConfig:
         if self.contact_source not in CONTACT_SOURCES:
             raise ParameterError("contact_source", self.contact_source,
                                  f"expected one of {'|'.join(CONTACT_SOURCES)}")
+        if self.sim_object not in OBJECTS:
+            raise ParameterError("sim_object", self.sim_object, f"expected one of {'|'.join(OBJECTS)}")
         return self
 
     def _check_i2c_socket(self) -> None:
