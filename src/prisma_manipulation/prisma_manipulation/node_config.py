@@ -17,6 +17,7 @@ from prisma_motor_driver.backend import (
 )
 
 from .contact_monitor import DEFAULT_K, K_RANGE
+from .gripper_controller import DEFAULT_THUMB_RATIO
 
 
 @dataclass
@@ -40,6 +41,11 @@ class ManipulationConfig(Params):
     vertical_speed_rpm: float = 10.0
     hold_speed_rpm: float = 20.0
     manipulate_timeout: float = 30.0
+    # GripperCommand (/prisma/gripper_cmd): position = fingers motor rad; docs/manipulation.md
+    gripper_max_effort: float = 1.0  # N: the force limit of a goal whose max_effort is 0 (MoveIt's default)
+    gripper_speed_rpm: float = 60.0  # fingers motor; thumb flexion at gripper_thumb_ratio x this
+    gripper_thumb_ratio: float = DEFAULT_THUMB_RATIO  # thumb_flexion target per fingers rad
+    gripper_timeout: float = 10.0
     # controller details
     contact_force_n: float = 0.1  # a pad "touches" above this (power grasp averaging)
     lateral_closure: float = 7.0  # rad of the fingers motor for the lateral grasp's fist
@@ -67,16 +73,21 @@ class ManipulationConfig(Params):
             raise ParameterError("frame_id_format", self.frame_id_format, "must contain {finger}")
         for name in ("stale_timeout", "watchdog_period", "max_speed_rpm", "max_force_n", "grasp_finger_force",
                      "grasp_thumb_force", "grasp_speed_rpm", "grasp_timeout", "horizontal_speed_rpm",
-                     "vertical_speed_rpm", "hold_speed_rpm", "manipulate_timeout", "contact_force_n",
+                     "vertical_speed_rpm", "hold_speed_rpm", "manipulate_timeout", "gripper_max_effort",
+                     "gripper_speed_rpm", "gripper_thumb_ratio", "gripper_timeout", "contact_force_n",
                      "lateral_closure", "force_target_n", "force_band_n", "force_speed_rpm", "limit_margin"):
             check_positive(name, getattr(self, name))
         if not 0 <= self.hold_min_k < K_RANGE[1]:
             raise ParameterError("hold_min_k", self.hold_min_k, f"must be in [0, {K_RANGE[1]})")
         for name in ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm",
-                     "force_speed_rpm"):
+                     "force_speed_rpm", "gripper_speed_rpm"):
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
-        for name in ("grasp_finger_force", "grasp_thumb_force", "force_target_n"):
+        if self.gripper_thumb_ratio * self.gripper_speed_rpm > self.max_speed_rpm:
+            raise ParameterError("gripper_thumb_ratio", self.gripper_thumb_ratio,
+                                 f"the thumb would close at {self.gripper_thumb_ratio * self.gripper_speed_rpm:g} rpm, "
+                                 f"above max_speed_rpm {self.max_speed_rpm}")
+        for name in ("grasp_finger_force", "grasp_thumb_force", "force_target_n", "gripper_max_effort"):
             if getattr(self, name) > self.max_force_n:
                 raise ParameterError(name, getattr(self, name), f"above max_force_n {self.max_force_n}")
         if self.force_band_n >= self.force_target_n:
