@@ -67,10 +67,10 @@ def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros,
 
         outcomes = []
         for _ in range(GRASPS):
-            result = ros.result(ros.send_until_accepted(grasp, GRASP, timeout_sec=60.0))
+            result = ros.result(ros.send_until_started(grasp, GRASP, timeout_sec=60.0))
             outcomes.append((result.status, result.result.reason))
             for motor in ("thumb_flexion", "fingers"):
-                opened = ros.result(ros.send_until_accepted(
+                opened = ros.result(ros.send_until_started(
                     move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
                 assert opened.result.success, opened.result.reason
         for tool in tools:

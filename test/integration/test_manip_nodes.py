@@ -336,6 +336,11 @@ def test_gripper_command_closes_to_the_force_limit_and_opens(ros, hand):
     goal SUCCEEDS stalled at the limit; position 0 then opens the hand, reached_goal."""
     ros.capture_logs()
     h = hand(stand_world())
+    # the hand is open: position 0 has nothing to do and succeeds at once
+    already = ros.result(send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0)), timeout_sec=10.0)
+    assert (already.status, already.result.reached_goal, already.result.stalled) == \
+        (GoalStatus.STATUS_SUCCEEDED, True, False)
+    assert h.move_goals == []
     feedback = []
     outcome = finish(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(9.0, 1.0), feedback))
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED

@@ -209,9 +209,10 @@ class ManipulationNode(Node):
             self.get_logger().warning(f"{kind.action} goal refused: {refusal}")
             goal_handle.abort()
             return kind.result_to_msg(self.types, self.core.refused(kind.kind, refusal))
-        self._goal, self._goal_done = goal_handle, Future()
-        self._apply(actions)
-        return await self._goal_done
+        done = self._goal_done = Future()
+        self._goal = goal_handle
+        self._apply(actions)  # may end it at once (a gripper already at its position)
+        return await done
 
     # ---- carrying out the core's decisions -------------------------------------------------
     def _apply(self, actions: list) -> None:
