@@ -352,13 +352,17 @@ class Control:
         return True, accept_ns, response.status, response.result, end_ns
 
     def grasp_cycle(self) -> dict:
-        """One pinch Grasp goal (retried while rejected: streams not flowing yet), then the hand
-        opened by a MoveMotors position goal."""
+        """One pinch Grasp goal (sent again while refused for now: streams not flowing yet), then
+        the hand opened by a MoveMotors position goal."""
         from prisma_msgs.action import Grasp, MoveMotors
+
+        from prisma_common.goal_refusal import RETRY_LATER, refusal_code
 
         deadline = time.monotonic() + 20.0
         while True:
             accepted, accept_ns, status, result, end_ns = self.send(Grasp, "/prisma/grasp", Grasp.Goal(**GRASP), 20.0)
+            # the node accepts every goal and aborts one it cannot run yet at once, saying why
+            accepted = accepted and not (result is not None and refusal_code(result.reason) in RETRY_LATER)
             if accepted or time.monotonic() > deadline:
                 break
             time.sleep(0.5)

@@ -7,8 +7,9 @@ double: the grasp closes on the estimator's Fz, the manipulation stops on the pu
 
 Each node takes its config/*.yaml as hand.launch.py passes it, and runs on a /clock the test
 publishes: time moves in settled 10 ms steps (every message of an instant handled before the next),
-so every stamp is exact. The goals are sent as a client does right after start-up: retried only
-while the manipulation node rejects them because a stream is not there yet.
+so every stamp is exact. The goals are sent as a client does right after start-up: sent again only
+while the manipulation node refuses them `not_ready` (aborted at once, the reason in the result)
+because a stream is not there yet.
 
 A Grasp goal (pinch) closes the open hand on the presented ball; once the presenting support has
 let go, a Manipulate goal (horizontal) rolls the ball until the thumb pad's right side is lost.
@@ -21,7 +22,7 @@ import numpy as np
 import pytest
 
 from repo_paths import CONFIG
-from ros_harness import require_ros, stamp_ns
+from ros_harness import refusal_for_now, require_ros, stamp_ns
 
 require_ros()
 
@@ -69,19 +70,20 @@ def graph(ros):
 
 
 def _run(ros, name, action, goal, feedback, timeout_sec=120.0):
-    """Send the goal as soon as the server is there, again after every rejection for a stream not
+    """Send the goal as soon as the server is there, again after every refusal for a stream not
     ready yet (advancing the clock 10 ms), and run the clock until its result."""
     client = ros.action_client(action, name)
     for _ in range(500):
         handle = ros.send_goal(client, goal, feedback)
-        if handle.accepted:
+        future = handle.get_result_async()
+        assert ros.spin_until(lambda: feedback or future.done())  # noqa: B023 - runs now
+        refused = refusal_for_now(future.result().result) if future.done() else None
+        if refused is None:
             break
-        rejected = ros.wait_for_log(severity="warn", name="manipulation", contains="goal rejected: ")
-        assert rejected and any(r in rejected[-1] for r in READINESS), rejected
+        assert refused.startswith("not_ready: ") and any(r in refused for r in READINESS), refused
         ros.advance(STEP, step=STEP, settle=True)
-    assert handle.accepted
+    assert handle.accepted and refused is None
     sent = ros.now_ns()
-    future = handle.get_result_async()
     deadline = time.monotonic() + timeout_sec
     while not future.done() and time.monotonic() < deadline:
         ros.advance(STEP, step=STEP, settle=True)

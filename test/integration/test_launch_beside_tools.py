@@ -89,10 +89,10 @@ def grasp_and_open_ten_times(ros) -> list[tuple[int, str]]:
     move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=30.0)
     outcomes = []
     for _ in range(GRASPS):
-        result = ros.result(ros.send_until_accepted(grasp, GRASP, timeout_sec=60.0))
+        result = ros.result(ros.send_until_started(grasp, GRASP, timeout_sec=60.0))
         outcomes.append((result.status, result.result.reason))
         for motor in ("thumb_flexion", "fingers"):
-            opened = ros.result(ros.send_until_accepted(
+            opened = ros.result(ros.send_until_started(
                 move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
             assert opened.result.success, opened.result.reason
     return outcomes

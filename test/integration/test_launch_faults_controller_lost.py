@@ -69,7 +69,7 @@ class TestControllerLost(unittest.TestCase):
         # a slow grasp to a force the ball never reaches: the fingers close at 10 rpm for seconds
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
         for _ in range(5):  # on a loaded machine estimator lag may end it sensor_stale first: again
-            result = ros.send_until_accepted(client, goal).get_result_async()
+            result = ros.send_until_started(client, goal).get_result_async()
             accepted = len(joints)
             ros.spin_until(lambda: result.done() or closing_at_10_rpm(joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
             if not result.done():

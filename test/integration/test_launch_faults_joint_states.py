@@ -74,13 +74,13 @@ class TestForeignJointStates(unittest.TestCase):
         # the set-up grasp: on a loaded machine a moment of estimator lag > 100 ms ends it
         # sensor_stale, as it should; it is tried again then (at most 5 times)
         for _ in range(5):
-            grasp = ros.result(ros.send_until_accepted(grasp_client, Grasp.Goal(grasp="pinch")))
+            grasp = ros.result(ros.send_until_started(grasp_client, Grasp.Goal(grasp="pinch")))
             if grasp.result.reason != "sensor_stale":
                 break
         self.assertEqual((grasp.status, grasp.result.reason), (SUCCEEDED, "force_reached"))
 
         def horizontal(timeout_sec: float = 30.0):
-            handle = ros.send_until_accepted(manipulate_client, Manipulate.Goal(motion="horizontal"), timeout_sec)
+            handle = ros.send_until_started(manipulate_client, Manipulate.Goal(motion="horizontal"), timeout_sec)
             return ros.result(handle)
 
         def dead():
@@ -107,7 +107,7 @@ class TestForeignJointStates(unittest.TestCase):
             received_before = len(joints)
             try:
                 with_foreign = horizontal(timeout_sec=10.0)
-            except AssertionError:  # never accepted: a node the goal needs may have died
+            except AssertionError:  # never started: a node the goal needs may have died
                 ros.spin_for(1.0)
                 self.assertEqual(dead(), [], "nodes died of the foreign /joint_states")
                 raise

@@ -4,8 +4,9 @@ The graph: tactile_driver on the serial backend, reading the fingertip hub's ser
 pseudo-terminal (`PtyHubPort`, the hub emulator's port, written by this test at 100 Hz with every
 pad at rest), force_estimator and manipulation as hand.launch.py starts them, and no motor_driver.
 
-1. A Grasp while the motor driver is not running is rejected at once, the reason logged; once the
-   driver runs (started by the test as `ros2 run` would) the same goal is accepted.
+1. A Grasp while the motor driver is not running is refused at once: aborted with the reason in its
+   result (and the log); once the driver runs (started by the test as `ros2 run` would) the same
+   goal runs.
 2. The hub unplugged mid-grasp (the pty hung up and its link removed, as a USB adapter vanishes):
    the goal is aborted `sensor_stale` and the motors stop; when the hub comes back the driver
    reopens the port, taxels flow again and /diagnostics counts the reconnect.
@@ -55,8 +56,8 @@ ABORTED, CANCELED = 6, 5  # action_msgs/GoalStatus
 STOPPED_RAD_S = 1e-3  # the sim motors' velocity decays exponentially (tau 10 ms): "0" is below this
 STALE_TIMEOUT_S = 0.1  # config/manipulation.yaml stale_timeout
 STOP_AFTER_STALE_S = 0.1  # the motors stop within 100 ms of the watchdog's stale limit
-REJECTED_NO_DRIVER = ("Grasp goal rejected: MoveMotors action server prisma/motors/move not available "
-                      "(motor_driver not running?)")
+REFUSED_NO_DRIVER = ("not_ready: MoveMotors action server prisma/motors/move not available "
+                     "(motor_driver not running?)")
 
 
 @pytest.mark.launch_test
@@ -157,22 +158,23 @@ class TestMissingParts(unittest.TestCase):
             cls.ros.shutdown()
             shutil.rmtree(HUB_DIR, ignore_errors=True)
 
-    def test_1_grasp_before_the_motor_driver_is_rejected_at_once(self):
+    def test_1_grasp_before_the_motor_driver_is_refused_at_once(self):
         ros = self.ros
         goal = Grasp.Goal(grasp="pinch")
         start = time.monotonic()
-        handle = ros.send_goal(self.grasp, goal)
+        outcome = ros.result(ros.send_goal(self.grasp, goal), timeout_sec=10.0)
         answered_s = time.monotonic() - start
-        self.assertFalse(handle.accepted)
-        print(f"Grasp without a motor driver: rejected after {answered_s * 1e3:.0f} ms")
+        self.assertEqual((outcome.status, outcome.result.reason), (ABORTED, REFUSED_NO_DRIVER))
+        print(f"Grasp without a motor driver: refused after {answered_s * 1e3:.0f} ms")
         self.assertLess(answered_s, 1.0)
-        self.assertIn(REJECTED_NO_DRIVER, ros.wait_for_log(name="manipulation", contains="Grasp goal rejected"))
+        self.assertIn(f"Grasp goal refused: {REFUSED_NO_DRIVER}",
+                      ros.wait_for_log(name="manipulation", contains="Grasp goal refused"))
 
         config = Path(get_package_share_directory("prisma_bringup")) / "config"
         type(self).motor_driver = NodeProcess(["ros2", "run", "prisma_motor_driver", "motor_driver", "--ros-args",
                                                "--params-file", str(config / "motor_driver.yaml"),
                                                "-p", "backend:=sim"])
-        handle = ros.send_until_accepted(self.grasp, goal, timeout_sec=60.0)
+        handle = ros.send_until_started(self.grasp, goal, timeout_sec=60.0)
         canceled = handle.cancel_goal_async()
         ros.spin_until(canceled, 10.0)
         self.assertEqual(ros.result(handle).status, CANCELED)
@@ -187,7 +189,7 @@ class TestMissingParts(unittest.TestCase):
         self.assertIsNotNone(self.motor_driver, "needs the motor driver test_1 starts")
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
         for _ in range(5):  # on a loaded machine estimator lag may end it sensor_stale first: again
-            result = ros.send_until_accepted(self.grasp, goal, timeout_sec=30.0).get_result_async()
+            result = ros.send_until_started(self.grasp, goal, timeout_sec=30.0).get_result_async()
             accepted = len(self.joints)
             ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
             if not result.done():

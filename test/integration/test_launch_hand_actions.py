@@ -1,20 +1,19 @@
 """launch_testing: the Grasp and Manipulate actions of `hand.launch.py sim:=true`, through rclpy
 ActionClients on the launched graph over DDS (the tests run in order, on one launch):
 
-1. goals from the moment the action servers appear: each is re-sent only while it is rejected (the
-   node refuses goals until every stream they need flows); failing goals (a grasp to 3 N at 1 rpm with
-   a 0.3 s timeout, a horizontal manipulation with a 0.1 s timeout: both end ABORTED `timeout`)
-   alternate with succeeding ones (Grasp pinch: SUCCEEDED `force_reached`; then Manipulate horizontal:
-   SUCCEEDED `edge_lost`), twice over; every accepted goal gets its result and the manipulation
-   process is still running at the end;
+1. goals from the moment the action servers appear: each is re-sent only while it is refused
+   `not_ready` (the node aborts goals at once, the reason in the result, until every stream they
+   need flows); failing goals (a grasp to 3 N at 1 rpm with a 0.3 s timeout, a horizontal
+   manipulation with a 0.1 s timeout: both end ABORTED `timeout`) alternate with succeeding ones
+   (Grasp pinch: SUCCEEDED `force_reached`; then Manipulate horizontal: SUCCEEDED `edge_lost`), twice
+   over; every goal gets its result and the manipulation process is still running at the end;
 2. a cancel during a Grasp ends CANCELED and the motors stop (rule below);
-3. a Grasp and a Manipulate sent together: exactly one runs to its normal end, the other is rejected
-   (or aborted) naming the goal in the way; the node then serves the other one;
-4. goals beyond the configured limits are rejected, the log naming the value;
+3. a Grasp and a Manipulate sent together: exactly one runs to its normal end, the other is aborted
+   `busy: a <kind> goal ...`; the node then serves the other one;
+4. goals beyond the configured limits are aborted at once, the result's reason (and the log)
+   naming the value;
 5. `ros2 param set /manipulation k 0.7` shows in every ContactState stamped after it, `k 2.0` is
-   refused by rclpy's range check and changes nothing;
-6. the tactile driver's tare Trigger answers with the baselines: each the mean of the last 100
-   voltages of its taxel.
+   refused by rclpy's range check and changes nothing.
 After the launch is stopped (SIGINT to every node, as Ctrl-C on `ros2 launch`): every node exits 0
 with no traceback, the motor driver logging that it turned the torque off.
 
@@ -37,7 +36,9 @@ from ros_harness import (
     goal_outcome,
     include_launch,
     output_of,
+    refusal_for_now,
     require_ros,
+    result_reason,
     stamp_ns,
 )
 
@@ -48,11 +49,10 @@ import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
-from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
+from prisma_msgs.msg import ContactState  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
@@ -65,7 +65,6 @@ RETRY_S = 0.1
 # a goal that ends sensor_stale after start-up is sent again this often at most (see run_goal)
 STALE_RETRIES = 3
 K = 0.8  # config/manipulation.yaml
-TARE_SAMPLES = 100  # config/tactile_driver.yaml
 TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
 
 FAILING_GRASP = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=1.0, timeout=0.3)
@@ -94,7 +93,6 @@ class TestHandActions(unittest.TestCase):
             ros.capture_logs()
             cls.joints = ros.collect(JointState, "/joint_states")
             cls.contacts = ros.collect(ContactState, "/prisma/thumb/contact")
-            cls.taxels = ros.collect(TaxelArray, "/prisma/thumb/taxels")
             # made before the servers exist: test 1 sends its first goals the moment they appear
             cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
             cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
@@ -113,27 +111,29 @@ class TestHandActions(unittest.TestCase):
 
     def run_goal(self, goal, expected: tuple[str, str] | None = None, stale_retries: int = 0,
                  timeout_sec: float = 60.0):
-        """Send `goal`, again every RETRY_S while it is rejected, and wait for its result; with
-        `stale_retries`, send it again (that often at most) when it ends ABORTED `sensor_stale` instead
-        of `expected`: the watchdog stopping it on a machine too busy to deliver a sample within
-        100 ms. Returns (rejections, sensor_stale ends, the last result)."""
+        """Send `goal`, again every RETRY_S while it is refused for now (`not_ready`, `busy`), and
+        wait for its result; with `stale_retries`, send it again (that often at most) when it ends
+        ABORTED `sensor_stale` instead of `expected`: the watchdog stopping it on a machine too busy
+        to deliver a sample within 100 ms. Returns (refusals, sensor_stale ends, the last result)."""
         deadline = time.monotonic() + timeout_sec
-        rejections, stale = 0, 0
+        refusals, stale = 0, 0
         while True:
             ended_stale = len(self.ros.logs(name="manipulation", contains="goal ended: sensor_stale"))
             handle = self.ros.send_goal(self.client(goal), goal)
-            if not handle.accepted:
-                rejections += 1
-                self.assertLess(time.monotonic(), deadline, f"{goal} still rejected after {timeout_sec} s")
+            self.assertTrue(handle.accepted, goal)  # every goal is accepted; a refusal is its result
+            result = self.ros.result(handle, timeout_sec=30.0)
+            if refusal_for_now(result.result):
+                refusals += 1
+                self.assertLess(time.monotonic(), deadline, f"{goal} still refused after {timeout_sec} s: "
+                                                            f"{result_reason(result.result)}")
                 self.ros.spin_for(RETRY_S)
                 continue
-            result = self.ros.result(handle, timeout_sec=30.0)
             if goal_outcome(result) == ("ABORTED", "sensor_stale") != expected and stale < stale_retries:
                 stale += 1
                 why = self.ros.wait_for_log(name="manipulation", contains="goal ended: sensor_stale")[ended_stale:]
                 print(f"  {why}: again")
                 continue
-            return rejections, stale, result
+            return refusals, stale, result
 
     def test_1_goals_from_the_moment_the_servers_appear(self, proc_info):
         ros = self.ros
@@ -147,13 +147,13 @@ class TestHandActions(unittest.TestCase):
         for i, (goal, want) in enumerate(expected):
             # the first two goals meet the graph just started: the node must refuse them until it is
             # ready, then carry them out (no sensor_stale); later ones may meet a machine too busy
-            rejections, stale, result = self.run_goal(goal, want, stale_retries=0 if i < 2 else STALE_RETRIES)
+            refusals, stale, result = self.run_goal(goal, want, stale_retries=0 if i < 2 else STALE_RETRIES)
             outcomes.append(goal_outcome(result))
             print(f"{type(goal).__name__} {goal.grasp if hasattr(goal, 'grasp') else goal.motion} "
-                  f"timeout {goal.timeout:g}: {rejections} rejections, {stale} sensor_stale, then {outcomes[-1]} "
+                  f"timeout {goal.timeout:g}: {refusals} refusals, {stale} sensor_stale, then {outcomes[-1]} "
                   f"at {time.monotonic() - start:.1f} s")
-        rejected = ros.logs(name="manipulation", contains="goal rejected")
-        print(f"rejections logged: {sorted(set(rejected))}")
+        refused = ros.logs(name="manipulation", contains="goal refused")
+        print(f"refusals logged: {sorted(set(refused))}")
         self.assertEqual(outcomes, [want for _, want in expected])
         # the node lived through it: its process runs and it still answers
         self.assertNotIsInstance(proc_info["manipulation"], ProcessExited)
@@ -169,7 +169,7 @@ class TestHandActions(unittest.TestCase):
         # a slow grasp to a force the ball never reaches: the fingers close at 10 rpm for seconds
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
         for attempt in range(5):
-            handle = ros.send_until_accepted(self.grasp, goal)
+            handle = ros.send_until_started(self.grasp, goal)
             result = handle.get_result_async()
             accepted = len(self.joints)
             ros.spin_until(lambda: result.done() or closing_at_10_rpm(self.joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
@@ -197,8 +197,8 @@ class TestHandActions(unittest.TestCase):
 
     def test_3_grasp_and_manipulate_sent_together(self):
         """Both goals go out before either is answered. Exactly one runs to its normal end; the other
-        is rejected, or accepted and then aborted, the log naming the goal in the way. Both rejected
-        happens only while a stream they need is late: then both are sent again."""
+        is aborted `busy: a <kind> goal ...`, the reason in its result and the log. Both refused for
+        now happens only while a stream they need is late: then both are sent again."""
         ros = self.ros
         normal_end = {"grasp": ("SUCCEEDED", "force_reached"), "manipulate": ("SUCCEEDED", "edge_lost")}
         # from the ball held in a pinch (whatever the tests before left), where either can run
@@ -209,50 +209,50 @@ class TestHandActions(unittest.TestCase):
             futures = [self.grasp.send_goal_async(PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
             self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))  # noqa: B023 - spin_until runs it now
             handles = dict(zip(("grasp", "manipulate"), (f.result() for f in futures)))
-            if not any(h.accepted for h in handles.values()):
+            self.assertTrue(all(h.accepted for h in handles.values()))
+            results = {kind: ros.result(h) for kind, h in handles.items()}
+            ended = {kind: goal_outcome(r) for kind, r in results.items()}
+            print(f"sent together: {ended}")
+            if all(refusal_for_now(r.result) for r in results.values()):
                 ros.spin_for(RETRY_S)
                 continue
-            results = {kind: (ros.result(h) if h.accepted else None) for kind, h in handles.items()}
-            ended = {kind: goal_outcome(r) if r else "rejected" for kind, r in results.items()}
-            print(f"sent together: {ended}")
             if ("ABORTED", "sensor_stale") in ended.values() and stale < STALE_RETRIES:
                 stale += 1  # the watchdog on a machine too busy (see run_goal): again
                 continue
             break
-        ran = [kind for kind, r in results.items() if r is not None and r.status == SUCCEEDED]
+        ran = [kind for kind, r in results.items() if r.status == SUCCEEDED]
         self.assertEqual(len(ran), 1, ended)
         (other,) = {"grasp", "manipulate"} - set(ran)
         self.assertEqual(ended[ran[0]], normal_end[ran[0]])
-        why = f"a {ran[0]} goal"  # "... is running" or "... was accepted and is starting"
-        if results[other] is None:
-            refused = ros.wait_for_log(name="manipulation", contains=f"{other.capitalize()} goal rejected: {why}")
-        else:
-            self.assertEqual(results[other].status, ABORTED)
-            refused = ros.wait_for_log(name="manipulation", contains=why)
+        self.assertEqual(results[other].status, ABORTED)
+        # "... is running" or "... was accepted and is starting"
+        self.assertTrue(ended[other][1].startswith(f"busy: a {ran[0]} goal"), ended[other])
+        refused = ros.wait_for_log(name="manipulation",
+                                   contains=f"{other.capitalize()} goal refused: busy: a {ran[0]} goal")
         self.assertTrue(refused, ros.logs(name="manipulation")[-5:])
         # the node serves the other one now
         _, _, result = self.run_goal(PINCH if other == "grasp" else HORIZONTAL, normal_end[other],
                                      stale_retries=STALE_RETRIES)
         self.assertEqual(goal_outcome(result), normal_end[other])
 
-    def test_4_goals_beyond_the_limits_are_rejected(self):
+    def test_4_goals_beyond_the_limits_are_refused_with_the_reason(self):
         ros = self.ros
         beyond = [
-            (Grasp.Goal(grasp="pinch", finger_force=3.5),
-             "Grasp goal rejected: finger_force 3.5 above the configured limit 3.0"),
-            (Grasp.Goal(grasp="pinch", thumb_force=4.0),
-             "Grasp goal rejected: thumb_force 4.0 above the configured limit 3.0"),
-            (Grasp.Goal(grasp="pinch", speed_rpm=80.0),
-             "Grasp goal rejected: speed_rpm 80.0 above the configured limit 70.0"),
-            (Grasp.Goal(grasp="fist"), "Grasp goal rejected: grasp 'fist' is not one of"),
+            (Grasp.Goal(grasp="pinch", finger_force=3.5), "invalid: finger_force 3.5 above the configured limit 3.0"),
+            (Grasp.Goal(grasp="pinch", thumb_force=4.0), "invalid: thumb_force 4.0 above the configured limit 3.0"),
+            (Grasp.Goal(grasp="pinch", speed_rpm=80.0), "invalid: speed_rpm 80.0 above the configured limit 70.0"),
+            (Grasp.Goal(grasp="fist"), "invalid: grasp 'fist' is not one of ['lateral', 'pinch', 'power']"),
             (Manipulate.Goal(motion="horizontal", speed_rpm=71.0),
-             "Manipulate goal rejected: speed_rpm 71.0 above the configured limit 70.0"),
-            (Manipulate.Goal(motion="horizontal", k=2.0), "Manipulate goal rejected: k 2.0 outside (0.0, 1.5]"),
-            (Manipulate.Goal(motion="diagonal"), "Manipulate goal rejected: motion 'diagonal' is not one of"),
+             "invalid: speed_rpm 71.0 above the configured limit 70.0"),
+            (Manipulate.Goal(motion="horizontal", k=2.0), "invalid: k 2.0 outside (0.0, 1.5]"),
+            (Manipulate.Goal(motion="diagonal"),
+             "invalid: motion 'diagonal' is not one of ['horizontal', 'vertical', 'hold']"),
         ]
-        for goal, message in beyond:
-            self.assertFalse(ros.send_goal(self.client(goal), goal).accepted, goal)
-            self.assertTrue(ros.wait_for_log(name="manipulation", contains=message), message)
+        for goal, reason in beyond:
+            result = ros.result(ros.send_goal(self.client(goal), goal), timeout_sec=10.0)
+            self.assertEqual(goal_outcome(result), ("ABORTED", reason))
+            action = type(goal).__name__.split("_")[0]
+            self.assertTrue(ros.wait_for_log(name="manipulation", contains=f"{action} goal refused: {reason}"), reason)
 
     def param_set(self, value: str) -> str:
         """`ros2 param set /manipulation k <value>` as an operator types it; its output."""
@@ -291,19 +291,6 @@ class TestHandActions(unittest.TestCase):
         self.assertEqual({round(m.k, 6) for m in self.contacts_after(refused_ns)}, {0.7})
         self.assertTrue(ros.set_parameters("/manipulation", k=K)[0].successful)
         self.assertEqual({round(m.k, 6) for m in self.contacts_after(time.time_ns())}, {K})
-
-    def test_6_tare_answers_with_the_baselines(self):
-        ros = self.ros
-        response = ros.call(Trigger, "/tactile_driver/tare", Trigger.Request())
-        self.assertTrue(response.success, response.message)
-        self.assertTrue(response.message.startswith("tared: thumb ["), response.message)
-        thumb = response.message.split("thumb [", 1)[1].split("]", 1)[0]
-        baseline = np.array([float(v) for v in thumb.split()])
-        # no goal runs: the pads are still, so the driver's last 100 samples are ours (to the noise)
-        recent = np.array([list(m.voltages) for m in self.taxels[-TARE_SAMPLES:]])
-        np.testing.assert_allclose(baseline, recent.mean(axis=0), atol=0.002)
-        for finger in FINGERS:
-            self.assertIn(f"{finger} [", response.message)
 
 
 @launch_testing.post_shutdown_test()

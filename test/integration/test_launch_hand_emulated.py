@@ -116,14 +116,14 @@ class TestHandEmulated(unittest.TestCase):
 
     def run_goal(self, goal, timeout_sec: float = 40.0):
         client = self.grasp if isinstance(goal, Grasp.Goal) else self.manipulate
-        handle = self.ros.send_until_accepted(client, goal, timeout_sec=30.0)
+        handle = self.ros.send_until_started(client, goal, timeout_sec=30.0)
         return self.ros.result(handle, timeout_sec=timeout_sec)
 
     def start_slow_grasp(self):
         """A grasp that closes at 10 rpm toward 3 N: still running when the fault comes."""
         ros = self.ros
         fault("world", "pinch_grasp")
-        handle = ros.send_until_accepted(self.grasp, SLOW_PINCH, timeout_sec=30.0)
+        handle = ros.send_until_started(self.grasp, SLOW_PINCH, timeout_sec=30.0)
         result = handle.get_result_async()
         accepted = len(self.joints)
 
@@ -188,7 +188,7 @@ class TestHandEmulated(unittest.TestCase):
         ros = self.ros
         self.assertTrue(ros.spin_until(lambda: self.diagnostic("motor_driver: bus") is not None, 30.0))
         fault("world", "horizontal")
-        handle = ros.send_until_accepted(self.manipulate, SLOW_HORIZONTAL, timeout_sec=30.0)
+        handle = ros.send_until_started(self.manipulate, SLOW_HORIZONTAL, timeout_sec=30.0)
         result = handle.get_result_async()
         accepted = len(self.joints)
 

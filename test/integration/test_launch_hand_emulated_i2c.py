@@ -84,7 +84,7 @@ class TestHandEmulatedI2C(unittest.TestCase):
     def test_1_pinch_grasp_over_i2c(self):
         ros = self.ros
         self.assertTrue(ros.spin_until(self.grasp.server_is_ready, 60.0), "no /prisma/grasp server")
-        handle = ros.send_until_accepted(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
+        handle = ros.send_until_started(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
         result = ros.result(handle, timeout_sec=30.0)
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
         self.assertEqual(self.fresh_hub_diagnostic()["bus"], str(EMULATOR_DIR / "i2c.sock"))

@@ -49,10 +49,10 @@ NS = "/left"
 NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 # set by hand.launch.py sim:=true itself, after the parameter files
-INLINE = {"tactile_driver": {"backend", "contact_source"}, "motor_driver": {"backend"},
+INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object"}, "motor_driver": {"backend"},
           "force_estimator": {"model_bundle"}, "manipulation": set()}
 # values unlike config/*.yaml, for every node (a node ignores those it does not declare)
-DECOYS = {"tare_samples": 7, "rate_hz": 50.0, "batch_window": 0.001, "torch_threads": 2,
+DECOYS = {"sim_seed": 7, "rate_hz": 50.0, "batch_window": 0.001, "torch_threads": 2,
           "max_force_n": 2.0, "stale_timeout": 0.5, "position_tolerance": 0.05}
 DECOY_FILE = Path(tempfile.gettempdir()) / f"prisma_namespace_decoys_{os.getpid()}.yaml"
 SUCCEEDED = 4
@@ -124,7 +124,8 @@ class TestHandNamespace(unittest.TestCase):
         self.assertEqual(outside, {"/diagnostics", "/rosout", "/parameter_events"})
         actions = {name for node in NODES
                    for name, _ in get_action_server_names_and_types_by_node(ros.probe, node, NS)}
-        self.assertEqual(actions, {f"{NS}/prisma/grasp", f"{NS}/prisma/manipulate", f"{NS}/prisma/motors/move"})
+        self.assertEqual(actions, {f"{NS}/prisma/grasp", f"{NS}/prisma/manipulate", f"{NS}/prisma/gripper_cmd",
+                                   f"{NS}/prisma/motors/move"})
 
     def test_3_a_grasp_runs_through_the_namespaced_graph(self):
         ros = self.ros
@@ -135,7 +136,7 @@ class TestHandNamespace(unittest.TestCase):
         wrenches = ros.collect(WrenchStamped, f"{NS}/prisma/thumb/wrench")
         ros.wait_until_keeping_up(joints, wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
         for attempt in range(4):  # a machine too busy may end it sensor_stale (the watchdog): again
-            result = ros.result(ros.send_until_accepted(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
+            result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
             if result.result.reason != "sensor_stale":
                 break
             print(f"attempt {attempt}: sensor_stale")

@@ -75,7 +75,7 @@ class TestHandRviz(unittest.TestCase):
 
     def test_2_a_pinch_grasp_with_rviz_beside_the_graph(self):
         client = self.ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
-        result = self.ros.result(self.ros.send_until_accepted(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
+        result = self.ros.result(self.ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
         self.ros.spin_for(5.0)  # RViz draws the hand holding the ball
 

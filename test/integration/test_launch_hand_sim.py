@@ -145,8 +145,8 @@ class TestHandSim(unittest.TestCase):
 
     def test_every_topic_and_action_of_the_table_with_its_type(self):
         rows = hand_rows()
-        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 3 actions
-        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 5)
+        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 4 actions
+        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 6)
         for row in rows:
             found = self.action_servers if row.is_action else self.graph
             self.assertEqual(found.get(row.name), [row.type], row.name)

@@ -132,7 +132,7 @@ class TestHandTf(unittest.TestCase):
         robot = self.description("")
         client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
         joints = ros.collect(JointState, "/joint_states")
-        result = ros.result(ros.send_until_accepted(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
+        result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
         samples = [(m.header.stamp, dict(zip(m.name, m.position))) for m in joints]
         flexing = [(stamp, motors) for stamp, motors in samples if motors["thumb_flexion"] > 0.05]

@@ -20,6 +20,7 @@ from ros_harness import require_ros, stamp_ns
 require_ros()
 
 from action_msgs.msg import GoalStatus  # noqa: E402
+from control_msgs.action import GripperCommand  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors  # noqa: E402
@@ -310,34 +311,143 @@ def test_cancel_stops_the_motors(ros, hand):
     assert position(h.joints, "fingers") == pytest.approx(stopped_at, abs=1e-4)
 
 
-@pytest.mark.parametrize("action, name, goal, reason", [
-    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", speed_rpm=90.0),
-     "Grasp goal rejected: speed_rpm 90.0 above the configured limit 70.0"),
-    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", finger_force=5.0),
-     "Grasp goal rejected: finger_force 5.0 above the configured limit 3.0"),
-    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="hook"),
-     "Grasp goal rejected: grasp 'hook' is not one of ['lateral', 'pinch', 'power']"),
-    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="horizontal", speed_rpm=80.0),
-     "Manipulate goal rejected: speed_rpm 80.0 above the configured limit 70.0"),
-    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="hold", k=0.5),
-     "Manipulate goal rejected: k 0.5 too low for hold: needs k > 0.6"),
-    (MoveMotors, f"{NS}/prisma/motors/move", MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[71.0]),
-     "MoveMotors goal rejected: velocity 71.0 rpm for fingers above the limit 70.0 rpm"),
-], ids=["grasp-speed", "grasp-force", "grasp-hook", "manipulate-speed", "hold-k", "move-speed"])
-def test_goals_beyond_the_configured_limits_are_rejected(ros, hand, action, name, goal, reason):
+def result_text(result) -> str:
+    """The reason a Grasp, Manipulate or MoveMotors result carries."""
+    return result.stop_reason if hasattr(result, "stop_reason") else result.reason
+
+
+def refused_at_once(ros, handle):
+    """A refused goal: accepted, then ABORTED before sim time moves; its result."""
+    assert handle.accepted
+    result = ros.result(handle, timeout_sec=10.0)
+    assert result.status == GoalStatus.STATUS_ABORTED
+    return result.result
+
+
+def gripper_goal(position: float, max_effort: float = 0.0):
+    goal = GripperCommand.Goal()
+    goal.command.position, goal.command.max_effort = position, max_effort
+    return goal
+
+
+def test_gripper_command_closes_to_the_force_limit_and_opens(ros, hand):
+    """As MoveIt's gripper controller sends it: position = the fingers joint (9 rad: fully closed),
+    max_effort 1 N (here the world's ground-truth pad forces). The thumb follows at 0.8333; the
+    goal SUCCEEDS stalled at the limit; position 0 then opens the hand, reached_goal."""
     ros.capture_logs()
     h = hand(stand_world())
-    handle = send(ros, name, action, goal)
-    assert not handle.accepted
+    # the hand is open: position 0 has nothing to do and succeeds at once
+    already = ros.result(send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0)), timeout_sec=10.0)
+    assert (already.status, already.result.reached_goal, already.result.stalled) == \
+        (GoalStatus.STATUS_SUCCEEDED, True, False)
+    assert h.move_goals == []
+    feedback = []
+    outcome = finish(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(9.0, 1.0), feedback))
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED
+    r = outcome.result
+    assert (r.stalled, r.reached_goal) == (True, False)
+    assert 1.0 <= r.effort <= 1.1 and r.position == pytest.approx(4.9, abs=0.2)
+    assert h.commands() == [{"fingers": 60.0, "thumb_flexion": pytest.approx(50.0, abs=0.01), "thumb_rotation": 0.0}]
+    assert feedback[0].feedback.position == pytest.approx(0.0, abs=0.01) and not feedback[0].feedback.stalled
+    assert feedback[-1].feedback.stalled and feedback[-1].feedback.effort == pytest.approx(r.effort)
+    efforts = [f.feedback.effort for f in feedback]
+    assert max(efforts[:-1]) < 1.0 <= efforts[-1]  # stopped on the first sample at the limit
+    assert ros.wait_for_log(severity="info", name="manipulation", contains="gripper goal ended: force_reached")
+    ros.advance(0.1, step=STEP, settle=True)
+    assert still(h.joints[-1]) and max(h.world.forces().values()) <= 1.1
+    opened = finish(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0)))
+    assert opened.status == GoalStatus.STATUS_SUCCEEDED
+    assert (opened.result.stalled, opened.result.reached_goal) == (False, True)
+    assert opened.result.position == pytest.approx(0.0, abs=0.1) and opened.result.effort == 0.0
+    ros.advance(0.1, step=STEP, settle=True)
+    assert position(h.joints, "fingers") == pytest.approx(0.0, abs=0.1)
+    assert position(h.joints, "thumb_flexion") == pytest.approx(0.0, abs=0.1)
+
+
+def test_gripper_cancel_and_stale_sensors_stop_the_motors(ros, hand):
+    ros.capture_logs()
+    h = hand(stand_world())
+    handle = send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(9.0, 1.0))
+    ros.advance(0.2, step=STEP, settle=True)
+    assert velocity(h.joints, "fingers") > 6.0  # rad/s: closing at 60 rpm
+    canceled_at = ros.now_ns()
+    handle.cancel_goal_async()
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_CANCELED and not outcome.result.reached_goal
+    ros.advance(0.1, step=STEP, settle=True)
+    assert braking_ns(h.joints, canceled_at, "fingers") - canceled_at <= 30 * MS
+    assert braking_ns(h.joints, canceled_at, "thumb_flexion") - canceled_at <= 30 * MS
+    # the sensors fall silent during the next goal: sensor_stale, as for a Grasp
+    handle = send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0))
+    ros.advance(0.05, step=STEP, settle=True)
+    h.sensors.silent = True
+    silent_from = ros.now_ns()
+    outcome = finish(ros, handle)
+    assert outcome.status == GoalStatus.STATUS_ABORTED and not outcome.result.reached_goal
+    assert 100 * MS < ros.now_ns() - silent_from <= 140 * MS
+    assert ros.wait_for_log(severity="warn", name="manipulation", contains="gripper goal ended: sensor_stale")
+    ros.advance(0.1, step=STEP, settle=True)
+    assert still(h.joints[-1])
+
+
+@pytest.mark.parametrize("action, name, goal, reason", [
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", speed_rpm=90.0),
+     "Grasp goal refused: invalid: speed_rpm 90.0 above the configured limit 70.0"),
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="pinch", finger_force=5.0),
+     "Grasp goal refused: invalid: finger_force 5.0 above the configured limit 3.0"),
+    (Grasp, f"{NS}/prisma/grasp", Grasp.Goal(grasp="hook"),
+     "Grasp goal refused: invalid: grasp 'hook' is not one of ['lateral', 'pinch', 'power']"),
+    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="horizontal", speed_rpm=80.0),
+     "Manipulate goal refused: invalid: speed_rpm 80.0 above the configured limit 70.0"),
+    (Manipulate, f"{NS}/prisma/manipulate", Manipulate.Goal(motion="hold", k=0.5),
+     "Manipulate goal refused: invalid: k 0.5 too low for hold: needs k > 0.6"),
+    (MoveMotors, f"{NS}/prisma/motors/move", MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[71.0]),
+     "MoveMotors goal refused: invalid: velocity 71.0 rpm for fingers above the limit 70.0 rpm"),
+], ids=["grasp-speed", "grasp-force", "grasp-hook", "manipulate-speed", "hold-k", "move-speed"])
+def test_goals_beyond_the_configured_limits_are_aborted_at_once_with_the_reason(ros, hand, action, name, goal,
+                                                                               reason):
+    ros.capture_logs()
+    h = hand(stand_world())
+    result = refused_at_once(ros, send(ros, name, action, goal))
+    assert not result.success and result_text(result) == reason.split(" goal refused: ")[1]
     assert ros.wait_for_log(severity="warn", contains=reason) == [reason]
     assert h.move_goals == []
 
 
-# ---- readiness: goals rejected until what they need flows ----------------------------------------
-def test_goals_are_rejected_until_every_stream_they_need_is_ready(ros, hand):
-    """Right after start-up: Grasp and Manipulate goals are REJECTED, each with the reason logged
-    as a warning, until the taxels and wrenches of the fingers the goal uses, /joint_states and the
-    MoveMotors server are all there (the force estimator warming up must not abort a goal later)."""
+def test_a_gripper_goal_beyond_the_limits_is_aborted_at_once_with_the_reason_logged(ros, hand):
+    """GripperCommand's result has no text: the goal ends ABORTED, neither stalled nor reached,
+    with where the gripper stands, and the node logs why."""
+    ros.capture_logs()
+    h = hand(stand_world())
+    goal = GripperCommand.Goal()
+    goal.command.position, goal.command.max_effort = 9.5, 1.0
+    result = refused_at_once(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, goal))
+    assert (result.reached_goal, result.stalled, result.position, result.effort) == (False, False, 0.0, 0.0)
+    reason = ("GripperCommand goal refused: invalid: position 9.5 rad outside the fingers motor's range "
+              "[0.0, 9.0] (0 = open)")
+    assert ros.wait_for_log(severity="warn", contains=reason) == [reason]
+    assert h.move_goals == []
+
+
+def test_a_manipulation_with_nothing_in_the_hand_is_refused_no_contact(ros, hand):
+    """The hand open beside the ball on its stand: the thumb pad is untouched. Manipulate would
+    sweep the thumb to a joint limit and report success; it is aborted at once, nothing moves."""
+    ros.capture_logs()
+    h = hand(stand_world())
+    result = refused_at_once(ros, send(ros, f"{NS}/prisma/manipulate", Manipulate,
+                                       Manipulate.Goal(motion="horizontal", timeout=5.0)))
+    assert result.stop_reason.startswith("no_contact: the thumb pad is not in contact (mean 0.4")
+    assert result.stop_reason.endswith("V, below min_mean_voltage 0.55 V): a manipulation starts from a held "
+                                       "object, grasp first")
+    assert h.move_goals == []
+
+
+# ---- readiness: goals refused until what they need flows -----------------------------------------
+def test_goals_are_refused_not_ready_until_every_stream_they_need_is_ready(ros, hand):
+    """Right after start-up: Grasp and Manipulate goals are accepted and ABORTED at once with
+    `not_ready: <what is missing>` in their result (and the log), until the taxels and wrenches of
+    the fingers the goal uses, /joint_states and the MoveMotors server are all there (the force
+    estimator warming up must not abort a goal later)."""
     ros.capture_logs()
     h = hand(pinched_world(), motor=False, wait=False, publishing=False)
 
@@ -346,8 +456,9 @@ def test_goals_are_rejected_until_every_stream_they_need_is_ready(ros, hand):
         if expected is None:
             assert handle.accepted
             return handle
-        assert not handle.accepted
-        line = f"{name.split('/')[-1].capitalize()} goal rejected: {expected}"
+        result = refused_at_once(ros, handle)
+        assert result_text(result).startswith(f"not_ready: {expected}"), result_text(result)
+        line = f"{name.split('/')[-1].capitalize()} goal refused: not_ready: {expected}"
         assert ros.wait_for_log(severity="warn", contains=line), ros.logs(name="manipulation")
         return None
 
@@ -404,26 +515,35 @@ def test_alternating_failing_and_succeeding_goals_keep_the_node_serving(ros, han
     assert handle.accepted and finish(ros, handle).result.reason == "force_reached"
 
 
-def test_grasp_and_manipulate_sent_together_exactly_one_runs(ros, hand):
+def test_grasp_manipulate_and_gripper_sent_together_exactly_one_runs(ros, hand):
+    """One goal at a time across the three action servers: the first to reach the node runs, the
+    others are aborted at once, `busy: a <kind> goal is running` (or `... was accepted and is starting`)."""
     ros.capture_logs()
     h = hand(pinched_world())
-    grasp_client = ros.action_client(Grasp, f"{NS}/prisma/grasp")
-    manipulate_client = ros.action_client(Manipulate, f"{NS}/prisma/manipulate")
-    futures = [grasp_client.send_goal_async(Grasp.Goal(grasp="pinch", timeout=5.0)),
-               manipulate_client.send_goal_async(Manipulate.Goal(motion="horizontal", timeout=5.0))]
+    closer = GripperCommand.Goal()  # 0.2 rad further closed, force limit 3 N
+    closer.command.position, closer.command.max_effort = h.world.positions["fingers"] + 0.2, 3.0
+    clients = [ros.action_client(Grasp, f"{NS}/prisma/grasp"),
+               ros.action_client(Manipulate, f"{NS}/prisma/manipulate"),
+               ros.action_client(GripperCommand, f"{NS}/prisma/gripper_cmd")]
+    goals = [Grasp.Goal(grasp="pinch", timeout=5.0), Manipulate.Goal(motion="horizontal", timeout=5.0), closer]
+    futures = [client.send_goal_async(goal) for client, goal in zip(clients, goals)]
     assert ros.spin_until(lambda: all(f.done() for f in futures))
     handles = [f.result() for f in futures]
-    assert sorted(h_.accepted for h_ in handles) == [False, True]
-    kind = ("grasp", "manipulate")[[h_.accepted for h_ in handles].index(True)]
-    other = "Manipulate" if kind == "grasp" else "Grasp"
-    reasons = ros.wait_for_log(severity="warn", contains=f"{other} goal rejected: a {kind} goal")
-    assert reasons and reasons[0] in (f"{other} goal rejected: a {kind} goal was accepted and is starting",
-                                      f"{other} goal rejected: a {kind} goal is running")
-    accepted = handles[[h_.accepted for h_ in handles].index(True)]
-    outcome = finish(ros, accepted)
-    assert outcome.status == GoalStatus.STATUS_SUCCEEDED
-    # the node keeps serving: the other action runs now
-    if kind == "grasp":
+    assert all(h_.accepted for h_ in handles)
+    outcomes = [finish(ros, h_) for h_ in handles]
+    ran = [i for i, o in enumerate(outcomes) if o.status == GoalStatus.STATUS_SUCCEEDED]
+    assert len(ran) == 1, [o.status for o in outcomes]
+    kind = ("grasp", "manipulate", "gripper")[ran[0]]
+    for i in {0, 1, 2} - set(ran):
+        assert outcomes[i].status == GoalStatus.STATUS_ABORTED
+        if i < 2:
+            assert result_text(outcomes[i].result).startswith(f"busy: a {kind} goal")
+        other = ("Grasp", "Manipulate", "GripperCommand")[i]
+        reasons = ros.wait_for_log(severity="warn", contains=f"{other} goal refused: busy: a {kind} goal")
+        assert reasons and reasons[0] in (f"{other} goal refused: busy: a {kind} goal was accepted and is starting",
+                                          f"{other} goal refused: busy: a {kind} goal is running")
+    # the node keeps serving: another action runs now
+    if kind in ("grasp", "gripper"):
         handle = send(ros, f"{NS}/prisma/manipulate", Manipulate, Manipulate.Goal(motion="horizontal", timeout=5.0))
         assert handle.accepted and finish(ros, handle).result.stop_reason == "edge_lost"
     else:

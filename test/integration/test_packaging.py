@@ -42,8 +42,8 @@ PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.py").is_file()]
 # ros/rosdistro jazzy/distribution.yaml (commit 59a60b4): packages released for Jazzy that a
 # package.xml here names. apt: ros-jazzy-<name with - for _>.
 JAZZY_ROS_PACKAGES = {
-    "action_msgs", "ament_cmake", "ament_index_python", "builtin_interfaces", "diagnostic_msgs", "dynamixel_sdk",
-    "geometry_msgs", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "rcl_interfaces",
+    "action_msgs", "ament_cmake", "ament_index_python", "builtin_interfaces", "control_msgs", "diagnostic_msgs",
+    "dynamixel_sdk", "geometry_msgs", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "rcl_interfaces",
     "rclpy", "ros2bag", "rosbag2_storage_mcap", "rosidl_default_generators", "rosidl_default_runtime",
     "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs", "python_qt_binding", "rqt_plot",
     # (commit 8468e88) the description, TF and RViz side

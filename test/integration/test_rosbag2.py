@@ -128,8 +128,8 @@ def test_record_live_sim_graph(ros, tmp_path):
         recorders.append(start_recorder(bag, RECORD_TOPICS))
         recorders.append(start_recorder(goals_bag, [], hidden=ACTION_TOPICS))
         started = time.monotonic()
-        # the node rejects goals until every stream it needs is fresh: retry on rejection
-        handle = ros.send_until_accepted(grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
+        # the node refuses goals (not_ready) until every stream it needs is fresh: sent again until one runs
+        handle = ros.send_until_started(grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
         outcome = ros.result(handle, timeout_sec=60.0)
         ros.spin_for(max(0.5, 4.0 - (time.monotonic() - started)))
         while recorders:

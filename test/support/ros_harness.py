@@ -71,6 +71,21 @@ def _never() -> bool:
     return False
 
 
+def result_reason(result: Any) -> str:
+    """The text a Grasp (reason), Manipulate (stop_reason) or MoveMotors (reason) result carries;
+    "" for a result without one (control_msgs GripperCommand)."""
+    return str(getattr(result, "stop_reason", getattr(result, "reason", "")))
+
+
+def refusal_for_now(result: Any) -> str | None:
+    """The reason of a result that refused its goal for now (`not_ready: ...`, `busy: ...`: the same
+    goal may run when sent again), else None."""
+    from prisma_common.goal_refusal import RETRY_LATER, refusal_code
+
+    reason = result_reason(result)
+    return reason if refusal_code(reason) in RETRY_LATER else None
+
+
 def stamp_ns(msg: Any) -> int:
     """Nanoseconds of a message's header stamp."""
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -294,16 +309,25 @@ class RosHarness:
             raise TimeoutError("no answer to the goal request")
         return future.result()
 
-    def send_until_accepted(self, client: Any, goal: Any, timeout_sec: float = 30.0, retry_sec: float = 0.2):
-        """Send `goal` again every `retry_sec` while the server rejects it (a server that refuses
-        goals until its inputs flow); the accepted ClientGoalHandle, AssertionError at the timeout."""
+    def send_until_started(self, client: Any, goal: Any, timeout_sec: float = 30.0, retry_sec: float = 0.2):
+        """Send `goal` again every `retry_sec` while the server refuses it for now: the hand's action
+        servers accept every goal and abort one they cannot run yet at once, with `not_ready: ...`
+        or `busy: ...` as its result's reason (prisma_common.goal_refusal). The ClientGoalHandle of
+        the goal that started (its first feedback came) or ended otherwise; AssertionError at the
+        timeout. GripperCommand results carry no reason: such a goal is returned as it ended."""
         deadline = time.monotonic() + timeout_sec
         while True:
-            handle = self.send_goal(client, goal)
-            if handle.accepted:
+            feedback: list = []
+            handle = self.send_goal(client, goal, feedback)
+            if not handle.accepted:
+                raise AssertionError(f"{type(goal).__name__} rejected: the hand's servers accept every goal")
+            result = handle.get_result_async()
+            self.spin_until(lambda: bool(feedback) or result.done(), 10.0)  # noqa: B023 - runs now
+            reason = refusal_for_now(result.result().result) if result.done() else None
+            if reason is None:
                 return handle
             if time.monotonic() > deadline:
-                raise AssertionError(f"{type(goal).__name__} still rejected after {timeout_sec} s")
+                raise AssertionError(f"{type(goal).__name__} still refused after {timeout_sec} s: {reason}")
             self.spin_for(retry_sec)
 
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
@@ -604,6 +628,42 @@ def goal_outcome(result: Any) -> tuple[str, str]:
     """(status name, reason) of a Grasp or Manipulate result."""
     reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
     return GOAL_STATUS.get(result.status, str(result.status)), reason
+
+
+def gripper_goal(position: float, max_effort: float = 0.0) -> Any:
+    """control_msgs/GripperCommand goal: `position` = the fingers motor angle in rad (0 = open)."""
+    from control_msgs.action import GripperCommand
+
+    goal = GripperCommand.Goal()
+    goal.command.position, goal.command.max_effort = float(position), float(max_effort)
+    return goal
+
+
+def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float = 90.0, stale_retries: int = 3):
+    """A GripperCommand goal's result, sent again while the manipulation node refuses it for now
+    (its result has no text: the node's log says `GripperCommand goal refused: not_ready|busy: ...`)
+    or ends sensor_stale (the watchdog on a machine too busy; `stale_retries` times at most).
+    Needs `ros.capture_logs()`."""
+    deadline, stale = time.monotonic() + timeout_sec, 0
+    if not ros.spin_until(client.server_is_ready, timeout_sec):
+        raise AssertionError(f"no GripperCommand server after {timeout_sec} s")
+    while True:
+        refused = len(ros.logs(name="manipulation", contains="GripperCommand goal refused: "))
+        ended_stale = len(ros.logs(name="manipulation", contains="gripper goal ended: sensor_stale"))
+        outcome = ros.result(ros.send_goal(client, goal), timeout_sec=30.0)
+        ros.spin_for(0.1)  # the node's log line about it
+        why = ros.logs(name="manipulation", contains="GripperCommand goal refused: ")[refused:]
+        if outcome.status == 6 and why and ("not_ready: " in why[-1] or "busy: " in why[-1]):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"GripperCommand still refused after {timeout_sec} s: {why[-1]}")
+            ros.spin_for(0.2)
+            continue
+        stale_now = ros.logs(name="manipulation", contains="gripper goal ended: sensor_stale")[ended_stale:]
+        if outcome.status == 6 and stale_now and stale < stale_retries:
+            stale += 1
+            print(f"  {stale_now[-1]}: again")
+            continue
+        return outcome
 
 
 def closing_at_10_rpm(joints: list) -> bool:

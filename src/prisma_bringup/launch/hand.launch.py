@@ -7,7 +7,8 @@
     ros2 launch prisma_bringup hand.launch.py hardware:=emulated   # + tactile_backend:=i2c
 
 sim:=true runs the drivers' sim backends: motor_driver simulates the motors and publishes
-/joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world).
+/joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world)
+with the object sim_object presented to the hand (pinch_ball; none = an empty hand).
 sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
 not given here comes from config/<node>.yaml.
 
@@ -97,6 +98,9 @@ def generate_launch_description():
                               description="The emulator's object and pose: hand (as sim:=true) or a "
                                           "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
                                           "vertical, disturbance, combined)"),
+        DeclareLaunchArgument("sim_object", default_value="pinch_ball",
+                              description="sim:=true: the object in the hand's world, pinch_ball, power_ball, "
+                                          "lateral_card or none (an empty hand)"),
         DeclareLaunchArgument("frame_prefix", default_value="auto",
                               description="Put in front of every frame of the hand: its TF frames and the "
                                           "frame_id of its messages; auto: '<namespace>/' under a namespace, "
@@ -122,7 +126,8 @@ def generate_launch_description():
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
         namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames}],
+                    {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames,
+                     "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str)}],
         condition=simulated,
     )
     tactile_hardware = Node(

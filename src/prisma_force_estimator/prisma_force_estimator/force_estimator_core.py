@@ -5,7 +5,8 @@ message each. The pipeline holds samples until every configured finger has one, 
 sample shows the scan is over (a finger repeats, or a stamp lies more than `batch_window_ns` from
 the pending scan), then runs one network call per bundle for the whole scan. A finger that stops
 publishing therefore delays the others by at most one scan. Used by the node and by
-prisma-estimate-bag, so both produce identical wrenches.
+prisma-estimate-bag, so both produce identical wrenches. With a `WrenchBias` (the node's ~/bias)
+every wrench has its finger's no-load offset subtracted once one was taken (bias.py).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .bias import WrenchBias
 from .bundle import DEFAULT_PRECISION, resolve_bundle_path
 from .wrench import WrenchSample, full_wrench
 
@@ -45,6 +47,7 @@ class WrenchPipeline:
     batch_window_ns: int = 5_000_000
     counts: dict[str, FingerCounts] = field(default_factory=dict)
     ignored: int = 0  # samples of fingers this pipeline does not serve
+    bias: WrenchBias | None = None  # no-load offsets measured and subtracted (None: raw estimates)
     _pending: dict[str, TaxelSample] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -97,10 +100,13 @@ class WrenchPipeline:
                 counts.rejected += 1
                 continue
             counts.estimated += 1
-            axes = self.estimators[sample.finger].axes
+            wrench = full_wrench(row, self.estimators[sample.finger].axes)
+            if self.bias is not None:
+                self.bias.observe(sample.finger, sample.voltages, wrench)
+                wrench = self.bias.apply(sample.finger, wrench)
             frame_id = (self.frame_id_template.format(finger=sample.finger)
                         if self.frame_id_template else sample.frame_id)
-            out.append((sample.finger, WrenchSample(sample.stamp_ns, full_wrench(row, axes), frame_id)))
+            out.append((sample.finger, WrenchSample(sample.stamp_ns, wrench, frame_id)))
         return out
 
 

@@ -4,7 +4,9 @@ Input: /prisma/hand/taxels once the tactile driver publishes it, the per-finger 
 (a bag of only those replays as well). Output: every wrench on its finger's topic and the wrenches
 of each scan together on /prisma/hand/wrench. Each WrenchStamped carries its input's header stamp.
 Samples with non-finite voltages get no wrench; they are counted per finger on /diagnostics (as are
-received and estimated samples).
+received and estimated samples). The ~/bias service (std_srvs/Trigger) zeroes each finger's no-load
+wrench: the mean of its last `bias_samples` estimates is subtracted from then on (bias.py), refused
+with the reason while a pad is in contact; the offsets are in /diagnostics.
 A missing or mismatched model bundle stops the node at start with the path and the problem.
 
     ros2 run prisma_force_estimator force_estimator --ros-args --params-file config/force_estimator.yaml
@@ -18,6 +20,7 @@ from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
+from std_srvs.srv import Trigger
 
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_node_wiring.node_parameters import declare_config
@@ -25,6 +28,7 @@ from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, publish_if_subscribed, stream_publisher
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples, taxel_frame_from_msg
 
+from .bias import WrenchBias
 from .bundle import BundleError, resolve_bundle_path
 from .diagnostics import pipeline_diagnostics
 from .force_estimator_core import TaxelSample, WrenchPipeline, build_estimators
@@ -41,7 +45,8 @@ class ForceEstimatorNode(Node):
         self.bundle_paths = {finger: str(resolve_bundle_path(path)) for finger, path in cfg.bundles().items()}
         # BundleError (path + mismatch) propagates: the node does not start without its network
         estimators = build_estimators(self.bundle_paths, threads=cfg.torch_threads, precision=cfg.network_precision)
-        self.pipeline = WrenchPipeline(estimators, cfg.frame_id_format, int(round(cfg.batch_window * 1e9)))
+        self.pipeline = WrenchPipeline(estimators, cfg.frame_id_format, int(round(cfg.batch_window * 1e9)),
+                                       bias=WrenchBias(cfg.fingers, cfg.bias_samples, cfg.bias_contact_voltage))
 
         self._wrench_pubs = {f: stream_publisher(self, WrenchStamped, f"prisma/{f}/wrench") for f in cfg.fingers}
         self._hand_pub = stream_publisher(self, HandWrench, "prisma/hand/wrench")
@@ -50,6 +55,7 @@ class ForceEstimatorNode(Node):
                                           hand_taxels_samples, self._on_taxels, self._publish)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
+        self._bias_service = self.create_service(Trigger, "~/bias", self._on_bias)
         kinds = sorted({f"{e.model_kind} ({self.bundle_paths[f]})" for f, e in estimators.items()})
         precisions = sorted({f"{e.model_kind} {e.precision}" for e in estimators.values()})
         self.get_logger().info(f"fingers {', '.join(cfg.fingers)}; model {'; '.join(kinds)}; "
@@ -71,6 +77,17 @@ class ForceEstimatorNode(Node):
             msgs.append(msg)
         self._results = []
         publish_if_subscribed(self._hand_pub, hand_wrench_to_msg(self.types, fingers, msgs))
+
+    def _on_bias(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        assert self.pipeline.bias is not None  # made with one above
+        result = self.pipeline.bias.take()
+        response.success, response.message = result.success, result.message
+        # rclpy fixes a call site's severity at its first call: one call site per severity
+        if result.success:
+            self.get_logger().info(result.message)
+        else:
+            self.get_logger().warning(f"bias {result.message}")
+        return response
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self.get_clock().now().nanoseconds

@@ -13,6 +13,7 @@ from typing import Any
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, ParameterSpec, Params, check_fingers, parameter
 
+from .bias import DEFAULT_CONTACT_VOLTAGE, DEFAULT_SAMPLES
 from .bundle import DEFAULT_BUNDLE, DEFAULT_PRECISION, PRECISIONS
 
 __all__ = ["ForceEstimatorConfig", "ParameterError", "FINGERS", "OVERRIDE_PREFIX"]
@@ -42,6 +43,11 @@ class ForceEstimatorConfig(Params):
                                     unit="s", bounds=(0.0, 0.1))
     diagnostics_period: float = parameter(1.0, "time between /diagnostics messages", unit="s", bounds=(0.0, 60.0),
                                           open_low=True)
+    bias_samples: int = parameter(DEFAULT_SAMPLES, "~/bias: each finger's no-load offset is the mean of its last "
+                                                   "this many estimates", bounds=(1, 10_000))
+    bias_contact_voltage: float = parameter(DEFAULT_CONTACT_VOLTAGE, "~/bias is refused while a pad's taxel mean "
+                                                                     "voltage reaches this (the finger is touched)",
+                                            unit="V", bounds=(0.0, 3.3), open_low=True, open_high=True)
 
     @classmethod
     def parameter_specs(cls) -> dict[str, ParameterSpec]:

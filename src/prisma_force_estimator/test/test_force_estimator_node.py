@@ -1,5 +1,6 @@
-"""force_estimator node on real rclpy over DDS: topics, stamps, NaN handling, diagnostics, start
-errors, and its main() as a process (a bad bundle or parameter exits 1, SIGINT exits 0).
+"""force_estimator node on real rclpy over DDS: topics, stamps, NaN handling, diagnostics, the
+~/bias service, start errors, and its main() as a process (a bad bundle or parameter exits 1,
+SIGINT exits 0).
 
 Taxel messages are published one at a time, each awaited until the node counted it, so the node
 sees them in the order a tactile driver publishes them; sim-time tests run the node's diagnostics
@@ -21,10 +22,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # noqa: E402
 from prisma_force_estimator.inference import ForceEstimator  # noqa: E402
 from prisma_force_estimator.node_config import ForceEstimatorConfig, ParameterError  # noqa: E402
+from prisma_hand_sim.pad_model import PadParams  # noqa: E402
 
 CONFIG = CONFIG / "force_estimator.yaml"
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -113,9 +116,55 @@ def test_nan_input_is_counted_and_does_not_stop_the_node(ros, node_cls, bundles)
     thumb = status["force_estimator: thumb"]
     values = {kv.key: kv.value for kv in thumb.values}
     assert thumb.level == DiagnosticStatus.WARN and "1 sample(s) rejected" in thumb.message
-    assert values == {"received": "2", "estimated": "1", "rejected": "1", "model_kind": "cnn2"}
+    assert values == {"received": "2", "estimated": "1", "rejected": "1", "model_kind": "cnn2", "bias": "none"}
     assert status["force_estimator: index"].level == DiagnosticStatus.OK
     assert set(status) == {"force_estimator: thumb", "force_estimator: index"}
+
+
+def test_bias_service_zeroes_the_no_load_wrench_and_refuses_in_contact(ros, node_cls, bundles):
+    """`ros2 service call /force_estimator/bias std_srvs/srv/Trigger`: each finger's offset is the
+    mean of its last bias_samples estimates, subtracted from every wrench published after it and
+    shown in /diagnostics; refused while too few samples or while a pad is pressed."""
+    wrenches = ros.collect(WrenchStamped, "/prisma/thumb/wrench")
+    diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+    ros.capture_logs()
+    node = ros.node(node_cls, params={"model_bundle": str(bundles["cnn2"]), "fingers": ["thumb"],
+                                      "bias_samples": 5}, sim_time=True)
+    reference = ForceEstimator.from_bundle(bundles["cnn2"])
+    rest = np.array(PadParams().rest_volts, dtype=np.float32)  # untouched: mean 0.436 V
+    rng = np.random.default_rng(7)
+    t0 = ros.now_ns()
+    sent = []
+
+    def publish(n, volts):
+        for _ in range(n):
+            v = (volts + rng.normal(0, 0.002, 9)).astype(np.float32)
+            sent.append(v)
+            send(ros, node, "thumb", taxel_msg("thumb", t0 + len(sent) * 10_000_000, v))
+
+    publish(3, rest)
+    early = ros.call(Trigger, "/force_estimator/bias", Trigger.Request())
+    assert (early.success, early.message) == (False, "refused: not enough samples yet: thumb 3/5")
+    publish(4, rest)
+    response = ros.call(Trigger, "/force_estimator/bias", Trigger.Request())
+    offset = reference.estimate(np.stack(sent[-5:])).mean(axis=0)
+    assert response.success and response.message == f"biased over 5 samples: thumb Fz {offset[2]:+.4f} N"
+    assert ros.wait_for_log(severity="info", name="force_estimator", contains="biased over 5 samples")
+    publish(3, rest)
+    assert ros.spin_until(lambda: len(wrenches) == 10)
+    raw = reference.estimate(np.stack(sent))
+    np.testing.assert_allclose(wrench_rows(wrenches[:7]), raw[:7], atol=1e-5)  # before: as estimated
+    np.testing.assert_allclose(wrench_rows(wrenches[7:]), raw[7:] - offset, atol=1e-5)  # after: less the offset
+    publish(1, rest + np.float32(0.3))  # a press: taxel mean 0.74 V
+    refused = ros.call(Trigger, "/force_estimator/bias", Trigger.Request())
+    assert not refused.success
+    assert refused.message == ("refused: in contact: thumb (taxel mean 0.74 V), at or above 0.55 V; "
+                               "take the bias with nothing touching the pads")
+    assert ros.wait_for_log(severity="warn", name="force_estimator", contains="bias refused: in contact: thumb")
+    ros.advance(1.0, step=0.01)
+    assert ros.spin_until(lambda: len(diagnostics) == 2)
+    values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+    assert values["bias"] == " ".join(f"{v:.4f}" for v in offset)  # the first offset, kept
 
 
 def test_per_finger_bundle_override_and_frame_id_format(ros, node_cls, bundles):
@@ -169,6 +218,8 @@ def test_mismatched_bundle_fails_at_start_with_the_problem(ros, node_cls, bundle
     ("network_precision", "int8", "'network_precision' = 'int8'"),
     ("batch_window", -0.1, "'batch_window' = -0.1"),
     ("frame_id_format", "{hand}", "'frame_id_format'"),
+    ("bias_samples", 0, "'bias_samples' = 0: an integer >= 1"),
+    ("bias_contact_voltage", 4.0, "'bias_contact_voltage' = 4.0: must be in"),
 ])
 def test_invalid_parameters_fail_at_start(ros, node_cls, bundles, name, value, message):
     with pytest.raises(ParameterError, match=message):

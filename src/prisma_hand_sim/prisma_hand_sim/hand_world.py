@@ -45,9 +45,9 @@ FINGER_PADS = FINGERS[1:]  # index, middle, ring, little (driven by the "fingers
 class ObjectParams:
     name: str
     # motor angle (rad) at which each pad first touches the object in its presented pose;
-    # a finger absent from the map never touches it
+    # a finger absent from the map, or the thumb at None, never touches it
     finger_contact_rad: Mapping[str, float]
-    thumb_contact_rad: float
+    thumb_contact_rad: float | None
     stiffness_n_per_mm: float  # object compliance (foam ball ~0.4)
     fixture_n_per_mm: float = 1.0  # support presenting the object
     release_force_n: float | None = None  # support lets go once thumb and partner press this hard...
@@ -66,6 +66,8 @@ OBJECTS: dict[str, ObjectParams] = {
     # card pressed by the thumb pad against the side of the flexed index (no sensor there: the
     # index side acts as a stiff support)
     "lateral_card": ObjectParams("lateral_card", {}, 3.5, 2.0, fixture_n_per_mm=5.0),
+    # an empty hand: no pad ever touches anything (a gripper closing on nothing)
+    "none": ObjectParams("none", {}, None, 0.4),
 }
 
 
@@ -222,6 +224,8 @@ class HandWorld:
         """Motor positions of a balanced pinch (thumb vs partner) at force_n, object centred."""
         p = self.params
         partner = p.partner
+        if self.obj.thumb_contact_rad is None or partner not in self.obj.finger_contact_rad:
+            raise ValueError(f"object {self.obj.name!r} is not pinched between the thumb and the {partner}")
         travel = force_n / self.k
         return {
             "fingers": self.obj.finger_contact_rad[partner] + travel / p.finger_travel_mm_per_rad,
@@ -250,12 +254,14 @@ class HandWorld:
         s_f = {f: p.finger_travel_mm_per_rad * self.positions["fingers"] for f in FINGER_PADS}
         return s_f, p.thumb_travel_mm_per_rad * self.positions["thumb_flexion"]
 
-    def _contact_travel(self) -> tuple[dict[str, float], float]:
+    def _contact_travel(self) -> tuple[dict[str, float], float | None]:
         """Pad travel at which each pad touches the object in its presented pose (width change
-        moves both surfaces away by half of it)."""
+        moves both surfaces away by half of it); None for a thumb that never touches it."""
         p = self.params
         half = -self._width_mm / 2.0
         h_f = {f: p.finger_travel_mm_per_rad * a + half for f, a in self.obj.finger_contact_rad.items()}
+        if self.obj.thumb_contact_rad is None:
+            return h_f, None
         return h_f, p.thumb_travel_mm_per_rad * self.obj.thumb_contact_rad + half
 
     def _balance(self, s_f, h_f, s_t, h_t) -> float:
@@ -264,11 +270,14 @@ class HandWorld:
         linear and strictly decreasing: find its root exactly between breakpoints."""
         k, kfix = self.k, self._fixture
 
-        def g(u: float) -> float:
-            total = sum(k * max(0.0, s_f[f] - h_f[f] - u) for f in h_f)
-            return total - k * max(0.0, s_t - h_t + u) - kfix * u
+        def thumb(u: float) -> float:
+            return 0.0 if h_t is None else k * max(0.0, s_t - h_t + u)
 
-        points = sorted({0.0, h_t - s_t, *(s_f[f] - h_f[f] for f in h_f)})
+        def g(u: float) -> float:
+            return sum(k * max(0.0, s_f[f] - h_f[f] - u) for f in h_f) - thumb(u) - kfix * u
+
+        thumb_point = () if h_t is None else (h_t - s_t,)
+        points = sorted({0.0, *thumb_point, *(s_f[f] - h_f[f] for f in h_f)})
         values = [g(u) for u in points]
         if values[0] <= 0.0:
             # left of every breakpoint all finger pads press and the thumb does not
@@ -292,7 +301,7 @@ class HandWorld:
                 pads[f] = h_f[f] + u + forces[f] / self.obj.stiffness_n_per_mm  # indents the object
             else:
                 pads[f] = s_f[f]
-        if s_t > h_t - u:
+        if h_t is not None and s_t > h_t - u:
             forces["thumb"] = k * (s_t - h_t + u)
             pads["thumb"] = h_t - u + forces["thumb"] / self.obj.stiffness_n_per_mm
         else:
@@ -313,7 +322,7 @@ class HandWorld:
             ref = h_f.get(f, 0.0)
             out[f] = (0.0, -p.finger_slide_per_mm * (state.pad_positions_mm[f] - ref))
         out["thumb"] = (-p.thumb_lateral_mm_per_rad * self.positions["thumb_rotation"],
-                        -p.thumb_slide_per_mm * (state.pad_positions_mm["thumb"] - h_t))
+                        -p.thumb_slide_per_mm * (state.pad_positions_mm["thumb"] - (h_t or 0.0)))
         return out
 
     def _pad_contact(self, finger: str, force: float, tangent: tuple[float, float]) -> PadContact | None:

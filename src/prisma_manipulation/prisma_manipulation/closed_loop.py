@@ -42,7 +42,15 @@ from prisma_tactile_driver.taxels import TaxelFrame
 
 from .contact_monitor import ContactEvaluation
 from .controllers import Controller, JointSample
-from .manipulation_core import Finished, GraspRequest, ManipulateRequest, ManipulationCore, SendMove, StopMotors
+from .manipulation_core import (
+    Finished,
+    GraspRequest,
+    GripperRequest,
+    ManipulateRequest,
+    ManipulationCore,
+    SendMove,
+    StopMotors,
+)
 from .node_config import ManipulationConfig
 
 if TYPE_CHECKING:
@@ -50,6 +58,7 @@ if TYPE_CHECKING:
     from prisma_force_estimator.inference import ForceEstimator
 
 NS = 1_000_000_000
+Request = GraspRequest | ManipulateRequest | GripperRequest
 FRAME_ID_FORMAT = "prisma_{finger}_pad"  # tactile_driver's and force_estimator's default frame ids
 
 
@@ -185,25 +194,29 @@ class ClosedLoop:
             scan.actions.append(action)
 
     # ---- a goal ----------------------------------------------------------------------------
-    def start(self, request: GraspRequest | ManipulateRequest, scan: Scan) -> None:
+    def start(self, request: Request, scan: Scan) -> None:
         """Send the goal at the scan's stamp as a client would: refused (RuntimeError naming why)
         where the manipulation node would refuse it."""
         core, t = self.core, scan.stamp_ns
         if isinstance(request, GraspRequest):
-            reason = core.accept_grasp(request, True, t)
+            refusal = core.accept_grasp(request, True, t)
+        elif isinstance(request, ManipulateRequest):
+            refusal = core.accept_manipulate(request, True, t)
         else:
-            reason = core.accept_manipulate(request, True, t)
-        if reason is not None:
-            raise RuntimeError(f"the manipulation node would reject the goal at {t * 1e-9:.2f} s: {reason}")
+            refusal = core.accept_gripper(request, True, t)
+        if refusal is not None:
+            raise RuntimeError(f"the manipulation node would refuse the goal at {t * 1e-9:.2f} s: {refusal}")
         scan.goal_started = True
         if isinstance(request, GraspRequest):
             actions = core.start_grasp(request, t)
-        else:
+        elif isinstance(request, ManipulateRequest):
             actions = core.start_manipulate(request, t)
+        else:
+            actions = core.start_gripper(request, t)
         self.controller = core.controller
         self._carry_out(actions, scan)
 
-    def run(self, request: GraspRequest | ManipulateRequest, duration_s: float, start_ns: int = 0,
+    def run(self, request: Request, duration_s: float, start_ns: int = 0,
             settle_s: float = 0.0, progress: Callable[[str], None] | None = None) -> Trace:
         """Scan once, send the goal, and scan on until it has finished (then `settle_s` more) or
         `duration_s` has passed."""

@@ -8,7 +8,8 @@ velocity command to apply (only when it changes), the phase, and, once finished,
 Force feedback is an input: the caller decides where `forces` come from (the force estimator's Fz on
 the robot and in the estimator closed loop, the world's ground truth in unit tests).
 
-Stop reasons: edge_lost, force_reached, joint_limit, timeout, canceled, sensor_stale, motor_fault.
+Stop reasons: edge_lost, force_reached, reached (a gripper goal's position), joint_limit, timeout,
+canceled, sensor_stale, motor_fault, no_contact (a manipulation's pad has nothing to steer by).
 """
 from __future__ import annotations
 
@@ -22,12 +23,14 @@ from .contact_monitor import ContactEvaluation
 
 EDGE_LOST = "edge_lost"
 FORCE_REACHED = "force_reached"
+REACHED = "reached"
 JOINT_LIMIT = "joint_limit"
 TIMEOUT = "timeout"
 CANCELED = "canceled"
 SENSOR_STALE = "sensor_stale"
 MOTOR_FAULT = "motor_fault"
-REASONS = (EDGE_LOST, FORCE_REACHED, JOINT_LIMIT, TIMEOUT, CANCELED, SENSOR_STALE, MOTOR_FAULT)
+NO_CONTACT = "no_contact"
+REASONS = (EDGE_LOST, FORCE_REACHED, REACHED, JOINT_LIMIT, TIMEOUT, CANCELED, SENSOR_STALE, MOTOR_FAULT, NO_CONTACT)
 
 
 @dataclass(frozen=True)

@@ -5,16 +5,19 @@ The node feeds it messages (taxels, wrenches, joint states, MoveMotors results, 
 watchdog ticks) as plain data and carries out the returned actions:
 - SendMove: send a MoveMotors velocity goal (it preempts the previous one on the motor driver);
 - StopMotors: cancel the running MoveMotors goal (cancel = stop);
-- Feedback / Finished: the Grasp or Manipulate goal's feedback and end;
+- Feedback / Finished: the Grasp, Manipulate or GripperCommand goal's feedback and end;
 - Ignored: an input set aside (a /joint_states message without the hand's joints), for the log.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
-Goals are admitted in two steps. `accept_grasp` / `accept_manipulate` (the action server's goal
-callback) answer a rejection reason or None: the request within the limits, no other goal running
-or just accepted (so a Grasp and a Manipulate sent together have one outcome: the first is accepted,
-the second rejected), and every stream the goal needs flowing (its fingers' taxels and, where it
-steers by force, wrenches, /joint_states, and the MoveMotors action server). An accepted goal holds
-the core until `start_grasp` / `start_manipulate` runs it.
+Goals are admitted in two steps. `accept_grasp` / `accept_manipulate` / `accept_gripper` answer a
+`Refusal` (prisma_common.goal_refusal: `invalid`, `busy`, `not_ready`, `no_contact` and why) or
+None: the request within the limits (invalid), no other goal running or just accepted (busy: so
+goals sent together have one outcome, the first runs, the others are refused), every stream the
+goal needs flowing (not_ready: its fingers' taxels and, where it steers by force, wrenches,
+/joint_states, and the MoveMotors action server), and for a manipulation a contact on the pad it
+steers by (no_contact). An admitted goal holds the core until `start_grasp` / `start_manipulate` /
+`start_gripper` runs it. The node accepts every goal and aborts a refused one at once with the
+refusal as its result's reason.
 
 Motors stop when this node is lost: every MoveMotors goal carries a short timeout (`MOVE_LEASE_S`)
 and, while the controller keeps the same velocity command, the goal is re-sent every
@@ -30,11 +33,14 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
+
 from .contact_monitor import ContactEvaluation, ContactMonitor, check_k
 from .controllers import (
     CANCELED,
     JOINT_LIMIT,
     MOTOR_FAULT,
+    NO_CONTACT,
     SENSOR_STALE,
     TIMEOUT,
     ControlInput,
@@ -44,6 +50,7 @@ from .controllers import (
     JointSample,
 )
 from .grasp_controller import GRASP_PRESETS, GraspController
+from .gripper_controller import GripperController
 from .motion_controllers import ForceKeeper, HoldController, HorizontalController, VerticalController
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
@@ -51,6 +58,7 @@ from .watchdog import SensorWatchdog
 
 GRASP = "grasp"
 MANIPULATE = "manipulate"
+GRIPPER = "gripper"
 MOTIONS = ("horizontal", "vertical", "hold")
 
 # MoveMotors goals last this long on the motor driver unless re-sent: the motors stop within it (+ one
@@ -76,6 +84,12 @@ class ManipulateRequest:
     k: float = 0.0  # 0 = the node's k parameter
     use_force: bool = False
     timeout_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class GripperRequest:
+    position: float  # fingers motor target, rad: 0 = open (gripper_controller.py)
+    max_effort: float = 0.0  # N on the estimated pad forces; 0 = configured default
 
 
 @dataclass(frozen=True)
@@ -105,6 +119,11 @@ class Feedback:
     thumb_force: float
     feasible: bool
     threshold: float
+    # a gripper goal's: fingers position (rad), highest pad force (N), and how it stands
+    position: float = 0.0
+    effort: float = 0.0
+    stalled: bool = False
+    reached_goal: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,6 +135,18 @@ class Finished:
     finger_force: float
     thumb_force: float
     detail: str = ""
+    position: float = 0.0  # a gripper goal's, as in Feedback
+    effort: float = 0.0
+    stalled: bool = False
+    reached_goal: bool = False
+
+
+class GoalRefused(ValueError):
+    """A goal that may not start, with the refusal its result carries."""
+
+    def __init__(self, refusal: Refusal) -> None:
+        super().__init__(str(refusal))
+        self.refusal = refusal
 
 
 def _finite(x: float) -> bool:
@@ -177,7 +208,8 @@ class ManipulationCore:
         self.forces: dict[str, float] = {}
         self._force_fingers: tuple[str, ...] = ()
         self._required: frozenset = frozenset()
-        self._accepted: str | None = None  # kind of a goal accepted and not started yet
+        self._accepted: str | None = None  # kind of a goal admitted and not started yet
+        self.evaluations: dict[str, ContactEvaluation] = {}  # each finger's latest
         self.stale_reason = ""
         self.ignored_joint_states = 0
 
@@ -202,8 +234,12 @@ class ManipulationCore:
         return self.controller is not None
 
     # ---- goal validation -------------------------------------------------------------------
-    def resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, str | None]:
-        """The request with defaults filled in, or the reason it is beyond the limits."""
+    def resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, Refusal | None]:
+        """The request with defaults filled in, or why it is invalid (beyond the limits)."""
+        r, why = self._resolve_grasp(req)
+        return r, (Refusal(INVALID, why) if why else None)
+
+    def _resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, str | None]:
         c = self.config
         if req.grasp not in GRASP_PRESETS:
             return None, f"grasp {req.grasp!r} is not one of {sorted(GRASP_PRESETS)}"
@@ -220,8 +256,12 @@ class ManipulationCore:
             return None, f"timeout {r.timeout_s} must be >= 0"
         return r, self._fingers_configured(f"grasp {r.grasp}", self.grasp_streams(r)[0])
 
-    def resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, str | None]:
-        """The request with defaults filled in, or the reason it is beyond the limits."""
+    def resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, Refusal | None]:
+        """The request with defaults filled in, or why it is invalid (beyond the limits)."""
+        r, why = self._resolve_manipulate(req)
+        return r, (Refusal(INVALID, why) if why else None)
+
+    def _resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, str | None]:
         c = self.config
         if req.motion not in MOTIONS:
             return None, f"motion {req.motion!r} is not one of {list(MOTIONS)}"
@@ -243,6 +283,22 @@ class ManipulationCore:
             return None, f"timeout {r.timeout_s} must be >= 0"
         return r, self._fingers_configured(f"motion {r.motion}", self.manipulate_streams(r)[0])
 
+    def resolve_gripper(self, req: GripperRequest) -> tuple[GripperRequest | None, Refusal | None]:
+        """The request with max_effort 0 replaced by the configured default, or why it is invalid."""
+        c = self.config
+        fingers = self.limits.motors["fingers"]
+        lo, hi = fingers.min_position_rad, fingers.max_position_rad
+        why = None
+        if not _finite(req.position) or not lo <= req.position <= hi:
+            why = f"position {req.position} rad outside the fingers motor's range [{lo}, {hi}] (0 = open)"
+        elif not _finite(req.max_effort) or req.max_effort < 0:
+            why = f"max_effort {req.max_effort} must be >= 0 N (0 = gripper_max_effort {c.gripper_max_effort} N)"
+        elif req.max_effort > c.max_force_n:
+            why = f"max_effort {req.max_effort} above the configured limit {c.max_force_n}"
+        if why:
+            return None, Refusal(INVALID, why)
+        return GripperRequest(req.position, req.max_effort or c.gripper_max_effort), None
+
     def grasp_streams(self, r: GraspRequest) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """(fingers whose taxels, fingers whose wrenches) a grasp steps on: the thumb and the preset's pads."""
         fingers = ("thumb",) + GRASP_PRESETS[r.grasp].force_fingers
@@ -261,52 +317,86 @@ class ManipulationCore:
             return f"{what} needs the {', '.join(missing)} pad(s), not in parameter fingers {self.config.fingers}"
         return None
 
-    def _busy_reason(self) -> str | None:
+    def gripper_streams(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(taxel fingers, wrench fingers) of a gripper goal: every configured pad carries its force."""
+        pads = tuple(self.config.fingers)
+        return pads, pads
+
+    def _busy_reason(self) -> Refusal | None:
         if self.controller is not None:
-            return f"a {self.kind} goal is running"
+            return Refusal(BUSY, f"a {self.kind} goal is running")
         if self._accepted is not None:
-            return f"a {self._accepted} goal was accepted and is starting"
+            return Refusal(BUSY, f"a {self._accepted} goal was accepted and is starting")
         return None
 
     def readiness(self, taxel_fingers: tuple[str, ...], wrench_fingers: tuple[str, ...],
-                  move_server_ready: bool, now_ns: int) -> str | None:
-        """None when a goal needing these streams can run now, else what is missing."""
+                  move_server_ready: bool, now_ns: int) -> Refusal | None:
+        """None when a goal needing these streams can run now, else what is missing (not_ready)."""
         if not move_server_ready:
-            return f"MoveMotors action server {self.config.move_action} not available (motor_driver not running?)"
+            return Refusal(NOT_READY, f"MoveMotors action server {self.config.move_action} not available "
+                                      "(motor_driver not running?)")
         streams = [f"taxels/{f}" for f in taxel_fingers] + [f"wrench/{f}" for f in wrench_fingers]
-        return self.watchdog.fresh(streams, now_ns)
+        missing = self.watchdog.fresh(streams, now_ns)
+        return Refusal(NOT_READY, missing) if missing else None
 
-    def accept_grasp(self, req: GraspRequest, move_server_ready: bool, now_ns: int) -> str | None:
-        """The goal callback's decision: None = accepted (the core is held for it), else the reason."""
-        r, reason = self.resolve_grasp(req)
-        if r is None:
-            return reason
-        return reason or self._admit(GRASP, self.grasp_streams(r), move_server_ready, now_ns)
+    def contact_refusal(self, finger: str) -> Refusal | None:
+        """no_contact when `finger`'s latest sample shows nothing on its pad (mean voltage below
+        min_mean_voltage): a manipulation steers a held object and has nothing to steer here."""
+        evaluation = self.evaluations.get(finger)
+        floor = self.config.min_mean_voltage
+        if evaluation is None or evaluation.mean_voltage >= floor:
+            return None
+        return Refusal(NO_CONTACT, f"the {finger} pad is not in contact (mean {evaluation.mean_voltage:.2f} V, "
+                                   f"below min_mean_voltage {floor} V): a manipulation starts from a held "
+                                   "object, grasp first")
 
-    def accept_manipulate(self, req: ManipulateRequest, move_server_ready: bool, now_ns: int) -> str | None:
-        r, reason = self.resolve_manipulate(req)
-        if r is None:
-            return reason
-        return reason or self._admit(MANIPULATE, self.manipulate_streams(r), move_server_ready, now_ns)
+    def accept_grasp(self, req: GraspRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
+        """None = admitted (the core is held for it until it starts), else why it is refused."""
+        r, refusal = self.resolve_grasp(req)
+        if r is None or refusal:
+            return refusal
+        return self._admit(GRASP, self.grasp_streams(r), move_server_ready, now_ns)
+
+    def accept_manipulate(self, req: ManipulateRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
+        r, refusal = self.resolve_manipulate(req)
+        if r is None or refusal:
+            return refusal
+        return self._admit(MANIPULATE, self.manipulate_streams(r), move_server_ready, now_ns,
+                           self.config.monitored_finger)
+
+    def accept_gripper(self, req: GripperRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
+        r, refusal = self.resolve_gripper(req)
+        if r is None or refusal:
+            return refusal
+        return self._admit(GRIPPER, self.gripper_streams(), move_server_ready, now_ns)
 
     def _admit(self, kind: str, streams: tuple[tuple[str, ...], tuple[str, ...]], move_server_ready: bool,
-               now_ns: int) -> str | None:
-        reason = self._busy_reason() or self.readiness(*streams, move_server_ready, now_ns)
-        if reason is None:
+               now_ns: int, contact_finger: str | None = None) -> Refusal | None:
+        refusal = self._busy_reason() or self.readiness(*streams, move_server_ready, now_ns)
+        if refusal is None and contact_finger is not None:
+            refusal = self.contact_refusal(contact_finger)
+        if refusal is None:
             self._accepted = kind
-        return reason
+        return refusal
 
     # ---- goal start / end ------------------------------------------------------------------
-    def _startable(self, kind: str, resolved: tuple[Any, str | None]) -> Any:
-        """The resolved request of a goal that may start now; ValueError naming why it may not."""
+    def refused(self, kind: str, refusal: Refusal) -> Finished:
+        """The end of a goal refused before it started: the refusal as its reason, and where the
+        hand stands (the fingers position and the highest pad force, for a gripper's result)."""
+        position = self.joints.positions.get("fingers", 0.0) if self.joints is not None else 0.0
+        effort = max((self.forces.get(f, 0.0) for f in self.config.fingers), default=0.0)
+        return Finished(kind, False, str(refusal), 0.0, 0.0, 0.0, position=position, effort=effort)
+
+    def _startable(self, kind: str, resolved: tuple[Any, Refusal | None]) -> Any:
+        """The resolved request of a goal that may start now; GoalRefused naming why it may not."""
         if self._accepted == kind:
-            self._accepted = None  # the accepted goal starts now (or fails to)
-        request, reason = resolved
-        reason = reason or self._busy_reason()
-        if reason is None and self.joints is None:
-            reason = "no /joint_states received yet"
-        if reason or request is None:
-            raise ValueError(reason)
+            self._accepted = None  # the admitted goal starts now (or fails to)
+        request, refusal = resolved
+        refusal = refusal or self._busy_reason()
+        if refusal is None and self.joints is None:
+            refusal = Refusal(NOT_READY, "no /joint_states received yet")
+        if refusal is not None or request is None:
+            raise GoalRefused(refusal or Refusal(INVALID, "no request"))
         return request
 
     def start_grasp(self, req: GraspRequest, now_ns: int) -> list:
@@ -322,15 +412,25 @@ class ManipulationCore:
         keeper = ForceKeeper(c.force_target_n, c.force_band_n, c.force_speed_rpm) if r.use_force else None
         finger = c.monitored_finger
         controller: Controller
+        contact = c.min_mean_voltage
         if r.motion == "horizontal":
             controller = HorizontalController(self.limits, r.speed_rpm, finger, timeout_s=r.timeout_s,
-                                              force_keeper=keeper)
+                                              force_keeper=keeper, contact_voltage=contact)
         elif r.motion == "vertical":
-            controller = VerticalController(self.limits, r.speed_rpm, finger, r.timeout_s, keeper)
+            controller = VerticalController(self.limits, r.speed_rpm, finger, r.timeout_s, keeper, contact)
         else:
-            controller = HoldController(self.limits, r.speed_rpm, finger, r.timeout_s, force_keeper=keeper)
+            controller = HoldController(self.limits, r.speed_rpm, finger, r.timeout_s, force_keeper=keeper,
+                                        contact_voltage=contact)
         self.monitor.set_k(r.k)
         return self._start(MANIPULATE, controller, self.manipulate_streams(r)[1], now_ns)
+
+    def start_gripper(self, req: GripperRequest, now_ns: int) -> list:
+        r: GripperRequest = self._startable(GRIPPER, self.resolve_gripper(req))
+        c = self.config
+        pads, force_pads = self.gripper_streams()
+        controller = GripperController(self.limits, r.position, r.max_effort, pads, c.gripper_speed_rpm,
+                                       c.gripper_thumb_ratio, c.gripper_timeout)
+        return self._start(GRIPPER, controller, force_pads, now_ns)
 
     def _start(self, kind: str, controller: Controller, force_fingers: tuple[str, ...], now_ns: int) -> list:
         self.controller, self.kind, self._force_fingers = controller, kind, force_fingers
@@ -351,6 +451,7 @@ class ManipulationCore:
     def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray,
                   receipt_ns: int) -> tuple[ContactEvaluation, list]:
         evaluation = self.monitor.evaluate(finger, stamp_ns, voltages)
+        self.evaluations[finger] = evaluation
         self.watchdog.sample(f"taxels/{finger}", stamp_ns, receipt_ns)
         if self.controller is None:
             return evaluation, []
@@ -399,12 +500,13 @@ class ManipulationCore:
         return self._abort(now_ns, CANCELED)
 
     def on_move_result(self, reason: str, now_ns: int) -> list:
-        """Result of our current MoveMotors goal: a motor fault ends the goal; a timeout (the refresh
-        came too late) sends the command again; at a joint limit the driver stopped the motors, so
-        the command is no longer refreshed (the controller ends on the position it sees)."""
+        """Result of our current MoveMotors goal: a motor fault, or the driver refusing the goal
+        (its bus down), ends the goal with motor_fault; a timeout (the refresh came too late) sends
+        the command again; at a joint limit the driver stopped the motors, so the command is no
+        longer refreshed (the controller ends on the position it sees)."""
         if self.controller is None:
             return []
-        if reason.startswith(MOTOR_FAULT):
+        if reason.startswith(MOTOR_FAULT) or refusal_code(reason) is not None:
             return self._abort(now_ns, MOTOR_FAULT, reason)
         if reason == TIMEOUT:
             renewed = self.lease.renew(now_ns)
@@ -448,11 +550,16 @@ class ManipulationCore:
         finger_force, thumb_force = self._forces()
         feasible = getattr(c, "feasible", False)
         threshold = getattr(c, "threshold", 0.0)
-        actions.append(Feedback(kind, out.phase, finger_force, thumb_force, feasible, threshold))
+        gripper: dict[str, Any] = {}
+        if isinstance(c, GripperController):
+            gripper = {"position": c.position, "effort": c.effort, "stalled": c.stalled,
+                       "reached_goal": c.reached_goal}
+        actions.append(Feedback(kind, out.phase, finger_force, thumb_force, feasible, threshold, **gripper))
         if out.done:
             stop_time = 0.0
             if c.stop_ns is not None and c.start_ns is not None:
                 stop_time = (c.stop_ns - c.start_ns) * 1e-9
-            actions.append(Finished(kind, out.success, out.reason or "", stop_time, finger_force, thumb_force, detail))
+            actions.append(Finished(kind, out.success, out.reason or "", stop_time, finger_force, thumb_force, detail,
+                                    **gripper))
             self._end()
         return actions

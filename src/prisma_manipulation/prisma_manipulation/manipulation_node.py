@@ -1,5 +1,6 @@
 """manipulation: Algorithm 1 on every fingertip sample (/prisma/<finger>/contact, also when idle),
-the Grasp (/prisma/grasp) and Manipulate (/prisma/manipulate) action servers, a client of
+the Grasp (/prisma/grasp), Manipulate (/prisma/manipulate) and control_msgs GripperCommand
+(/prisma/gripper_cmd) action servers, one goal at a time across the three, a client of
 /prisma/motors/move, and the 100 ms sensor watchdog.
 
     ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
@@ -8,19 +9,26 @@ Subscribes /prisma/hand/taxels and /prisma/hand/wrench (Fz = normal force), or t
 /prisma/<finger>/taxels and /prisma/<finger>/wrench until those speak, and /joint_states; publishes
 each sample's ContactState on /prisma/<finger>/contact (while subscribed) and those of each received
 scan together on /prisma/hand/contact.
-k, min_mean_voltage, stale_timeout and the goal defaults can be changed at run time
-(`ros2 param set /manipulation k 0.7`); the other parameters are read-only (node_config.py says why).
-Goals are accepted only when every stream they need flows and the MoveMotors server is up; motion
-goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when this node
-dies (docs/manipulation.md, "Safety").
+k, min_mean_voltage, stale_timeout, the goal defaults and the gripper settings can be changed at run
+time (`ros2 param set /manipulation k 0.7`); the other parameters are read-only (node_config.py says
+why). Every goal is accepted; one the core refuses (beyond the limits, another goal running, a stream
+it needs not flowing, the MoveMotors server down, a manipulation without contact) is aborted at once
+with `<code>: <why>` as its result's reason (GripperCommand's result has no text: the log says it).
+Motion goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when
+this node dies (docs/manipulation.md, "Safety").
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
+from control_msgs.action import GripperCommand
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray
-from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionClient, ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
@@ -35,13 +43,27 @@ from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
-from .manipulation_core import GRASP, Feedback, Finished, Ignored, ManipulationCore, SendMove, StopMotors
+from .manipulation_core import (
+    GRASP,
+    GRIPPER,
+    MANIPULATE,
+    Feedback,
+    Finished,
+    GoalRefused,
+    Ignored,
+    ManipulationCore,
+    SendMove,
+    StopMotors,
+)
 from .node_config import ManipulationConfig
 from .ros_conversions import (
     contact_state_to_msg,
     grasp_feedback_to_msg,
     grasp_request_from_msg,
     grasp_result_to_msg,
+    gripper_feedback_to_msg,
+    gripper_request_from_msg,
+    gripper_result_to_msg,
     hand_contact_to_msg,
     hand_wrench_samples,
     joint_sample_from_msg,
@@ -50,6 +72,19 @@ from .ros_conversions import (
     manipulate_result_to_msg,
     normal_force_from_wrench,
 )
+
+
+@dataclass(frozen=True)
+class GoalKind:
+    """How one action server's goals reach the core and its decisions come back as messages."""
+
+    action: str  # the action's name in the log
+    kind: str  # the core's name for it
+    request_from_msg: Callable[[Any], Any]
+    accept: Callable[[Any, bool, int], Any]
+    start: Callable[[Any, int], list]
+    feedback_to_msg: Callable[[Any, Feedback], Any]
+    result_to_msg: Callable[[Any, Finished], Any]
 
 
 class ManipulationNode(Node):
@@ -78,12 +113,23 @@ class ManipulationNode(Node):
                                             hand_wrench_samples, self._on_wrench, callback_group=group)
         stream_subscription(self, JointState, "joint_states", self._on_joints, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
+        core = self.core
+        self._kinds = {
+            Grasp.Goal: GoalKind("Grasp", GRASP, grasp_request_from_msg, core.accept_grasp, core.start_grasp,
+                                 grasp_feedback_to_msg, grasp_result_to_msg),
+            Manipulate.Goal: GoalKind("Manipulate", MANIPULATE, manipulate_request_from_msg, core.accept_manipulate,
+                                      core.start_manipulate, manipulate_feedback_to_msg, manipulate_result_to_msg),
+            GripperCommand.Goal: GoalKind("GripperCommand", GRIPPER, gripper_request_from_msg, core.accept_gripper,
+                                          core.start_gripper, gripper_feedback_to_msg, gripper_result_to_msg),
+        }
+        self._by_core_kind = {k.kind: k for k in self._kinds.values()}
+        # every goal is accepted (rclpy's default goal callback): _execute aborts a refused one at once
         self._grasp_server = ActionServer(self, Grasp, "prisma/grasp", self._execute,
-                                          goal_callback=self._on_grasp_goal, cancel_callback=self._on_cancel,
-                                          callback_group=group)
+                                          cancel_callback=self._on_cancel, callback_group=group)
         self._manipulate_server = ActionServer(self, Manipulate, "prisma/manipulate", self._execute,
-                                               goal_callback=self._on_manipulate_goal,
                                                cancel_callback=self._on_cancel, callback_group=group)
+        self._gripper_server = ActionServer(self, GripperCommand, "prisma/gripper_cmd", self._execute,
+                                            cancel_callback=self._on_cancel, callback_group=group)
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
                                f"stale after {self.config.stale_timeout * 1e3:.0f} ms")
@@ -134,40 +180,27 @@ class ManipulationNode(Node):
         self._apply(self.core.check(now))
 
     # ---- goals -----------------------------------------------------------------------------
-    def _reject(self, what: str, reason: str) -> GoalResponse:
-        self.get_logger().warning(f"{what} goal rejected: {reason}")
-        return GoalResponse.REJECT
-
-    def _on_grasp_goal(self, request) -> GoalResponse:
-        reason = self.core.accept_grasp(grasp_request_from_msg(request), self._move_client.server_is_ready(),
-                                        self._now_ns())
-        return self._reject("Grasp", reason) if reason else GoalResponse.ACCEPT
-
-    def _on_manipulate_goal(self, request) -> GoalResponse:
-        reason = self.core.accept_manipulate(manipulate_request_from_msg(request),
-                                             self._move_client.server_is_ready(), self._now_ns())
-        return self._reject("Manipulate", reason) if reason else GoalResponse.ACCEPT
-
     def _on_cancel(self, goal_handle) -> CancelResponse:
         return CancelResponse.ACCEPT
 
     async def _execute(self, goal_handle):
-        request = goal_handle.request
-        is_grasp = isinstance(request, Grasp.Goal)
+        kind = self._kinds[type(goal_handle.request)]
+        request = kind.request_from_msg(goal_handle.request)
         now = self._now_ns()
-        try:
-            if is_grasp:
-                actions = self.core.start_grasp(grasp_request_from_msg(request), now)
-            else:
-                actions = self.core.start_manipulate(manipulate_request_from_msg(request), now)
-        except ValueError as exc:  # became invalid between acceptance and start
-            self.get_logger().warning(f"{'Grasp' if is_grasp else 'Manipulate'} goal aborted at start: {exc}")
+        refusal = kind.accept(request, self._move_client.server_is_ready(), now)
+        if refusal is None:
+            try:
+                actions = kind.start(request, now)
+            except GoalRefused as exc:
+                refusal = exc.refusal
+        if refusal is not None:
+            self.get_logger().warning(f"{kind.action} goal refused: {refusal}")
             goal_handle.abort()
-            done = Finished(GRASP if is_grasp else "manipulate", False, f"rejected at start: {exc}", 0.0, 0.0, 0.0)
-            return (grasp_result_to_msg if is_grasp else manipulate_result_to_msg)(self.types, done)
-        self._goal, self._goal_done = goal_handle, Future()
-        self._apply(actions)
-        return await self._goal_done
+            return kind.result_to_msg(self.types, self.core.refused(kind.kind, refusal))
+        done = self._goal_done = Future()
+        self._goal = goal_handle
+        self._apply(actions)  # may end it at once (a gripper already at its position)
+        return await done
 
     # ---- carrying out the core's decisions -------------------------------------------------
     def _apply(self, actions: list) -> None:
@@ -178,8 +211,7 @@ class ManipulationNode(Node):
                 self._stop_motors()
             elif isinstance(action, Feedback):
                 if self._goal is not None:
-                    convert = grasp_feedback_to_msg if action.kind == GRASP else manipulate_feedback_to_msg
-                    self._goal.publish_feedback(convert(self.types, action))
+                    self._goal.publish_feedback(self._by_core_kind[action.kind].feedback_to_msg(self.types, action))
             elif isinstance(action, Finished):
                 self._finish(action)
             elif isinstance(action, Ignored):
@@ -238,12 +270,11 @@ class ManipulationNode(Node):
             self.get_logger().info(message)
         else:
             self.get_logger().warning(message)
-        convert = grasp_result_to_msg if done.kind == GRASP else manipulate_result_to_msg
-        future.set_result(convert(self.types, done))
+        future.set_result(self._by_core_kind[done.kind].result_to_msg(self.types, done))
 
     def destroy_node(self) -> None:
         # Node.destroy_node leaves action servers and clients (and so the node) in the graph
-        for name in ("_grasp_server", "_manipulate_server", "_move_client"):
+        for name in ("_grasp_server", "_manipulate_server", "_gripper_server", "_move_client"):
             action = getattr(self, name, None)  # absent when the parameters were rejected at start
             if action is not None:
                 action.destroy()

@@ -11,6 +11,10 @@ All of them watch one fingertip (the thumb by default) through its ContactEvalua
 - With a ForceKeeper (Manipulate goal use_force = true) each of them also holds the thumb's normal
   force: when it drops more than `band_n` below the target the thumb flexes until the target is back,
   while the voltages keep steering the orientation (the combined voltage + force controller).
+- Each steers by a contact: a sample on which the watched pad's mean voltage is below
+  `contact_voltage` (the monitor's min_mean_voltage: an untouched pad sits at its ~0.43 V rest
+  voltages) ends the goal with `no_contact`, unsuccessful, whatever the phase. Algorithm 1 alone
+  would call an untouched pad "safe" and a horizontal sweep would run on to the joint limit.
 
 Direction convention: positive thumb_rotation velocity is "clockwise", which moves the contact on the
 thumb pad toward its left side (+x), away from the right side; positive fingers / thumb_flexion close.
@@ -21,9 +25,11 @@ from dataclasses import dataclass, field
 
 from prisma_motor_driver.control_table import rpm_to_rad_s
 
+from .contact_monitor import ContactEvaluation
 from .controllers import (
     EDGE_LOST,
     JOINT_LIMIT,
+    NO_CONTACT,
     TIMEOUT,
     ControlInput,
     ControlLimits,
@@ -65,10 +71,11 @@ class ForceKeeper:
 
 class _MotionController(Controller):
     def __init__(self, limits: ControlLimits, speed_rpm: float, finger: str, timeout_s: float,
-                 force_keeper: ForceKeeper | None) -> None:
+                 force_keeper: ForceKeeper | None, contact_voltage: float = 0.0) -> None:
         super().__init__(limits, timeout_s)
         if not speed_rpm > 0:
             raise ValueError(f"speed_rpm {speed_rpm} must be > 0")
+        self.contact_voltage = contact_voltage
         self.speed_rpm = speed_rpm
         self.finger = finger
         self.fingers = (finger,) if finger == "thumb" else (finger, "thumb")
@@ -86,10 +93,16 @@ class _MotionController(Controller):
             rpm["thumb_flexion"] = rpm.get("thumb_flexion", 0.0) + extra
         return self._set(stamp_ns, phase, MotorCommand.of(**rpm))
 
-    def _observe(self, inp: ControlInput):
+    def _on_step(self, inp: ControlInput) -> ControlOutput:
         contact = inp.contacts[self.finger]
         self.threshold, self.feasible = contact.threshold, contact.feasible
-        return contact
+        if contact.mean_voltage < self.contact_voltage:
+            self._log(inp.stamp_ns, f"no_contact:{self.finger}")
+            return self._finish(inp.stamp_ns, NO_CONTACT, success=False)
+        return self._steer(inp, contact)
+
+    def _steer(self, inp: ControlInput, contact: ContactEvaluation) -> ControlOutput:
+        raise NotImplementedError
 
 
 class HorizontalController(_MotionController):
@@ -97,8 +110,8 @@ class HorizontalController(_MotionController):
 
     def __init__(self, limits: ControlLimits, speed_rpm: float = 20.0, finger: str = "thumb",
                  edge: str = "right", timeout_s: float = 20.0, stop_lead_s: float = 0.015,
-                 force_keeper: ForceKeeper | None = None) -> None:
-        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper)
+                 force_keeper: ForceKeeper | None = None, contact_voltage: float = 0.0) -> None:
+        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper, contact_voltage)
         if edge not in OPPOSITE_SIDE:
             raise ValueError(f"edge {edge!r} is not 'left' or 'right'")
         self.edge = edge
@@ -112,9 +125,8 @@ class HorizontalController(_MotionController):
     def _on_start(self, joints: JointSample) -> ControlOutput:
         return self._set(joints.stamp_ns, "rotate", MotorCommand.of(thumb_rotation=self.direction * self.speed_rpm))
 
-    def _on_step(self, inp: ControlInput) -> ControlOutput:
+    def _steer(self, inp: ControlInput, contact: ContactEvaluation) -> ControlOutput:
         t = inp.stamp_ns
-        contact = self._observe(inp)
         rotation = {"thumb_rotation": self.direction * self.speed_rpm}
         if self.phase == "rotate":
             reason = None
@@ -143,8 +155,9 @@ class VerticalController(_MotionController):
     kind = "vertical"
 
     def __init__(self, limits: ControlLimits, speed_rpm: float = 10.0, finger: str = "thumb",
-                 timeout_s: float = 30.0, force_keeper: ForceKeeper | None = None) -> None:
-        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper)
+                 timeout_s: float = 30.0, force_keeper: ForceKeeper | None = None,
+                 contact_voltage: float = 0.0) -> None:
+        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper, contact_voltage)
 
     def _down(self) -> dict[str, float]:
         return {"fingers": self.speed_rpm, "thumb_flexion": -self.speed_rpm}
@@ -155,9 +168,8 @@ class VerticalController(_MotionController):
     def _on_start(self, joints: JointSample) -> ControlOutput:
         return self._set(joints.stamp_ns, "down", MotorCommand.of(**self._down()))
 
-    def _on_step(self, inp: ControlInput) -> ControlOutput:
+    def _steer(self, inp: ControlInput, contact: ContactEvaluation) -> ControlOutput:
         t = inp.stamp_ns
-        contact = self._observe(inp)
         if self.phase == "down":
             reason = None
             if "top" in contact.lost_edges:
@@ -187,8 +199,8 @@ class HoldController(_MotionController):
 
     def __init__(self, limits: ControlLimits, speed_rpm: float = 20.0, finger: str = "thumb",
                  timeout_s: float = 30.0, restored_taxels: int = 2,
-                 force_keeper: ForceKeeper | None = None) -> None:
-        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper)
+                 force_keeper: ForceKeeper | None = None, contact_voltage: float = 0.0) -> None:
+        super().__init__(limits, speed_rpm, finger, timeout_s, force_keeper, contact_voltage)
         if not 1 <= restored_taxels <= 3:
             raise ValueError(f"restored_taxels {restored_taxels} must be 1..3")
         self.restored_taxels = restored_taxels
@@ -199,9 +211,8 @@ class HoldController(_MotionController):
     def _on_start(self, joints: JointSample) -> ControlOutput:
         return self._set(joints.stamp_ns, "hold", MotorCommand.stop())
 
-    def _on_step(self, inp: ControlInput) -> ControlOutput:
+    def _steer(self, inp: ControlInput, contact: ContactEvaluation) -> ControlOutput:
         t = inp.stamp_ns
-        contact = self._observe(inp)
         if self.side is None:
             lost_sides = [s for s in ("left", "right") if s in contact.lost_edges]
             if len(lost_sides) == 1:  # both lost = no contact to steer by

@@ -27,6 +27,7 @@ from prisma_motor_driver.backend import (
 from prisma_motor_driver.control_table import VELOCITY_LIMIT_MAX_RPM
 
 from .contact_monitor import DEFAULT_K, K_RANGE
+from .gripper_controller import DEFAULT_THUMB_RATIO
 
 MAX_FORCE_N = 10.0  # the highest force any parameter may name: twice the calibrated range of the pads
 MAX_TIMEOUT_S = 600.0
@@ -35,8 +36,9 @@ FORCE = (0.0, MAX_FORCE_N)
 TIMEOUT = (0.0, MAX_TIMEOUT_S)
 BELOW_MAX_SPEED = "at most max_speed_rpm"
 BELOW_MAX_FORCE = "at most max_force_n"
-GOAL_SPEEDS = ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm", "force_speed_rpm")
-GOAL_FORCES = ("grasp_finger_force", "grasp_thumb_force", "force_target_n")
+GOAL_SPEEDS = ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm", "force_speed_rpm",
+               "gripper_speed_rpm")
+GOAL_FORCES = ("grasp_finger_force", "grasp_thumb_force", "force_target_n", "gripper_max_effort")
 
 
 @dataclass
@@ -81,6 +83,19 @@ class ManipulationConfig(Params):
                                       bounds=SPEED, open_low=True, live=True, rules=BELOW_MAX_SPEED)
     manipulate_timeout: float = parameter(30.0, "Manipulate timeout when the goal leaves it 0", unit="s",
                                           bounds=TIMEOUT, open_low=True, live=True)
+    # GripperCommand (/prisma/gripper_cmd): position = the fingers motor angle; docs/manipulation.md
+    gripper_max_effort: float = parameter(1.0, "GripperCommand force limit on the estimated pad forces when the "
+                                               "goal's max_effort is 0 (MoveIt's default)", unit="N", bounds=FORCE,
+                                          open_low=True, live=True, rules=BELOW_MAX_FORCE)
+    gripper_speed_rpm: float = parameter(60.0, "GripperCommand speed of the fingers motor (the thumb flexion "
+                                               "moves at gripper_thumb_ratio x this)", unit="rpm", bounds=SPEED,
+                                         open_low=True, live=True, rules=BELOW_MAX_SPEED)
+    gripper_thumb_ratio: float = parameter(DEFAULT_THUMB_RATIO, "GripperCommand thumb_flexion target per rad of "
+                                                                "the fingers position", bounds=(0.0, 2.0),
+                                           open_low=True, live=True,
+                                           rules="gripper_thumb_ratio x gripper_speed_rpm at most max_speed_rpm")
+    gripper_timeout: float = parameter(10.0, "a GripperCommand goal ends after this long", unit="s",
+                                       bounds=TIMEOUT, open_low=True, live=True)
     # controller details
     contact_force_n: float = parameter(0.1, "a pad touches above this force (the power grasp averages those)",
                                        unit="N", bounds=FORCE, open_low=True, live=True)
@@ -115,6 +130,10 @@ class ManipulationConfig(Params):
         for name in GOAL_SPEEDS:
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
+        if self.gripper_thumb_ratio * self.gripper_speed_rpm > self.max_speed_rpm:
+            raise ParameterError("gripper_thumb_ratio", self.gripper_thumb_ratio,
+                                 f"the thumb would close at {self.gripper_thumb_ratio * self.gripper_speed_rpm:g} rpm, "
+                                 f"above max_speed_rpm {self.max_speed_rpm}")
         for name in GOAL_FORCES:
             if getattr(self, name) > self.max_force_n:
                 raise ParameterError(name, getattr(self, name), f"above max_force_n {self.max_force_n}")

@@ -1,5 +1,5 @@
-"""Core data <-> ROS messages for prisma_manipulation: ContactState, Grasp / Manipulate goals,
-feedback and results, JointState -> JointSample.
+"""Core data <-> ROS messages for prisma_manipulation: ContactState, Grasp / Manipulate /
+GripperCommand (control_msgs) goals, feedback and results, JointState -> JointSample.
 
 Every function takes a message-class lookup `types(name)` (on the robot
 `prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
@@ -23,7 +23,7 @@ from prisma_motor_driver.control_table import rad_s_to_rpm
 
 from .contact_monitor import EDGE_NAMES, ContactEvaluation
 from .controllers import JointSample
-from .manipulation_core import Feedback, Finished, GraspRequest, ManipulateRequest
+from .manipulation_core import Feedback, Finished, GraspRequest, GripperRequest, ManipulateRequest
 
 Types = Callable[[str], Any]
 
@@ -118,6 +118,22 @@ def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
 def hand_contact_samples(msg: Any) -> list[tuple[str, Any]]:
     """(finger, ContactState) pairs of a prisma_msgs/HandContact."""
     return [(str(contact.finger), contact) for contact in msg.contacts]
+def gripper_request_from_msg(msg: Any) -> GripperRequest:
+    """control_msgs/GripperCommand goal: command.position = fingers motor rad, command.max_effort N."""
+    return GripperRequest(float(msg.command.position), float(msg.command.max_effort))
+
+
+def gripper_feedback_to_msg(types: Types, fb: Feedback) -> Any:
+    return types("control_msgs/action/GripperCommand_Feedback")(
+        position=_f32(fb.position), effort=_f32(fb.effort), stalled=bool(fb.stalled),
+        reached_goal=bool(fb.reached_goal))
+
+
+def gripper_result_to_msg(types: Types, done: Finished) -> Any:
+    """position = the fingers motor angle (rad), effort = the highest estimated pad force (N)."""
+    return types("control_msgs/action/GripperCommand_Result")(
+        position=_f32(done.position), effort=_f32(done.effort), stalled=bool(done.stalled),
+        reached_goal=bool(done.reached_goal))
 
 
 def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:

@@ -219,3 +219,57 @@ def test_index_force_true_and_estimated_agree_on_the_pad_and_are_zero_off_it(nam
     assert np.abs(used - true)[on_pad].max() < 0.15  # N: the estimator's error on this pad
     assert (true[~on_pad] == 0.0).all()
     assert np.abs(used[~on_pad]).max() < 0.05  # the estimate of an unloaded pad
+
+
+def _gripper(world, estimator=None):
+    """The pinch ball or an empty hand, closed with GripperCommand position 9 rad (fully) and a 1 N
+    force limit, then opened with position 0; each goal's trace."""
+    from prisma_manipulation.closed_loop import ClosedLoop
+    from prisma_manipulation.manipulation_core import GripperRequest
+
+    loop = ClosedLoop(world, estimator)
+    close = loop.run(GripperRequest(9.0, 1.0), 5.0, settle_s=0.3)
+    closer = loop.controller
+    opened = loop.run(GripperRequest(0.0), 5.0, start_ns=close.stamps_ns[-1] + close.period_ns, settle_s=0.3)
+    return (close, closer), (opened, loop.controller)
+
+
+@pytest.mark.skipif(not (BUNDLE / "model.pt").exists(),
+                    reason=f"default force-estimator bundle {BUNDLE} not built yet")
+def test_gripper_closing_on_the_pinch_ball_stalls_at_1_n_estimated_then_opens():
+    from prisma_force_estimator.inference import ForceEstimator
+    from prisma_hand_sim.hand_world import HandWorld
+
+    (close, c), (opened, o) = _gripper(HandWorld(obj="pinch_ball"), ForceEstimator.from_bundle(BUNDLE))
+    assert (c.reason, c.success, c.stalled, c.reached_goal) == ("force_reached", True, True, False)
+    i = close.done_index
+    used = close.array("forces_used")[i]
+    assert c.effort == used.max() and 1.0 <= c.effort <= 1.1  # stopped on the first sample at the limit
+    assert np.nanmax(close.array("forces_used")[:i]) < 1.0
+    # thumb and index both press the ball (the thumb follows at 0.8333 of the fingers angle); the
+    # index, closing faster, reaches the limit ...
+    true = dict(zip(("thumb", "index"), close.array("forces_true")[i]))
+    assert true["index"] == pytest.approx(1.0, abs=0.1) and true["thumb"] == pytest.approx(0.85, abs=0.1)
+    assert close.array("forces_true")[i:].max() <= 1.1  # ... and they settle below the limit + 0.1 N
+    assert c.position == pytest.approx(4.9, abs=0.1)  # index contact at 3.0 rad + 1.9 rad of tendon stretch
+    assert close.position("thumb_flexion")[-1] == pytest.approx(0.8333 * close.position("fingers")[-1], abs=0.01)
+    assert close.position("fingers")[-1] < 9.0 - 3.0  # far from the position asked for
+    # open: position 0 is reached whatever the force limit; nothing touches the pads any more
+    assert (o.reason, o.success, o.stalled, o.reached_goal) == ("reached", True, False, True)
+    assert opened.position("fingers")[-1] == pytest.approx(0.0, abs=0.1)
+    assert opened.position("thumb_flexion")[-1] == pytest.approx(0.0, abs=0.1)
+    assert np.all(opened.array("forces_true")[-1] == 0.0)
+
+
+def test_gripper_closing_on_nothing_reaches_its_position():
+    from prisma_hand_sim.hand_world import HandWorld
+
+    (close, c), (opened, o) = _gripper(HandWorld(obj="none"))
+    assert (c.reason, c.success, c.stalled, c.reached_goal) == ("reached", True, False, True)
+    assert c.effort == 0.0 and np.all(close.array("forces_true") == 0.0)
+    # fingers 9 rad at 60 rpm takes 1.43 s; the thumb's target 0.8333 x 9 is clamped to its 7 rad end
+    assert (c.stop_ns - c.start_ns) * 1e-9 == pytest.approx(9.0 / (2 * np.pi), abs=0.02)
+    assert close.position("fingers")[-1] == pytest.approx(9.0, abs=0.05)
+    assert close.position("thumb_flexion")[-1] == pytest.approx(7.0, abs=0.05)
+    assert (o.reason, o.reached_goal) == ("reached", True)
+    assert opened.position("fingers")[-1] == pytest.approx(0.0, abs=0.1)

@@ -1,10 +1,11 @@
 """Grasp and motion controllers with hand-made inputs: joint limits, aborts, presets, the force
-keeper's hysteresis, hold."""
+keeper's hysteresis, hold, a manipulation without contact."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from prisma_hand_sim.pad_model import PadParams
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.controllers import (
     ControlInput,
@@ -13,7 +14,12 @@ from prisma_manipulation.controllers import (
     MotorCommand,
 )
 from prisma_manipulation.grasp_controller import GraspController
-from prisma_manipulation.motion_controllers import ForceKeeper, HoldController, HorizontalController
+from prisma_manipulation.motion_controllers import (
+    ForceKeeper,
+    HoldController,
+    HorizontalController,
+    VerticalController,
+)
 from prisma_motor_driver.backend import default_motors
 
 MS = 1_000_000
@@ -85,3 +91,23 @@ def test_hold_ignores_a_contact_lost_on_both_sides():
     c.start(JointSample(0, {"thumb_rotation": 0.0}))
     out = c.step(_input(10 * MS, {"thumb_rotation": 0.0}, contact=both))
     assert out.phase == "hold" and c.side is None
+
+
+@pytest.mark.parametrize("motion", ["horizontal", "vertical", "hold"])
+def test_a_manipulation_without_contact_ends_no_contact(motion):
+    """An untouched pad (its ~0.43 V rest voltages, below the 0.55 V contact floor) is 'safe' by
+    Algorithm 1 alone: each motion ends no_contact on the first such sample, unsuccessful, motors
+    stopped, instead of sweeping on to a joint limit."""
+    monitor = ContactMonitor(0.8, min_mean_voltage=0.55)
+    held = monitor.evaluate("thumb", 0, np.array([0.8, 1.1, 0.8, 1.0, 1.5, 1.3, 0.8, 1.2, 0.8], np.float32))
+    empty = monitor.evaluate("thumb", 0, np.array(PadParams().rest_volts, np.float32))
+    assert empty.mean_voltage == pytest.approx(0.436, abs=1e-3) and not empty.lost_edges  # nothing lost
+    cls = {"horizontal": HorizontalController, "vertical": VerticalController, "hold": HoldController}[motion]
+    c = cls(LIMITS, contact_voltage=0.55)
+    start = {"fingers": 4.0, "thumb_flexion": 3.5, "thumb_rotation": 0.0}
+    c.start(JointSample(0, start))
+    assert not c.step(_input(10 * MS, start, contact=held)).done
+    out = c.step(_input(20 * MS, start, contact=empty))
+    assert out.done and out.reason == "no_contact" and not out.success and c.command.is_stop
+    assert out.command == (None if motion == "hold" else MotorCommand.stop())  # a hold was not moving
+    assert c.stop_ns == 20 * MS and c.events[-2].what == "no_contact:thumb"

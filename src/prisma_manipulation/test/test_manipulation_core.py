@@ -1,18 +1,22 @@
-"""ManipulationCore without ROS: goal admission and readiness, one goal at a time, foreign
-/joint_states, stops, the MoveMotors lease."""
+"""ManipulationCore without ROS: goal admission and refusals (invalid, busy, not_ready,
+no_contact), one goal at a time, foreign /joint_states, stops, the MoveMotors lease, a gripper goal."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal
 from prisma_common.messages import make_header
 from prisma_common.typestore import get_typestore
+from prisma_hand_sim.pad_model import PadParams
 from prisma_manipulation.controllers import JointSample
 from prisma_manipulation.manipulation_core import (
     MOVE_LEASE_S,
     Feedback,
     Finished,
+    GoalRefused,
     GraspRequest,
+    GripperRequest,
     Ignored,
     ManipulateRequest,
     ManipulationCore,
@@ -48,23 +52,34 @@ def _volts(right_lost=False):
 
 def test_core_validates_goals_with_defaults_and_limits():
     core = _core()
-    resolved, reason = core.resolve_grasp(GraspRequest("pinch"))
-    assert reason is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
+    resolved, refusal = core.resolve_grasp(GraspRequest("pinch"))
+    assert refusal is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
     assert (core.resolve_grasp(GraspRequest("pinch", speed_rpm=71.0))[1]
-            == "speed_rpm 71.0 above the configured limit 70.0")
-    assert (core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1]
-            == "thumb_force 3.5 above the configured limit 3.0")
-    assert core.resolve_grasp(GraspRequest("pinch", finger_force=-1.0))[1] == "finger_force -1.0 must be > 0"
-    assert "k 0.55 too low for hold" in core.resolve_manipulate(ManipulateRequest("hold", k=0.55))[1]
-    assert "motion 'roll'" in core.resolve_manipulate(ManipulateRequest("roll"))[1]
+            == Refusal(INVALID, "speed_rpm 71.0 above the configured limit 70.0"))
+    assert (str(core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1])
+            == "invalid: thumb_force 3.5 above the configured limit 3.0")
+    assert (str(core.resolve_grasp(GraspRequest("pinch", finger_force=-1.0))[1])
+            == "invalid: finger_force -1.0 must be > 0")
+    assert "k 0.55 too low for hold" in str(core.resolve_manipulate(ManipulateRequest("hold", k=0.55))[1])
+    assert "invalid: motion 'roll'" in str(core.resolve_manipulate(ManipulateRequest("roll"))[1])
     resolved, _ = core.resolve_manipulate(ManipulateRequest("vertical"))
     assert resolved.speed_rpm == 10.0 and resolved.k == 0.8
     # a goal beyond the limits is refused for that, whatever else is missing
-    assert core.accept_grasp(GraspRequest("pinch", speed_rpm=71.0), False, 0) == \
-        "speed_rpm 71.0 above the configured limit 70.0"
+    assert str(core.accept_grasp(GraspRequest("pinch", speed_rpm=71.0), False, 0)) == \
+        "invalid: speed_rpm 71.0 above the configured limit 70.0"
     thumb_only = ManipulationCore(ManipulationConfig(fingers=["thumb", "middle"]))
-    assert thumb_only.resolve_grasp(GraspRequest("pinch"))[1] == \
-        "grasp pinch needs the index pad(s), not in parameter fingers ['thumb', 'middle']"
+    assert str(thumb_only.resolve_grasp(GraspRequest("pinch"))[1]) == \
+        "invalid: grasp pinch needs the index pad(s), not in parameter fingers ['thumb', 'middle']"
+    # GripperCommand: position is the fingers motor angle within its range; max_effort 0 = the default
+    assert core.resolve_gripper(GripperRequest(4.5)) == (GripperRequest(4.5, 1.0), None)
+    assert core.resolve_gripper(GripperRequest(0.0, 2.0)) == (GripperRequest(0.0, 2.0), None)
+    assert str(core.resolve_gripper(GripperRequest(9.5))[1]) == \
+        "invalid: position 9.5 rad outside the fingers motor's range [0.0, 9.0] (0 = open)"
+    assert str(core.resolve_gripper(GripperRequest(3.0, -1.0))[1]) == \
+        "invalid: max_effort -1.0 must be >= 0 N (0 = gripper_max_effort 1.0 N)"
+    assert str(core.resolve_gripper(GripperRequest(3.0, 50.0))[1]) == \
+        "invalid: max_effort 50.0 above the configured limit 3.0"
+    assert core.resolve_gripper(GripperRequest(float("nan")))[1].code == INVALID
 
 
 def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), joints=True, age_ms=0):
@@ -78,25 +93,25 @@ def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), jo
         core.on_wrench(f, t - age_ms * MS, 0.0, t)
 
 
-def test_goals_are_rejected_until_every_stream_they_need_flows():
+def test_goals_are_refused_not_ready_until_every_stream_they_need_flows():
     core = ManipulationCore(ManipulationConfig())
     pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
-    assert core.accept_grasp(pinch, False, 0) == \
-        "MoveMotors action server prisma/motors/move not available (motor_driver not running?)"
-    assert core.accept_grasp(pinch, True, 0) == "no /joint_states received yet"
+    assert core.accept_grasp(pinch, False, 0) == Refusal(
+        NOT_READY, "MoveMotors action server prisma/motors/move not available (motor_driver not running?)")
+    assert str(core.accept_grasp(pinch, True, 0)) == "not_ready: no /joint_states received yet"
     _feed(core, 0, taxels=("thumb",), wrenches=())
-    assert core.accept_grasp(pinch, True, 0) == "no taxels/index received yet"
+    assert str(core.accept_grasp(pinch, True, 0)) == "not_ready: no taxels/index received yet"
     # a horizontal manipulation steps on the thumb's taxels alone: it could run now
     assert core.readiness(*core.manipulate_streams(horizontal), True, 0) is None
     _feed(core, 10, wrenches=("thumb",))  # the force estimator is still warming up for the index
-    assert core.accept_grasp(pinch, True, 10 * MS) == "no wrench/index received yet"
+    assert str(core.accept_grasp(pinch, True, 10 * MS)) == "not_ready: no wrench/index received yet"
     use_force = ManipulateRequest("hold", use_force=True)
     assert core.readiness(*core.manipulate_streams(use_force), True, 10 * MS) is None
     _feed(core, 20, wrenches=("thumb",))
     _feed(core, 130, taxels=(), wrenches=())  # joint states on; the hub went quiet at 20 ms
-    assert core.accept_grasp(pinch, True, 130 * MS) == "taxels/thumb silent for 110 ms"
+    assert str(core.accept_grasp(pinch, True, 130 * MS)) == "not_ready: taxels/thumb silent for 110 ms"
     _feed(core, 140, age_ms=120)  # every stream back, but 120 ms old
-    assert core.accept_grasp(pinch, True, 140 * MS) == "taxels/thumb 120 ms older than /joint_states"
+    assert str(core.accept_grasp(pinch, True, 140 * MS)) == "not_ready: taxels/thumb 120 ms older than /joint_states"
     _feed(core, 150)
     assert core.accept_grasp(pinch, True, 150 * MS) is None
     assert not core.busy  # accepted: held for this goal until it starts
@@ -108,12 +123,13 @@ def test_one_goal_at_a_time_from_acceptance_to_the_end():
     pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
     assert core.accept_grasp(pinch, True, 0) is None
     # a Manipulate goal sent together with the Grasp: its goal callback runs before the Grasp starts
-    assert core.accept_manipulate(horizontal, True, 0) == "a grasp goal was accepted and is starting"
-    assert core.accept_grasp(pinch, True, 0) == "a grasp goal was accepted and is starting"
-    with pytest.raises(ValueError, match="a grasp goal was accepted"):
-        core.start_manipulate(horizontal, 0)  # only the accepted goal may start
+    assert str(core.accept_manipulate(horizontal, True, 0)) == "busy: a grasp goal was accepted and is starting"
+    assert str(core.accept_gripper(GripperRequest(0.0), True, 0)) == "busy: a grasp goal was accepted and is starting"
+    with pytest.raises(GoalRefused, match="busy: a grasp goal was accepted"):
+        core.start_manipulate(horizontal, 0)  # only the admitted goal may start
     core.start_grasp(pinch, 0)
-    assert core.accept_manipulate(horizontal, True, 0) == "a grasp goal is running"
+    assert core.accept_manipulate(horizontal, True, 0) == Refusal(BUSY, "a grasp goal is running")
+    assert str(core.accept_gripper(GripperRequest(0.0), True, 0)) == "busy: a grasp goal is running"
     actions = core.cancel(10 * MS)
     assert actions[-1].reason == "canceled" and not core.busy
     assert core.accept_manipulate(horizontal, True, 0) is None  # serving again
@@ -284,3 +300,73 @@ def test_move_lease_decisions():
     assert lease.refresh(10**9) is None and lease.renew(10**9) is None
     with pytest.raises(ValueError, match="refresh 0.3 s must be > 0 and below the lease 0.3 s"):
         MoveLease(lease_s=0.3, refresh_s=0.3)
+
+
+def test_a_manipulation_is_refused_no_contact_on_an_untouched_pad():
+    core = ManipulationCore(ManipulationConfig())
+    _feed(core, 0, taxels=("thumb",), wrenches=())
+    rest = np.array(PadParams().rest_volts, dtype=np.float32)  # mean 0.436 V: nothing on the pad
+    core.on_taxels("thumb", 10 * MS, rest, 10 * MS)
+    refusal = core.accept_manipulate(ManipulateRequest("horizontal"), True, 10 * MS)
+    assert str(refusal) == ("no_contact: the thumb pad is not in contact (mean 0.44 V, below min_mean_voltage "
+                            "0.55 V): a manipulation starts from a held object, grasp first")
+    # the refused goal holds nothing: the next one is refused for its own reason, not busy
+    assert str(core.accept_grasp(GraspRequest("pinch"), True, 10 * MS)) == "not_ready: no taxels/index received yet"
+    core.on_taxels("thumb", 20 * MS, _volts(), 20 * MS)  # mean 1.03 V: held
+    assert core.accept_manipulate(ManipulateRequest("horizontal"), True, 20 * MS) is None
+
+
+def test_a_manipulation_that_loses_its_contact_ends_no_contact():
+    core = _core()
+    core.start_manipulate(ManipulateRequest("vertical"), 0)
+    _, actions = core.on_taxels("thumb", 10 * MS, np.array(PadParams().rest_volts, dtype=np.float32), 10 * MS)
+    assert isinstance(actions[0], StopMotors)
+    assert actions[-1] == Finished("manipulate", False, "no_contact", 0.01, 0.0, 0.0)
+
+
+def test_a_move_goal_the_driver_refuses_ends_the_goal_motor_fault():
+    core = _core()
+    core.start_grasp(GraspRequest("pinch"), 0)
+    actions = core.on_move_result("not_ready: motor bus not connected: [Errno 2] No such file", 5 * MS)
+    assert isinstance(actions[0], StopMotors)
+    assert (actions[-1].reason, actions[-1].detail) == ("motor_fault", "not_ready: motor bus not connected: "
+                                                                      "[Errno 2] No such file")
+
+
+def test_gripper_goal_through_the_core():
+    """Every configured pad's taxels and wrench step it; the fingers close at 60 rpm and the thumb at
+    0.8333 x 60; the highest pad force (the estimator's Fz) stops it; feedback and result carry
+    position, effort, stalled and reached_goal."""
+    core = ManipulationCore(ManipulationConfig())
+    fingers = ("thumb", "index", "middle", "ring", "little")
+    _feed(core, 0, taxels=fingers[:2], wrenches=fingers[:2])
+    assert str(core.accept_gripper(GripperRequest(9.0), True, 0)) == "not_ready: no taxels/middle received yet"
+    _feed(core, 10, taxels=fingers, wrenches=fingers)
+    refused = core.refused("gripper", Refusal(BUSY, "a grasp goal is running"))
+    assert (refused.success, refused.reason, refused.position, refused.effort) == \
+        (False, "busy: a grasp goal is running", 0.0, 0.0)
+    assert core.accept_gripper(GripperRequest(9.0), True, 10 * MS) is None
+    actions = core.start_gripper(GripperRequest(9.0), 10 * MS)
+    assert actions[0] == SendMove({"fingers": 60.0, "thumb_flexion": 60.0 * 0.8333, "thumb_rotation": 0.0},
+                                  MOVE_LEASE_S)
+    assert actions[1] == Feedback("gripper", "close", 0.0, 0.0, False, 0.0, position=0.0)
+
+    def scan(t_ms, fingers_rad, forces):
+        t = t_ms * MS
+        core.on_joints(JointSample(t, {"fingers": fingers_rad, "thumb_flexion": 0.8 * fingers_rad,
+                                       "thumb_rotation": 0.0}), t)
+        out = []
+        for f in fingers:
+            out += core.on_taxels(f, t, _volts(), t)[1]
+        for f in fingers:
+            out += core.on_wrench(f, t, forces.get(f, 0.0), t)
+        return out
+
+    assert scan(20, 0.1, {"index": 0.0}) == [Feedback("gripper", "close", 0.0, 0.0, False, 0.0, position=0.1)]
+    assert scan(30, 3.6, {"index": 0.7, "thumb": 0.6})[-1].effort == 0.7
+    actions = scan(40, 3.7, {"index": 0.98, "thumb": 1.02})
+    assert isinstance(actions[0], StopMotors)
+    done = actions[-1]
+    assert (done.kind, done.success, done.reason) == ("gripper", True, "force_reached")
+    assert (done.position, done.effort, done.stalled, done.reached_goal) == (3.7, 1.02, True, False)
+    assert not core.busy

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
+from prisma_common.goal_refusal import INVALID, NOT_READY, Refusal
 
 from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
@@ -86,13 +87,14 @@ class MotorDriverCore:
             self._new_errors.append(error)
             self._reported_error = error
 
-    def validate(self, goal: MoveGoal) -> str | None:
-        """The reason to reject a goal: not connected, or a malformed goal. A goal naming a faulted
-        motor is valid: it fails at start with the fault reason, which a rejection could not carry
-        to the client."""
+    def validate(self, goal: MoveGoal) -> Refusal | None:
+        """Why the goal is refused (the node aborts it at once with this reason), else None:
+        not_ready while the bus is not connected, invalid for a malformed goal. A goal naming a
+        faulted motor is valid: it fails at start with the fault reason."""
         if not self.connected:
-            return f"motor bus not connected: {self.last_error or 'not opened yet'}"
-        return validate_goal(goal, self.bus.motors)
+            return Refusal(NOT_READY, f"motor bus not connected: {self.last_error or 'not opened yet'}")
+        reason = validate_goal(goal, self.bus.motors)
+        return Refusal(INVALID, reason) if reason else None
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
         """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a

@@ -11,7 +11,7 @@ from __future__ import annotations
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.action import MoveMotors
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
@@ -54,9 +54,9 @@ class MotorDriverNode(Node):
         # a client keeps its motion alive by re-sending the goal every 0.1 s (manipulation_core.
         # MoveLease): finished goals are dropped after 10 s, not rclpy's 15 min, so the status
         # topic lists about a hundred goals, not thousands
+        # every goal is accepted: one that cannot run is aborted at once with the reason in its result
         self._server = ActionServer(self, MoveMotors, "prisma/motors/move", self._execute,
-                                    goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                                    callback_group=group, result_timeout=10)
+                                    cancel_callback=self._on_cancel, callback_group=group, result_timeout=10)
         self._timer = self.create_timer(1.0 / self.config.rate_hz, self._on_tick, callback_group=group)
         self._diag_timer = self.create_timer(self.config.diagnostics_period, self._on_diagnostics)
         self.get_logger().info(
@@ -71,23 +71,21 @@ class MotorDriverNode(Node):
         self.core.reconfigure(config)
 
     # ---- action ----------------------------------------------------------------------------
-    def _on_goal(self, request) -> GoalResponse:
-        reason = self.core.validate(move_goal_from_msg(request))
-        if reason:
-            self.get_logger().warning(f"MoveMotors goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _on_cancel(self, goal_handle) -> CancelResponse:
         return CancelResponse.ACCEPT
 
     async def _execute(self, goal_handle):
         goal = move_goal_from_msg(goal_handle.request)
+        refusal = self.core.validate(goal)
+        if refusal is not None:
+            self.get_logger().warning(f"MoveMotors goal refused: {refusal}")
+            goal_handle.abort()
+            return move_result_to_msg(self.types, MoveResult(False, [], str(refusal)))
         try:
             outcome = self.core.start(goal, self._now_ns())
-        except ValueError as exc:  # validated at acceptance: only a driver bug gets here
+        except ValueError as exc:  # validated just above: only a driver bug gets here
             goal_handle.abort()
-            return move_result_to_msg(self.types, MoveResult(False, [], f"rejected at start: {exc}"))
+            return move_result_to_msg(self.types, MoveResult(False, [], f"invalid: {exc}"))
         if outcome.preempted is not None:
             self._finish(outcome.preempted)  # the replaced goal's handle ends in every case
         if outcome.failed is not None:

@@ -56,7 +56,7 @@ def test_driver_reconnects_with_exponential_backoff_and_reports_it():
     assert tick.states is None and tick.result.reason.startswith("motor_fault: communication: sync read")
     diag = core.diagnostics()
     assert diag[0].level == ERROR and "disconnected" in diag[0].message and diag[0].values["reconnects"] == "1"
-    assert core.validate(MoveGoal(["fingers"], "velocity", [1.0])).startswith("motor bus not connected")
+    assert str(core.validate(MoveGoal(["fingers"], "velocity", [1.0]))).startswith("not_ready: motor bus not connected")
 
 
 def test_bus_error_while_preempting_ends_the_old_goal_and_the_new_one():
@@ -111,6 +111,8 @@ def test_a_goal_naming_a_faulted_motor_is_accepted_and_fails_with_the_fault_reas
     core.start(MoveGoal(["thumb_rotation"], "velocity", [5.0]), 30 * MS)
     faulted = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, 10.0])
     assert core.validate(faulted) is None
+    assert str(core.validate(MoveGoal(["fingers"], "velocity", [90.0]))) == \
+        "invalid: velocity 90.0 rpm for fingers above the limit 70.0 rpm"
     assert core.start(faulted, 40 * MS) == StartOutcome(failed=MoveResult(False, [], reason))
     assert core.runner.goal.motors == ["thumb_rotation"]  # the running goal goes on
     assert core.tick(50 * MS).result is None

@@ -15,6 +15,7 @@ from typing import Any
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
 from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
+from prisma_hand_sim.hand_world import OBJECTS
 
 from .backend import HubBackend
 
@@ -35,8 +36,6 @@ class TactileDriverConfig(Params):
                                unit="Hz", bounds=(0.0, 1000.0), open_low=True)
     vref: float = parameter(3.3, "ADC reference: V = vref x counts / 4096", unit="V", bounds=(0.0, 5.0),
                             open_low=True)
-    tare_samples: int = parameter(100, "~/tare averages this many most recent samples per finger",
-                                  bounds=(1, 10_000))
     stale_timeout: float = parameter(0.1, "a finger without a sample this long is reported stale in /diagnostics",
                                      unit="s", bounds=(0.0, 10.0), open_low=True, live=True)
     diagnostics_period: float = parameter(1.0, "time between /diagnostics messages", unit="s", bounds=(0.0, 60.0),
@@ -65,6 +64,8 @@ class TactileDriverConfig(Params):
     # sim
     contact_source: str = parameter("scripted", "sim contacts: scripted (press/slide/roll/release cycle) or "
                                                 "hand_world (from /joint_states)", choices=CONTACT_SOURCES)
+    sim_object: str = parameter("pinch_ball", "hand_world: the object presented to the hand; none = an empty hand",
+                                choices=tuple(OBJECTS))
     sim_seed: int = parameter(0, "seed of the simulated pads' noise", bounds=(0, 2**31 - 1))
 
     def check_rules(self) -> None:

@@ -1,4 +1,4 @@
-"""The hub core the node drives: backend readings -> TaxelFrames, tare, staleness, diagnostics.
+"""The hub core the node drives: backend readings -> TaxelFrames, staleness, diagnostics.
 
 Time comes from the caller (`stamp_ns`), so the same code runs on live time, sim time and bag
 replay. A frame is stamped with its reading's own stamp when the backend has one (serial: the
@@ -9,15 +9,12 @@ Link errors (the port and the OS reason) go to /diagnostics and, once per change
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
-
-import numpy as np
 
 from prisma_common.diagnostics import ERROR, OK, STALE, WARN, DiagnosticStatusData
 from prisma_common.hand import DEFAULT_VREF, check_finger
 
 from .backend import HubBackend, LinkStatus
-from .taxels import TareBuffer, TaxelFrame
+from .taxels import TaxelFrame
 
 # counters worth a word in an OK hub status: (key, what it counts)
 _LINK_EVENTS = (("missed_frames", "dropped frames"), ("crc_errors", "CRC errors"),
@@ -27,16 +24,9 @@ _LINK_EVENTS = (("missed_frames", "dropped frames"), ("crc_errors", "CRC errors"
 REPORT_AGAIN_AFTER_NS = 1_000_000_000
 
 
-@dataclass
-class TareResult:
-    success: bool
-    message: str
-    baselines: dict[str, np.ndarray] = field(default_factory=dict)
-
-
 class TactileHub:
     def __init__(self, backend: HubBackend, fingers: Iterable[str], *, vref: float = DEFAULT_VREF,
-                 tare_samples: int = 100, stale_timeout_ns: int = 100_000_000,
+                 stale_timeout_ns: int = 100_000_000,
                  name: str = "tactile_driver", hardware_id: str = "") -> None:
         if vref <= 0:
             raise ValueError(f"vref must be > 0, got {vref}")
@@ -47,8 +37,6 @@ class TactileHub:
         self.vref = vref
         self.stale_timeout_ns = stale_timeout_ns
         self.name, self.hardware_id = name, hardware_id
-        self._tare = {f: TareBuffer(tare_samples) for f in self.fingers}
-        self.baselines: dict[str, np.ndarray | None] = {f: None for f in self.fingers}
         self.last_stamp_ns: dict[str, int | None] = {f: None for f in self.fingers}
         self.published = {f: 0 for f in self.fingers}
         self._reported_error = ""  # the link error last handed out by take_errors()
@@ -64,8 +52,7 @@ class TactileHub:
                 counts = reading.counts.get(finger)
                 if counts is None:
                     continue
-                frame = TaxelFrame.from_counts(finger, stamp, counts, self.vref, self.baselines[finger])
-                self._tare[finger].add(frame.voltages)
+                frame = TaxelFrame.from_counts(finger, stamp, counts, self.vref)
                 self.last_stamp_ns[finger] = stamp
                 self.published[finger] += 1
                 frames.append(frame)
@@ -94,18 +81,6 @@ class TactileHub:
         status = getattr(self.backend, "link_status", None)
         return status() if status is not None else LinkStatus()
 
-    def tare(self) -> TareResult:
-        """Baseline = mean of each finger's last tare_samples voltages; all fingers or none."""
-        short = {f: len(t) for f, t in self._tare.items() if not t.ready}
-        if short:
-            need = next(iter(self._tare.values())).n_samples
-            detail = ", ".join(f"{f} {n}/{need}" for f, n in short.items())
-            return TareResult(False, f"not enough samples to tare: {detail}")
-        baselines = {f: t.baseline() for f, t in self._tare.items()}
-        self.baselines.update(baselines)
-        detail = "; ".join(f"{f} [{' '.join(f'{v:.3f}' for v in b)}] V" for f, b in baselines.items())
-        return TareResult(True, f"tared: {detail}", baselines)
-
     def stale_fingers(self, stamp_ns: int) -> list[str]:
         return [f for f, last in self.last_stamp_ns.items()
                 if last is None or stamp_ns - last > self.stale_timeout_ns]
@@ -128,9 +103,6 @@ class TactileHub:
             last = self.last_stamp_ns[finger]
             values = {"samples": str(self.published[finger]),
                       "age_ms": "never" if last is None else f"{(stamp_ns - last) / 1e6:.1f}"}
-            baseline = self.baselines[finger]
-            if baseline is not None:
-                values["baseline_v"] = " ".join(f"{v:.3f}" for v in baseline)
             if finger in stale:
                 age = "no sample yet" if last is None else f"no sample for {(stamp_ns - last) / 1e6:.0f} ms"
                 statuses.append(DiagnosticStatusData(f"{self.name}: {finger}", STALE, f"stale: {age}",

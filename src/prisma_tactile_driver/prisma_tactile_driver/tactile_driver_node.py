@@ -1,6 +1,7 @@
 """tactile_driver: publishes /prisma/<finger>/taxels from the fingertip hub (serial, I2C or sim),
 the same samples once per poll on /prisma/hand/taxels (for the nodes that take all five fingers),
-/diagnostics at 1 Hz with the link counters, and the ~/tare service.
+and /diagnostics at 1 Hz with the link counters. Zeroing the fingertip forces is the force
+estimator's ~/bias: the taxel voltages stay raw (Algorithm 1 needs them).
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
 
@@ -15,12 +16,11 @@ from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
-from prisma_hand_sim.hand_world import HandWorldContactSource
+from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
@@ -39,18 +39,16 @@ class TactileDriverNode(Node):
 
         source = None
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
-            source = HandWorldContactSource()
+            source = HandWorldContactSource(HandWorld(obj=cfg.sim_object))
             self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
         self._source = source
         self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
-                              tare_samples=cfg.tare_samples,
                               stale_timeout_ns=int(cfg.stale_timeout * 1e9),
                               name=self.get_name(), hardware_id=self._hardware_id())
 
         self._taxel_pubs = {f: stream_publisher(self, TaxelArray, f"prisma/{f}/taxels") for f in cfg.fingers}
         self._hand_pub = stream_publisher(self, HandTaxels, "prisma/hand/taxels")
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._tare_service = self.create_service(Trigger, "~/tare", self._on_tare)
         poll_hz = cfg.serial_poll_hz if cfg.backend == "serial" else cfg.rate_hz
         self._poll_timer = self.create_timer(1.0 / poll_hz, self._on_poll)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
@@ -70,6 +68,8 @@ class TactileDriverNode(Node):
         if cfg.backend == "i2c":
             bus = f"i2c-socket:{cfg.i2c_socket}" if cfg.i2c_socket else f"i2c-{cfg.i2c_bus}"
             return f"{bus}/0x{cfg.mux_address:02x}"
+        if cfg.contact_source == "hand_world":
+            return f"sim/hand_world/{cfg.sim_object}"
         return f"sim/{cfg.contact_source}"
 
     def _now_ns(self) -> int:
@@ -93,17 +93,6 @@ class TactileDriverNode(Node):
         assert self._source is not None  # subscribed only with the hand_world contact source
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
                                    ns_from_stamp(msg.header.stamp))
-
-    def _on_tare(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        result = self.hub.tare()
-        response.success = result.success
-        response.message = result.message
-        # rclpy fixes a call site's severity at its first call: one call site per severity
-        if result.success:
-            self.get_logger().info(result.message)
-        else:
-            self.get_logger().warning(result.message)
-        return response
 
     def destroy_node(self) -> None:
         hub = getattr(self, "hub", None)  # absent when the parameters were rejected at start

@@ -6,8 +6,7 @@ Counts are 12-bit MAX11617 readings; V = vref * counts / 4096.
 """
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,14 +23,13 @@ EDGES: dict[str, tuple[int, int, int]] = {
 
 @dataclass
 class TaxelFrame:
-    """One fingertip sample. `baseline` (volts, from a tare) is kept beside the raw values, never
-    subtracted in place, so published counts and voltages always satisfy V = vref*counts/4096."""
+    """One fingertip sample: raw counts and V = vref*counts/4096 (nothing subtracted: Algorithm 1
+    compares raw voltages; the force estimator's ~/bias zeroes the wrenches instead)."""
 
     finger: str
     stamp_ns: int
     counts: np.ndarray  # uint16[9]
     voltages: np.ndarray  # float32[9]
-    baseline: np.ndarray | None = None  # float32[9] volts, None until tared
 
     def __post_init__(self) -> None:
         self.counts = np.asarray(self.counts, dtype=np.uint16).reshape(-1)
@@ -40,47 +38,9 @@ class TaxelFrame:
             raise ValueError(
                 f"TaxelFrame needs 9 counts and 9 voltages, got {self.counts.shape} and {self.voltages.shape}"
             )
-        if self.baseline is not None:
-            self.baseline = np.asarray(self.baseline, dtype=np.float32).reshape(N_TAXELS)
         self.stamp_ns = int(self.stamp_ns)
 
     @classmethod
-    def from_counts(cls, finger: str, stamp_ns: int, counts: np.ndarray, vref: float = DEFAULT_VREF,
-                    baseline: np.ndarray | None = None) -> TaxelFrame:
+    def from_counts(cls, finger: str, stamp_ns: int, counts: np.ndarray, vref: float = DEFAULT_VREF) -> TaxelFrame:
         counts = np.asarray(counts, dtype=np.uint16)
-        return cls(finger, stamp_ns, counts, counts_to_voltages(counts, vref), baseline)
-
-    def tared_voltages(self) -> np.ndarray:
-        """Voltages minus the tare baseline (raw voltages when not tared)."""
-        if self.baseline is None:
-            return self.voltages.copy()
-        return (self.voltages - self.baseline).astype(np.float32)
-
-
-@dataclass
-class TareBuffer:
-    """Keeps the last `n_samples` voltage vectors of one finger; tare = their mean."""
-
-    n_samples: int = 100
-    _recent: deque = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if self.n_samples < 1:
-            raise ValueError(f"tare n_samples must be >= 1, got {self.n_samples}")
-        self._recent = deque(maxlen=self.n_samples)
-
-    def add(self, voltages: np.ndarray) -> None:
-        self._recent.append(np.asarray(voltages, dtype=np.float64).reshape(N_TAXELS))
-
-    def __len__(self) -> int:
-        return len(self._recent)
-
-    @property
-    def ready(self) -> bool:
-        return len(self._recent) == self.n_samples
-
-    def baseline(self) -> np.ndarray:
-        """Mean of the buffered samples; ValueError while fewer than n_samples are held."""
-        if not self.ready:
-            raise ValueError(f"tare needs {self.n_samples} samples, have {len(self._recent)}")
-        return np.mean(np.stack(self._recent), axis=0).astype(np.float32)
+        return cls(finger, stamp_ns, counts, counts_to_voltages(counts, vref))

@@ -28,7 +28,7 @@ def test_defaults_are_valid_and_arrays_become_lists():
     ({"fingers": ["thumb", "thumb"], "finger_channels": [0, 1]}, "each finger at most once"),
     ({"mux_address": 0x80}, "'mux_address' = 128"),
     ({"rate_hz": -1.0}, "'rate_hz' = -1.0"),
-    ({"tare_samples": 0}, "'tare_samples' = 0"),
+    ({"sim_object": "cup"}, "'sim_object' = 'cup': expected one of pinch_ball|power_ball|lateral_card|none"),
     ({"reconnect_backoff_max": 0.01}, "must be >= reconnect_backoff_initial"),
     ({"frame_id_format": "{hand}_pad"}, "'frame_id_format'"),
     ({"contact_source": "glove"}, "expected one of scripted|hand_world"),

@@ -1,11 +1,11 @@
-"""Hub core over the sim backend: frames, tare, staleness and diagnostics."""
+"""Hub core over the sim backend: frames, staleness and diagnostics."""
 import numpy as np
 import pytest
 
 from prisma_common.diagnostics import ERROR, OK, STALE, WARN
 from prisma_common.hand import FINGERS
 from prisma_hand_sim.contact_source import ScriptedContactSource
-from prisma_hand_sim.pad_model import PadContact, PadParams
+from prisma_hand_sim.pad_model import PadParams
 from prisma_tactile_driver.backend import HubReading
 from prisma_tactile_driver.sim_backend import SimHubBackend
 from prisma_tactile_driver.tactile_driver_core import TactileHub
@@ -43,27 +43,6 @@ def test_vref_scales_voltages():
     np.testing.assert_allclose(frame.voltages, frame.counts * 5.0 / 4096, rtol=1e-6)
     with pytest.raises(ValueError, match="vref"):
         TactileHub(SimHubBackend(Fixed({})), ["index"], vref=0)
-
-
-def test_tare_is_mean_of_last_n_and_kept_beside_raw():
-    source = Fixed({})
-    hub = TactileHub(SimHubBackend(source, seed=4), FINGERS, tare_samples=50)
-    for step in range(20):
-        hub.poll(step * 10 * MS)
-    early = hub.tare()
-    assert not early.success and "20/50" in early.message
-    for step in range(20, 200):
-        hub.poll(step * 10 * MS)
-    result = hub.tare()
-    assert result.success and set(result.baselines) == set(FINGERS)
-    np.testing.assert_allclose(result.baselines["thumb"], PadParams().rest_volts, atol=0.002)
-    source.contacts["thumb"] = PadContact(0, 0, 2.0)
-    frame = hub.poll(2000 * MS)[0]
-    np.testing.assert_allclose(frame.voltages, frame.counts * 3.3 / 4096, rtol=1e-6)  # raw untouched
-    np.testing.assert_allclose(frame.baseline, result.baselines["thumb"])
-    assert frame.tared_voltages()[4] > 0.5
-    diag = {s.name: s for s in hub.diagnostics(2000 * MS)}
-    assert diag["tactile_driver: thumb"].values["baseline_v"].count(" ") == 8
 
 
 def test_staleness_levels():

@@ -28,8 +28,8 @@ from prisma_node_wiring.node_process import run_node
 from .glove_driver_core import GloveDriver
 from .layout import load_layout
 from .node_config import GloveDriverConfig
-from .processing import FrameProcessor
 from .pressure_map import PressureMap
+from .processing import FrameProcessor
 from .ros_conversions import glove_frame_to_msg, pressure_image_msg, pressure_map_to_msg
 
 

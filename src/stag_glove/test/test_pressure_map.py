@@ -20,7 +20,8 @@ def test_colour_scale_is_dark_at_no_pressure_bright_at_saturation_and_monotonic(
     np.testing.assert_array_equal(colours[0], [0, 0, 4])
     np.testing.assert_array_equal(colours[-1], [252, 255, 164])
     assert np.all(np.diff(colours.sum(axis=1)) > 0)  # brighter with every step
-    np.testing.assert_array_equal(pressure_colours(np.array([-1.0, np.nan, 7.0])), pressure_colours(np.array([0, 0, 1])))
+    np.testing.assert_array_equal(pressure_colours(np.array([-1.0, np.nan, 7.0])),
+                                  pressure_colours(np.array([0.0, 0.0, 1.0])))
 
 
 def test_every_sensor_is_a_square_of_its_pressure_and_the_rest_is_dark():

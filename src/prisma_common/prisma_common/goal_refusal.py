@@ -1,0 +1,36 @@
+"""Why an action server of the hand refuses a goal, in the words the goal's result carries.
+
+Every action server of the hand accepts each goal it is sent and, when it cannot carry it out,
+aborts it at once with `<code>: <why>` in the result's text field (Grasp `reason`, Manipulate
+`stop_reason`, MoveMotors `reason`; GripperCommand has no text field: the node logs it). A rejected
+goal would tell its client only "Goal was rejected"; an aborted one shows the reason in
+`ros2 action send_goal`'s output. The code says what the client can do about it:
+- `invalid`: the goal can never run as sent (a value beyond a limit, an unknown name): change it;
+- `not_ready`: the hand cannot run it yet (a stream it needs missing or stale, the motor driver or
+  its bus down): send it again later;
+- `busy`: another goal runs on the same node: wait for its end or cancel it.
+Nodes may add codes of their own (the manipulation node's `no_contact`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+INVALID = "invalid"
+NOT_READY = "not_ready"
+BUSY = "busy"
+RETRY_LATER = (NOT_READY, BUSY)  # the same goal may run when sent again
+
+
+@dataclass(frozen=True)
+class Refusal:
+    code: str
+    why: str
+
+    def __str__(self) -> str:
+        return f"{self.code}: {self.why}"
+
+
+def refusal_code(reason: str) -> str | None:
+    """The code of a result's reason text that is a refusal of a known code, else None."""
+    code, sep, _ = reason.partition(": ")
+    return code if sep and code in (INVALID, NOT_READY, BUSY) else None
