@@ -17,7 +17,7 @@ def share_folder(directory: str) -> tuple[str, list[str]]:
 
 setup(
     name=package_name,
-    version="0.1.0",
+    version="0.2.0",
     packages=[],
     data_files=[
         ("share/ament_index/resource_index/packages", [os.path.join(ROOT, "resource", package_name)]),

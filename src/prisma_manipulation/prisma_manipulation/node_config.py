@@ -56,7 +56,7 @@ class ManipulationConfig(Params):
                                       rules="one of fingers")
     stale_timeout: float = parameter(0.1, "watchdog: taxels, wrenches or /joint_states older or silent this long "
                                           "abort the goal with sensor_stale", unit="s", bounds=(0.0, 1.0),
-                                     open_low=True, live=True)
+                                     open_low=True, live=True, rules="at least 4 x watchdog_period")
     watchdog_period: float = parameter(0.02, "how often the watchdog checks", unit="s", bounds=(0.0, 1.0),
                                        open_low=True)
     max_speed_rpm: float = parameter(70.0, "goals asking for a faster motor speed are rejected", unit="rpm",
@@ -127,6 +127,10 @@ class ManipulationConfig(Params):
             raise ParameterError("monitored_finger", self.monitored_finger, f"must be one of fingers {self.fingers}")
         if "{finger}" not in self.frame_id_format:
             raise ParameterError("frame_id_format", self.frame_id_format, "must contain {finger}")
+        if self.stale_timeout < 4 * self.watchdog_period:
+            # a check more than half the stale window after the last counts as the node held up (watchdog.py)
+            raise ParameterError("stale_timeout", self.stale_timeout,
+                                 f"at least 4 x watchdog_period ({4 * self.watchdog_period:g} s)")
         for name in GOAL_SPEEDS:
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")

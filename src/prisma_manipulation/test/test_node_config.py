@@ -35,6 +35,8 @@ def test_manipulation_limits_equal_the_motor_driver_limits():
     (ManipulationConfig, {"grasp_speed_rpm": 80.0}, "invalid parameter 'grasp_speed_rpm' = 80.0: above max_speed_rpm"),
     (ManipulationConfig, {"monitored_finger": "wrist"}, "invalid parameter 'monitored_finger' = 'wrist'"),
     (ManipulationConfig, {"frame_id_format": "pad"}, "invalid parameter 'frame_id_format' = 'pad'"),
+    (ManipulationConfig, {"stale_timeout": 0.06}, "invalid parameter 'stale_timeout' = 0.06: at least 4 x "
+                                                  "watchdog_period"),
 ])
 def test_bad_parameters_name_themselves(cls, values, message):
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):
