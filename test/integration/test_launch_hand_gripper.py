@@ -11,8 +11,7 @@ drives a gripper, and the force estimator's bias (the tests run in order, on one
 After the launch is stopped every node exits 0 without a traceback.
 
 A goal is sent again only while it is refused for now (the node aborts it at once until every
-stream it needs flows) or when it ends `sensor_stale` on a machine too busy to deliver a sample in
-100 ms (the watchdog working: a few times at most).
+stream it needs flows).
 
 Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """

@@ -639,17 +639,15 @@ def gripper_goal(position: float, max_effort: float = 0.0) -> Any:
     return goal
 
 
-def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float = 90.0, stale_retries: int = 3):
+def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float = 90.0):
     """A GripperCommand goal's result, sent again while the manipulation node refuses it for now
-    (its result has no text: the node's log says `GripperCommand goal refused: not_ready|busy: ...`)
-    or ends sensor_stale (the watchdog on a machine too busy; `stale_retries` times at most).
+    (its result has no text: the node's log says `GripperCommand goal refused: not_ready|busy: ...`).
     Needs `ros.capture_logs()`."""
-    deadline, stale = time.monotonic() + timeout_sec, 0
+    deadline = time.monotonic() + timeout_sec
     if not ros.spin_until(client.server_is_ready, timeout_sec):
         raise AssertionError(f"no GripperCommand server after {timeout_sec} s")
     while True:
         refused = len(ros.logs(name="manipulation", contains="GripperCommand goal refused: "))
-        ended_stale = len(ros.logs(name="manipulation", contains="gripper goal ended: sensor_stale"))
         outcome = ros.result(ros.send_goal(client, goal), timeout_sec=30.0)
         ros.spin_for(0.1)  # the node's log line about it
         why = ros.logs(name="manipulation", contains="GripperCommand goal refused: ")[refused:]
@@ -657,11 +655,6 @@ def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float
             if time.monotonic() > deadline:
                 raise AssertionError(f"GripperCommand still refused after {timeout_sec} s: {why[-1]}")
             ros.spin_for(0.2)
-            continue
-        stale_now = ros.logs(name="manipulation", contains="gripper goal ended: sensor_stale")[ended_stale:]
-        if outcome.status == 6 and stale_now and stale < stale_retries:
-            stale += 1
-            print(f"  {stale_now[-1]}: again")
             continue
         return outcome
 
