@@ -38,9 +38,11 @@ BAG_TOPICS = ["/joint_states", "/diagnostics"] + [f"/prisma/{f}/{kind}" for f in
 PLOTTED = ["/prisma/thumb/contact/threshold", "/prisma/thumb/contact/voltages[3]"]
 GRASPS = 10
 SUCCEEDED = 4  # action_msgs/GoalStatus
-# Default forces, fingers at 60 rpm. Between goals the hand opens at full speed, thumb first, each
-# motor until its open stop (bench/ros_graph.py's grasp cycle: the sim ball stays on its support)
-GRASP = Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=0.7, speed_rpm=60.0, timeout=10.0)
+# Fingers and thumb to 0.5 N at 60 rpm: below the 0.6 N at which the sim world's support lets go of
+# the ball (after 0.5 s), so however long the hand holds it before it opens, the next grasp finds
+# the ball where the last one did. Between goals the hand opens at full speed, thumb first, each
+# motor until its open stop.
+GRASP = Grasp.Goal(grasp="pinch", finger_force=0.5, thumb_force=0.5, speed_rpm=60.0, timeout=10.0)
 OPEN_RPM = 70.0
 
 

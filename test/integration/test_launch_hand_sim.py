@@ -46,6 +46,8 @@ from topic_table import topic_table  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
+# what hand.launch.py starts beside them: the TF of the description and the RViz markers
+LAUNCHED = (*HAND_NODES, "robot_state_publisher", "tactile_markers")
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
 WINDOW_S = 3.0
 WINDOWS = 5
@@ -193,7 +195,7 @@ class TestHandSim(unittest.TestCase):
 class TestHandSimShutdown(unittest.TestCase):
     def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
         assert_clean_shutdown(proc_info, proc_output)
-        self.assertEqual(len(proc_info.process_names()), len(HAND_NODES))
+        self.assertEqual(len(proc_info.process_names()), len(LAUNCHED))
 
     def test_motor_driver_turns_the_torque_off(self, proc_output):
         self.assertIn(TORQUE_OFF, output_of(proc_output, "motor_driver"))

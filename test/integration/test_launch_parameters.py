@@ -43,7 +43,7 @@ from stag_glove.node_config import GloveDriverConfig, GlovePerceptionConfig  # n
 
 LAUNCH_FILES = ("hand.launch.py", "glove.launch.py")
 # packages (and node names) of nodes the launch files start that are not this suite's: not checked here
-THIRD_PARTY = {"robot_state_publisher"}
+THIRD_PARTY = {"robot_state_publisher", "rviz2"}
 RCLPY_OWN = {"use_sim_time", "start_type_description_service"}  # declared by rclpy itself
 CONFIGS = {"tactile_driver": TactileDriverConfig, "force_estimator": ForceEstimatorConfig,
            "motor_driver": MotorDriverConfig, "manipulation": ManipulationConfig,
@@ -93,16 +93,20 @@ class TestParameterDescriptions(unittest.TestCase):
         cls.ros = RosHarness()
         cls.described: dict[str, dict] = {}
         cls.values: dict[str, dict] = {}
-        for node in NODES:
-            names = cls.ros.call(ListParameters, f"/{node}/list_parameters", ListParameters.Request(),
-                                 timeout_sec=90.0).result.names
-            names = [n for n in names if n not in RCLPY_OWN]
-            descriptors = cls.ros.call(DescribeParameters, f"/{node}/describe_parameters",
-                                       DescribeParameters.Request(names=names), timeout_sec=30.0).descriptors
-            values = cls.ros.call(GetParameters, f"/{node}/get_parameters", GetParameters.Request(names=names),
-                                  timeout_sec=30.0).values
-            cls.described[node] = {d.name: d for d in descriptors}
-            cls.values[node] = {n: parameter_value_to_python(v) for n, v in zip(names, values)}
+        try:
+            for node in NODES:
+                names = cls.ros.call(ListParameters, f"/{node}/list_parameters", ListParameters.Request(),
+                                     timeout_sec=90.0).result.names
+                names = [n for n in names if n not in RCLPY_OWN]
+                descriptors = cls.ros.call(DescribeParameters, f"/{node}/describe_parameters",
+                                           DescribeParameters.Request(names=names), timeout_sec=30.0).descriptors
+                values = cls.ros.call(GetParameters, f"/{node}/get_parameters", GetParameters.Request(names=names),
+                                      timeout_sec=30.0).values
+                cls.described[node] = {d.name: d for d in descriptors}
+                cls.values[node] = {n: parameter_value_to_python(v) for n, v in zip(names, values)}
+        except BaseException:
+            cls.ros.shutdown()  # tearDownClass does not run: the tests after this one need rclpy shut down
+            raise
 
     @classmethod
     def tearDownClass(cls):

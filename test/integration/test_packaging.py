@@ -47,7 +47,8 @@ JAZZY_ROS_PACKAGES = {
     "rclpy", "ros2bag", "rosbag2_storage_mcap", "rosidl_default_generators", "rosidl_default_runtime",
     "rosidl_runtime_py", "sensor_msgs", "std_msgs", "std_srvs", "python_qt_binding", "rqt_plot",
     # (commit 8468e88) the description, TF and RViz side
-    "joint_state_publisher", "robot_state_publisher", "rviz2", "urdfdom_py", "visualization_msgs", "xacro",
+    "joint_state_publisher", "robot_state_publisher", "rviz2", "tf2_msgs", "tf2_ros_py", "urdfdom_py",
+    "visualization_msgs", "xacro",
 }
 # ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
 # (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
@@ -64,7 +65,7 @@ MODULE_DEPENDENCY = {
     "smbus2": "python3-smbus2", "torch": "python3-torch", "scipy": "python3-scipy",
     "sklearn": "python3-sklearn", "threadpoolctl": "python3-sklearn",  # a dependency of scikit-learn
     "h5py": "python3-h5py", "matplotlib": "python3-matplotlib", "dynamixel_sdk": "dynamixel_sdk",
-    "urdf_parser_py": "urdfdom_py",
+    "urdf_parser_py": "urdfdom_py", "tf2_ros": "tf2_ros_py",
 }
 # Modules with no rosdep key usable on noble: the README's venv installs them with pip, and the
 # package.xml of a package importing one says so in a comment naming it.
@@ -291,9 +292,9 @@ def test_the_top_level_links_are_walked_once():
     if ruff.returncode != 0 and "No module named ruff" in ruff.stderr:
         pytest.skip("ruff is not installed (pip install -e '.[test]')")
     checked = [Path(line) for line in ruff.stdout.splitlines() if line.endswith(".py")]
-    launch_files = [p for p in checked if p.name.endswith(".launch.py")]
-    assert sorted(launch_files) == sorted((BRINGUP / "launch").resolve() / p.name for p in launch_files)
-    assert len(launch_files) == len(list((BRINGUP / "launch").glob("*.launch.py")))
+    launch_files = [p.resolve() for p in checked if p.name.endswith(".launch.py")]
+    in_packages = sorted(p.resolve() for p in SRC.glob("*/launch/*.launch.py"))  # bringup's, the description's
+    assert sorted(launch_files) == in_packages  # each once, by its path in its package
     if shutil.which("colcon"):
         listed = subprocess.run(["colcon", "list", "--names-only"], cwd=ROOT, capture_output=True, text=True,
                                 timeout=120).stdout.split()

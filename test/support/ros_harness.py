@@ -117,6 +117,7 @@ class RosHarness:
         self._clients: dict = {}
         self._log: list | None = None
         self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
+        self._collecting: dict[int, Any] = {}  # id of a collect() list -> its subscription
 
     # ---- nodes -----------------------------------------------------------------------------
     def node(self, cls: Callable[..., Any], params: dict[str, Any] | None = None,
@@ -254,9 +255,17 @@ class RosHarness:
         received: list = []
         # without rclpy's QoS-event waitables, as the nodes' streams: a probe collecting a dozen 100 Hz
         # topics would spend more CPU walking them than the graph it observes
-        self.probe.create_subscription(msg_type, topic, received.append, qos_profile or QoSProfile(depth=1000),
-                                       event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        subscription = self.probe.create_subscription(
+            msg_type, topic, received.append, qos_profile or QoSProfile(depth=1000),
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        self._collecting[id(received)] = subscription
         return received
+
+    def stop_collecting(self, *lists: list) -> None:
+        """Close the subscriptions that fill these `collect` lists: a probe still taking dozens of
+        100 Hz topics a test is done with leaves the executor little time for the next test's."""
+        for received in lists:
+            self.probe.destroy_subscription(self._collecting.pop(id(received)))
 
     def publisher(self, msg_type: type, topic: str, qos_profile: Any = 10):
         return self.probe.create_publisher(msg_type, topic, qos_profile)

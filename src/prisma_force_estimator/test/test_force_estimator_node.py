@@ -218,8 +218,8 @@ def test_mismatched_bundle_fails_at_start_with_the_problem(ros, node_cls, bundle
     ("network_precision", "int8", "'network_precision' = 'int8'"),
     ("batch_window", -0.1, "'batch_window' = -0.1"),
     ("frame_id_format", "{hand}", "'frame_id_format'"),
-    ("bias_samples", 0, "'bias_samples' = 0: an integer >= 1"),
-    ("bias_contact_voltage", 4.0, "'bias_contact_voltage' = 4.0: must be in"),
+    ("bias_samples", 0, "'bias_samples' = 0: must be >= 1 and <= 10000"),
+    ("bias_contact_voltage", 4.0, "'bias_contact_voltage' = 4.0: must be > 0.0 and < 3.3"),
 ])
 def test_invalid_parameters_fail_at_start(ros, node_cls, bundles, name, value, message):
     with pytest.raises(ParameterError, match=message):

@@ -40,7 +40,14 @@ def motor_map():
 
 
 @pytest.fixture
-def rig():
+def rig(monkeypatch):
+    # The emulated servos answer from a thread of this process: on a loaded machine the process can
+    # be off the CPU longer than dynamixel-sdk's status timeout (2 x its 16 ms latency timer + 2 ms),
+    # and a status packet the emulator sent on time would count as dropped. These tests count the
+    # drops the emulator makes; a 200 ms latency timer keeps the scheduler's out of the count.
+    import dynamixel_sdk.port_handler
+
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 200)
     clock = ManualClock()
     with DynamixelEmulator(list(IDS.values()), clock=clock) as emu:
         bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=2)
