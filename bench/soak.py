@@ -1,13 +1,15 @@
 """Soak of the launched sim graph beside the load harness (needs ROS 2 and the workspace sourced):
 
     python3 bench/soak.py --minutes 20 --out soak_out [--plot docs/img/soak.png] [--no-load]
+                          [--rt-priority 0]
 
 Cycles of a pinch Grasp, a horizontal Manipulate, a vertical Manipulate cancelled after 0.3 s and a
 GripperCommand open, back to back (test/support/goal_soak.py), on `hand.launch.py sim:=true` with a
 CPU hog per core and a memory-bandwidth hog beside it (test/support/load_harness.py). Prints each
 goal kind's outcomes, the nodes' resident memory after the first cycle and its growth, and writes
 soak.json (and the plot: RSS per node over time, each goal's duration and outcome). Exit 1 when a
-goal missed its paper outcome, a node died or grew 5 MB or more.
+goal missed its paper outcome, a node died or grew 5 MB or more. `--rt-priority 0` launches the
+control path without real-time scheduling (at hand.launch.py's `nice`), to see what the priority buys.
 """
 from __future__ import annotations
 
@@ -64,9 +66,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("soak_out"), help="where soak.json goes")
     parser.add_argument("--plot", type=Path, help="write the plot (PNG) here")
     parser.add_argument("--no-load", action="store_true", help="without the load harness")
+    parser.add_argument("--rt-priority", type=int, default=20,
+                        help="hand.launch.py rt_priority (default 20; 0: none, the nodes at its nice)")
     args = parser.parse_args(argv)
     if args.minutes <= 0:
         parser.error(f"--minutes {args.minutes}: must be > 0")
+    if not 0 <= args.rt_priority <= 99:
+        parser.error(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities are 1-99 (0: none)")
     from goal_soak import node_pids, run_soak
     from load_harness import machine_load
     from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, RosHarness, ros2_launch, stop_process
@@ -78,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 130))  # this soak's graph only
     ros = RosHarness()
     ros.capture_logs()
-    hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true")
+    hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true", f"rt_priority:={args.rt_priority}")
     try:
         pids = node_pids(hand.proc.pid, NODES)
         if set(pids) != set(NODES):
@@ -95,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         stop_process(hand)
         ros.shutdown()
-    summary = {"started": started, "load": not args.no_load, "loadavg_end": os.getloadavg(), **report.summary()}
+    summary = {"started": started, "load": not args.no_load, "rt_priority": args.rt_priority, "loadavg_end": os.getloadavg(), **report.summary()}
     tmp = args.out / "soak.json.partial"
     tmp.write_text(json.dumps({**summary, "rss_timeline": report.rss_timeline}, indent=1))
     tmp.replace(args.out / "soak.json")  # whole or not at all
