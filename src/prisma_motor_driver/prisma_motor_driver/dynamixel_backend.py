@@ -23,6 +23,24 @@ from .backend import BusError, BusStats, MotorConfig, MotorState, check_velocity
 
 # Results worth another attempt: the packet may simply have been lost or garbled on the wire.
 _RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.COMM_TX_FAIL}
+# How long one read of the port waits for the status packet's bytes (the SDK's packet timeout,
+# ~34 ms, still bounds the whole wait).
+READ_WAIT_S = 0.002
+
+
+class WaitingPortHandler(sdk.PortHandler):
+    """dynamixel-sdk's PortHandler with reads that wait up to READ_WAIT_S for bytes.
+
+    The SDK opens the port non-blocking and polls it in a loop until the status packet is complete:
+    at the driver's real-time priority that loop holds a core for the whole transaction, and
+    whatever else needs it (the servos' emulator, the tactile driver) waits. A read that sleeps in
+    select until the bytes come costs nothing while the servo answers.
+    """
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
+        opened = super().setupPort(cflag_baud)
+        self.ser.timeout = READ_WAIT_S
+        return opened
 
 
 class DynamixelBus:
@@ -32,7 +50,7 @@ class DynamixelBus:
         baudrate: int,
         motors: Mapping[str, MotorConfig],
         retries: int = 3,
-        port_handler_factory: Callable[[str], sdk.PortHandler] = sdk.PortHandler,
+        port_handler_factory: Callable[[str], sdk.PortHandler] = WaitingPortHandler,
     ) -> None:
         if retries < 0:
             raise ValueError(f"retries {retries} must be >= 0")
