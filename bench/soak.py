@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         plot(report, args.plot)
         print(f"wrote {args.plot}")
     grew = {n: g for n, g in report.rss_growth_mb.items() if g >= MAX_RSS_GROWTH_MB}
-    return 1 if report.failures or report.dead or grew else 0
+    return 1 if report.failures or report.refused_replacements or report.dead or grew else 0
 
 
 if __name__ == "__main__":

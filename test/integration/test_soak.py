@@ -34,5 +34,6 @@ def test_two_minutes_of_goals_beside_the_load_harness(ros):
         stop_process(hand)
     assert report.goals and len(report.goals) % 4 == 0
     assert report.failures == [], report.why
+    assert report.refused_replacements == []
     assert report.dead == []
     assert all(growth < MAX_RSS_GROWTH_MB for growth in report.rss_growth_mb.values()), report.rss_growth_mb

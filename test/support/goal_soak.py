@@ -1,8 +1,10 @@
 """Goals back to back on the launched sim graph, for a soak: each cycle a pinch Grasp (SUCCEEDED
 force_reached), a horizontal Manipulate (SUCCEEDED edge_lost), a vertical Manipulate cancelled
 0.3 s after it starts (CANCELED) and a GripperCommand to position 0 that opens the hand (SUCCEEDED
-reached_goal). Every goal is sent once: a refusal (`not_ready`, `busy`) or any other end is a
-failure. The nodes' resident memory is read from /proc after the first cycle (what a node allocates
+reached_goal); then the tactile driver's ~/replace_object puts the ball back between the open
+fingers, as an operator would (the horizontal manipulation rolled it to the thumb pad's edge). The
+soak starts once the graph takes goals (an opening GripperCommand, sent until it is not refused);
+after that every goal is sent once: a refusal (`not_ready`, `busy`) or any other end is a failure. The nodes' resident memory is read from /proc after the first cycle (what a node allocates
 once, its first goals' code paths and buffers, is not growth) and at the end.
 
 Used by test/integration/test_soak.py (two minutes, in CI) and bench/soak.py (twenty, beside the
@@ -49,6 +51,10 @@ class SoakReport:
     @property
     def failures(self) -> list[GoalRecord]:
         return [g for g in self.goals if not g.as_expected]
+
+    @property
+    def refused_replacements(self) -> list[str]:
+        return [w for w in self.why if w.startswith("replace_object")]
 
     @property
     def rss_growth_mb(self) -> dict[str, float]:
@@ -121,12 +127,22 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     from control_msgs.action import GripperCommand
     from control_msgs.msg import GripperCommand as GripperCommandMsg
     from prisma_msgs.action import Grasp, Manipulate
+    from std_srvs.srv import Trigger
 
     clients = {"grasp": ros.action_client(Grasp, f"{namespace}/prisma/grasp", wait_sec=90.0),
                "manipulate": ros.action_client(Manipulate, f"{namespace}/prisma/manipulate", wait_sec=90.0),
                "gripper": ros.action_client(GripperCommand, f"{namespace}/prisma/gripper_cmd", wait_sec=90.0)}
+    open_hand = GripperCommand.Goal(command=GripperCommandMsg(position=0.0, max_effort=0.0))
+    ros.result(ros.send_until_started(clients["gripper"], open_hand, timeout_sec=60.0), timeout_sec=60.0)
     report = SoakReport(seconds=0.0)
+
+    def replace_object() -> None:
+        answer = ros.call(Trigger, f"{namespace}/tactile_driver/replace_object", Trigger.Request())
+        if not answer.success:
+            report.why.append(f"replace_object at {time.monotonic() - start:.1f} s: {answer.message}")
+
     start = time.monotonic()
+    replace_object()
 
     def goal(name: str, client: str, message: Any, cancel_after_s: float | None = None) -> None:
         t0 = time.monotonic()
@@ -154,7 +170,8 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
         goal("manipulate horizontal", "manipulate", Manipulate.Goal(motion="horizontal"))
         goal("manipulate vertical, cancelled", "manipulate", Manipulate.Goal(motion="vertical"),
              cancel_after_s=CANCEL_AFTER_S)
-        goal("gripper open", "gripper", GripperCommand.Goal(command=GripperCommandMsg(position=0.0, max_effort=0.0)))
+        goal("gripper open", "gripper", open_hand)
+        replace_object()
         cycles = len(report.goals) // 4
         report.rss_timeline.append((time.monotonic() - start, {name: round(rss_mb(pid) or 0.0, 2)
                                                                for name, pid in pids.items()}))

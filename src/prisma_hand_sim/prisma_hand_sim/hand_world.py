@@ -164,6 +164,28 @@ class HandWorld:
         self.state = state
         self._pad_tangent = self._tangents(state)
 
+    def replace_object(self) -> str:
+        """Put the object back between the thumb and its partner, as an operator does between
+        trials: unshifted, no width change, on its support again, where the thumb pad will touch it
+        in the middle at the thumb's present rotation. The object's motion in the trials before
+        (rolled off the pad by a manipulation, pushed by a disturbance) is gone; timed disturbances
+        already applied stay applied. ValueError while a finger touches it: the hand opens first.
+        Returns what was done, for a log."""
+        touching = sorted(f for f, force in self.state.finger_forces.items() if force > 0.0)
+        if touching:
+            raise ValueError(f"the object cannot be re-placed while {', '.join(touching)} touch it: "
+                             "open the hand first (GripperCommand position 0)")
+        o = self.obj
+        self._bx = -self.params.thumb_lateral_mm_per_rad * self.positions["thumb_rotation"]
+        self._by = 0.0
+        self._width_mm = 0.0
+        self._fixture = o.residual_fixture_n_per_mm if o.released else o.fixture_n_per_mm
+        self._held_since_ns = None
+        self._released_ns = 0 if o.released else None
+        self.state = self._solve(self.state.stamp_ns)
+        self._pad_tangent = self._tangents(self.state)
+        return f"{o.name} re-placed at the thumb pad's middle (thumb rotation {self.positions['thumb_rotation']:+.3f} rad)"
+
     def elapsed_s(self, stamp_ns: int) -> float:
         """Seconds from the world's first stamp to stamp_ns: the time a Disturbance's start_s counts."""
         return 0.0 if self._origin_ns is None else (stamp_ns - self._origin_ns) * 1e-9

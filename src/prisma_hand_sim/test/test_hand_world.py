@@ -63,3 +63,27 @@ def test_contact_source_contract_and_time_driven_disturbance():
     assert source.contact("thumb", 50 * MS).x_mm == 0.0
     assert source.contact("thumb", 150 * MS).x_mm == pytest.approx(-4.5)  # half-way through the push
     assert source.contact("thumb", 300 * MS) is None  # slipped off the 14 mm pad
+
+
+def test_replace_object_puts_a_rolled_object_back_under_the_thumb_pad_middle():
+    world = HandWorld(obj="pinch_ball")
+    pose = world.grasp_pose(1.0)
+    world.update_joints(pose, 0)
+    assert world.contact("thumb").x_mm == pytest.approx(0.0)
+    with pytest.raises(ValueError, match="while index, thumb touch it: open the hand first"):
+        world.replace_object()
+    for step in range(1, 101):  # a horizontal manipulation: the ball rolls toward the pad's edge
+        world.update_joints({"thumb_rotation": step * 0.01}, step * 10 * MS)
+    rolled_x = world.contact("thumb").x_mm
+    assert rolled_x == pytest.approx(3.0)
+    open_hand = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}
+    world.update_joints(open_hand, 3000 * MS)
+    world.update_joints(pose, 3010 * MS)
+    # the ball stayed where it rolled to while the thumb turned back: it meets the pad off-centre
+    assert world.contact("thumb").x_mm == pytest.approx(-3.0)
+
+    world.update_joints(open_hand, 3020 * MS)
+    assert "re-placed" in world.replace_object()
+    world.update_joints(pose, 3030 * MS)
+    assert world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
+    assert world.forces()["thumb"] == pytest.approx(1.0, rel=0.01)

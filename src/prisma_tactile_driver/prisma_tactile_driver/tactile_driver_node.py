@@ -1,6 +1,8 @@
 """tactile_driver: publishes /prisma/<finger>/taxels from the fingertip hub (serial, I2C or sim),
 the same samples once per poll on /prisma/hand/taxels (for the nodes that take all five fingers),
-and /diagnostics at 1 Hz with the link counters. Zeroing the fingertip forces is the force
+and /diagnostics at 1 Hz with the link counters. With the simulated hand (contact_source
+hand_world), ~/replace_object (std_srvs/Trigger) puts the object back between the open fingers for
+the next trial. Zeroing the fingertip forces is the force
 estimator's ~/bias: the taxel voltages stay raw (Algorithm 1 needs them).
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
@@ -16,6 +18,7 @@ from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 
 from prisma_common.diagnostics import diagnostics_to_msg
 from prisma_common.messages import ns_from_stamp
@@ -41,6 +44,7 @@ class TactileDriverNode(Node):
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
             source = HandWorldContactSource(HandWorld(obj=cfg.sim_object))
             self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
+            self._replace_service = self.create_service(Trigger, "~/replace_object", self._on_replace_object)
         self._source = source
         self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
                               stale_timeout_ns=int(cfg.stale_timeout * 1e9),
@@ -93,6 +97,16 @@ class TactileDriverNode(Node):
         assert self._source is not None  # subscribed only with the hand_world contact source
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
                                    ns_from_stamp(msg.header.stamp))
+
+    def _on_replace_object(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        assert self._source is not None  # offered only with the hand_world contact source
+        try:
+            response.message = self._source.world.replace_object()
+            response.success = True
+        except ValueError as exc:
+            response.message = str(exc)
+        self.get_logger().info(f"replace_object: {response.message}")
+        return response
 
     def destroy_node(self) -> None:
         hub = getattr(self, "hub", None)  # absent when the parameters were rejected at start
