@@ -8,7 +8,15 @@ from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 
 from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
-from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult, validate_goal
+from .motor_goals import (
+    GoalStartError,
+    MoveFeedback,
+    MoveGoal,
+    MoveGoalRunner,
+    MoveResult,
+    goal_expired,
+    validate_goal,
+)
 from .node_config import MotorDriverConfig
 
 
@@ -79,13 +87,13 @@ class MotorDriverCore:
             self._new_errors.append(error)
             self._reported_error = error
 
-    def validate(self, goal: MoveGoal) -> str | None:
-        """The reason to reject a goal: not connected, or a malformed goal. A goal naming a faulted
-        motor is valid: it fails at start with the fault reason, which a rejection could not carry
-        to the client."""
+    def validate(self, goal: MoveGoal, now_ns: int | None = None) -> str | None:
+        """The reason to reject a goal: not connected, a malformed goal, or (given the time it
+        arrives) one whose timeout ended on the way. A goal naming a faulted motor is valid: it fails
+        at start with the fault reason, which a rejection could not carry to the client."""
         if not self.connected:
             return f"motor bus not connected: {self.last_error or 'not opened yet'}"
-        return validate_goal(goal, self.bus.motors)
+        return validate_goal(goal, self.bus.motors) or (goal_expired(goal, now_ns) if now_ns is not None else None)
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
         """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a

@@ -65,7 +65,7 @@ class MotorDriverNode(Node):
 
     # ---- action ----------------------------------------------------------------------------
     def _on_goal(self, request) -> GoalResponse:
-        reason = self.core.validate(move_goal_from_msg(request))
+        reason = self.core.validate(move_goal_from_msg(request), self._now_ns())
         if reason:
             self.get_logger().warning(f"MoveMotors goal rejected: {reason}")
             return GoalResponse.REJECT
