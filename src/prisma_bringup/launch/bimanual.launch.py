@@ -30,17 +30,23 @@ def generate_launch_description():
                               description="Which computer's share of both hands and the glove to start"),
         DeclareLaunchArgument("glove", default_value="true", choices=["true", "false"],
                               description="Also start the STAG glove nodes"),
-    ] + [DeclareLaunchArgument(f"{side}_{device}_port", default_value=f"/dev/ttyUSB{number}",
-                               description=f"Serial port of the {side} hand's {what} (sim:=false)")
-         for side, base in (("left", 0), ("right", 2))
-         for device, number, what in (("motor", base, "Dynamixel adapter"), ("tactile", base + 1, "fingertip hub"))]
+        DeclareLaunchArgument("left_motor_port", default_value="/dev/ttyUSB0",
+                              description="Serial port of the left hand's Dynamixel adapter (sim:=false)"),
+        DeclareLaunchArgument("left_tactile_port", default_value="/dev/ttyUSB1",
+                              description="Serial port of the left hand's fingertip hub (sim:=false)"),
+        DeclareLaunchArgument("right_motor_port", default_value="/dev/ttyUSB2",
+                              description="Serial port of the right hand's Dynamixel adapter (sim:=false)"),
+        DeclareLaunchArgument("right_tactile_port", default_value="/dev/ttyUSB3",
+                              description="Serial port of the right hand's fingertip hub (sim:=false)"),
+    ]
+    ports = {"left": (LaunchConfiguration("left_motor_port"), LaunchConfiguration("left_tactile_port")),
+             "right": (LaunchConfiguration("right_motor_port"), LaunchConfiguration("right_tactile_port"))}
     # each include in a scope of its own: an include's arguments otherwise stay set for the next
     # (the glove would run under the right hand's namespace)
     hands = [GroupAction([IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": LaunchConfiguration("sim"), "namespace": side, "parts": parts,
-                          "motor_port": LaunchConfiguration(f"{side}_motor_port"),
-                          "tactile_port": LaunchConfiguration(f"{side}_tactile_port")}.items(),
+                          "motor_port": ports[side][0], "tactile_port": ports[side][1]}.items(),
     )], scoped=True) for side in ("left", "right")]
     glove = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),
