@@ -877,6 +877,10 @@ BIMANUAL_NODES = ([(f"{hand}/{node}", node, f"/{hand}", side) for hand in ("left
                   + [("glove/glove_driver", "glove_driver", "", "robot"),
                      ("glove/glove_perception", "glove_perception", "", "workstation")])
 HOSTS_HAND = "/left"  # the hand the grasps run on and the latency probe records
+# --hosts-graph: the launch command and its nodes (hand: the one hand alone, under the same namespace)
+HOSTS_GRAPHS = {"bimanual": (["bimanual.launch.py"], BIMANUAL_NODES),
+                "hand": (["hand.launch.py", f"namespace:={HOSTS_HAND[1:]}"],
+                         [n for n in BIMANUAL_NODES if n[2] == HOSTS_HAND])}
 LAYOUTS = ("one host", "two hosts")
 CLONE_NEWNET = 0x40000000
 
@@ -897,9 +901,10 @@ def enter_netns(name: str) -> None:
         os.close(fd)
 
 
-def namespaced_node_pids(root_pids: list[int], timeout_s: float = 90.0) -> dict[str, int]:
-    """The pid of each of BIMANUAL_NODES launched under `root_pids` (launch_ros passes
-    `-r __node:=<name>` and, under a namespace, `-r __ns:=<namespace>`)."""
+def namespaced_node_pids(root_pids: list[int], nodes: list[tuple[str, str, str, str]],
+                         timeout_s: float = 90.0) -> dict[str, int]:
+    """The pid of each of `nodes` (BIMANUAL_NODES rows) launched under `root_pids` (launch_ros
+    passes `-r __node:=<name>` and, under a namespace, `-r __ns:=<namespace>`)."""
     deadline = time.monotonic() + timeout_s
     found: dict[str, int] = {}
     while time.monotonic() < deadline:
@@ -909,14 +914,14 @@ def namespaced_node_pids(root_pids: list[int], timeout_s: float = 90.0) -> dict[
             except OSError:
                 continue
             ns = next((a[len(b"__ns:="):].decode() for a in argv if a.startswith(b"__ns:=")), "")
-            for label, node, namespace, _ in BIMANUAL_NODES:
+            for label, node, namespace, _ in nodes:
                 if f"__node:={node}".encode() in argv and ns.rstrip("/") == namespace:
                     found[label] = pid
-        if len(found) == len(BIMANUAL_NODES):
+        if len(found) == len(nodes):
             return found
         time.sleep(0.5)
     raise RuntimeError(f"launched nodes not found after {timeout_s:.0f} s: missing "
-                       f"{sorted({n[0] for n in BIMANUAL_NODES} - set(found))}")
+                       f"{sorted({n[0] for n in nodes} - set(found))}")
 
 
 def link_counters(interface: str) -> dict[str, int]:
@@ -968,29 +973,31 @@ def bag_rates(bag: Path) -> dict[str, dict]:
     return out
 
 
-def run_hosts(control: Control, layout: str, out: Path, hosts: Any, discovery: str, settle_s: float = 5.0,
-              cpu_s: float = 12.0, link_s: float = 10.0, grasps: int = 5,
+def run_hosts(control: Control, layout: str, out: Path, hosts: Any, discovery: str, graph: str = "bimanual",
+              settle_s: float = 5.0, cpu_s: float = 12.0, link_s: float = 10.0, grasps: int = 5,
               quiet: tuple[float | None, float] = (None, 0.0)) -> dict:
-    """bimanual.launch.py on one host (parts:=all in the workstation's namespace) or split (the
-    robot part in the robot's namespace): CPU of every node, then (split) what crosses the link, then
-    the latency probe on the workstation while pinch grasps run on the left hand."""
+    """The graph of HOSTS_GRAPHS on one host (parts:=all in the workstation's namespace) or split
+    (the robot part in the robot's namespace): CPU of every node, then (split) what crosses the
+    link, then the latency probe on the workstation while pinch grasps run on the left hand."""
+    launch_args, nodes = HOSTS_GRAPHS[graph]
     before = wait_quiet(*quiet)
     tag = f"hosts_{layout.replace(' ', '_')}_{time.strftime('%H%M%S')}"
     logdir = out / tag
     logdir.mkdir(parents=True, exist_ok=True)
-    launch = ["ros2", "launch", "prisma_bringup", "bimanual.launch.py"]
+    launch = ["ros2", "launch", "prisma_bringup", *launch_args]
     robot_env = hosts.dds_env(hosts.robot, discovery)
     if layout == "one host":
         procs = [start("bimanual", launch, logdir)]
     else:
         procs = [start("bimanual_robot", hosts.robot.run([*launch, "parts:=robot"]), logdir, robot_env),
                  start("bimanual_workstation", [*launch, "parts:=workstation"], logdir)]
-    result: dict = {"kind": layout, "machine_before": before, "discovery": discovery}
+    result: dict = {"kind": layout, "machine_before": before, "discovery": discovery, "graph": graph}
     probes: list[Proc] = []
     try:
-        control.wait_publishers([f"/{h}/prisma/hand/{s}" for h in ("left", "right") for s in ("taxels", "wrench")]
-                                + ["/stag/hand_pose"], 120.0, procs)
-        pids = namespaced_node_pids([p.popen.pid for p in procs])
+        hands = sorted({ns for _, _, ns, _ in nodes if ns})
+        control.wait_publishers([f"{h}/prisma/hand/{s}" for h in hands for s in ("taxels", "wrench")]
+                                + (["/stag/hand_pose"] if graph == "bimanual" else []), 120.0, procs)
+        pids = namespaced_node_pids([p.popen.pid for p in procs], nodes)
         pids.update({f"launch ({p.name})": p.popen.pid for p in procs})
         time.sleep(settle_s)
         if layout == "two hosts":
@@ -1041,20 +1048,21 @@ def run_hosts(control: Control, layout: str, out: Path, hosts: Any, discovery: s
 def summarise_hosts(runs: list[dict]) -> dict:
     """Medians (and spread over repeats) of the one-host and two-host runs, side by side."""
     by = {k: [r for r in runs if r["kind"] == k] for k in LAYOUTS}
-    out: dict = {"cpu_pct": {}, "latency_ms": {}, "repeats": len(by["two hosts"])}
+    out: dict = {"cpu_pct": {}, "latency_ms": {}, "repeats": len(by["two hosts"]),
+                 "graph": " ".join(HOSTS_GRAPHS[runs[0].get("graph", "bimanual")][0])}
 
     def cpu(run: dict, labels: list[str]) -> float:
         return sum(run["cpu"]["processes"][label]["cpu_pct"] for label in labels)
 
-    groups = {label: [label] for label, *_ in BIMANUAL_NODES}
-    for hand in ("left", "right"):
+    nodes = HOSTS_GRAPHS[runs[0].get("graph", "bimanual")][1]
+    groups = {label: [label] for label, *_ in nodes}
+    for hand in sorted({ns for _, _, ns, _ in nodes if ns}):
         for where in ("robot", "workstation"):
-            groups[f"{hand} hand, {where} part"] = [lb for lb, _, ns, w in BIMANUAL_NODES
-                                                    if ns == f"/{hand}" and w == where]
-        groups[f"{hand} hand"] = [lb for lb, _, ns, _ in BIMANUAL_NODES if ns == f"/{hand}"]
+            groups[f"{hand[1:]} hand, {where} part"] = [lb for lb, _, ns, w in nodes if ns == hand and w == where]
+        groups[f"{hand[1:]} hand"] = [lb for lb, _, ns, _ in nodes if ns == hand]
     for where in ("robot", "workstation"):
-        groups[f"{where} computer (its nodes)"] = [lb for lb, *_, w in BIMANUAL_NODES if w == where]
-    groups["all nodes"] = [lb for lb, *_ in BIMANUAL_NODES]
+        groups[f"{where} computer (its nodes)"] = [lb for lb, *_, w in nodes if w == where]
+    groups["all nodes"] = [lb for lb, *_ in nodes]
     for name, labels in groups.items():
         one = [cpu(r, labels) for r in by["one host"]]
         two = [cpu(r, labels) for r in by["two hosts"]]
@@ -1088,8 +1096,9 @@ def summarise_hosts(runs: list[dict]) -> dict:
 
 
 def markdown_hosts(h: dict) -> list[str]:
-    out = [f"### One host and two hosts: bimanual.launch.py (% of one core, median (min-max) of {h['repeats']} "
-           f"runs each)", "", "| processes | one host | two hosts | two / one |", "|---|---|---|---|"]
+    graph = h.get("graph", "bimanual.launch.py")
+    out = [f"### One host and two hosts: {graph} (% of one core, median (min-max) of {h['repeats']} runs each)",
+           "", "| processes | one host | two hosts | two / one |", "|---|---|---|---|"]
     for name, row in h["cpu_pct"].items():
         out.append(f"| {name} | {_cell(row['one host'])} | {_cell(row['two hosts'])} | {_cell(row['ratio'])} |")
     out += ["", f"### Latency, {HOSTS_HAND} hand, probe on the workstation (ms)", "",
@@ -1370,6 +1379,8 @@ def main(argv: list[str] | None = None) -> int:
                              "namespaces (root)")
     parser.add_argument("--hosts-discovery", choices=("subnet", "static"), default="subnet",
                         help="--parts hosts: DDS discovery over the link (test/support/two_hosts.py)")
+    parser.add_argument("--hosts-graph", choices=tuple(HOSTS_GRAPHS), default="bimanual",
+                        help="--parts hosts: both hands and the glove, or the left hand alone")
     parser.add_argument("--quiet-below", type=float,
                         help="before each run, wait until the machine uses at most this CPU %% (of one core)")
     parser.add_argument("--quiet-wait", type=float, default=600.0, help="... for at most this many seconds")
@@ -1435,7 +1446,8 @@ def main(argv: list[str] | None = None) -> int:
                 for layout in LAYOUTS:
                     print(f"bimanual graph, {layout}, run {i + 1}/{args.repeat}", flush=True)
                     results["hosts"].append(run_hosts(control, layout, args.out, hosts, args.hosts_discovery,
-                                                      cpu_s=args.cpu_s, grasps=args.grasps, quiet=quiet))
+                                                      args.hosts_graph, cpu_s=args.cpu_s, grasps=args.grasps,
+                                                      quiet=quiet))
             results["hosts_summary"] = summarise_hosts(results["hosts"])
             print(json.dumps(results["hosts_summary"], indent=1), flush=True)
         if "hand" in parts:
