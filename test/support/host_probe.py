@@ -9,7 +9,8 @@ network namespace (two_hosts.Host.run), driven over its stdin/stdout one JSON li
     probe.close()
 
 Requests (`op` and its fields) and what each answers:
-- collect(topic, type): start keeping every message of the topic (`JointState` and stamped messages);
+- collect(topic, type): start keeping every message of the topic (read back by `stamped`, for
+  messages with a header, and `goals`, for an action's status);
 - goals(topic, since_ns): [[accepted_ns, last status]] of the goals an action's status topic (collected,
   type action_msgs/msg/GoalStatusArray) listed, accepted after since_ns;
 - stamped(topic, since_ns, until_ns): {"messages": [[stamp_ns, fields...]]} of the messages stamped

@@ -12,8 +12,8 @@ pair, for the graph split with hand.launch.py parts:=robot|workstation (docs/arc
 Each namespace has its loopback and one end of the veth, with an address on a /30 of its own; no
 route leads anywhere else, so DDS in them can only meet over the link. Names and addresses derive
 from the creating process's id: parallel runs do not clash. Both namespaces share the machine's one
-kernel clock (real hosts need NTP or chrony: the manipulation node's watchdog compares the robot's
-header stamps with its own receipt times).
+kernel clock (real hosts need NTP or chrony: manipulation on the workstation stamps the MoveMotors
+goals whose lease the motor driver on the robot counts from that stamp).
 
 The link faults are the interface going down and up (`ip link set ... down`): the kernels here have
 no netem for loss or delay.
