@@ -54,7 +54,10 @@ class Host:
 
 
 def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    done = subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
+    try:
+        done = subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
+    except OSError as exc:  # no iproute2
+        raise HostsUnavailable(f"ip {' '.join(args)}: {exc}") from exc
     if check and done.returncode != 0:
         raise HostsUnavailable(f"ip {' '.join(args)}: {done.stderr.strip() or done.returncode}")
     return done
