@@ -49,6 +49,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -118,13 +119,13 @@ def _child_env() -> dict:
     return env
 
 
-def start(name: str, cmd: list[str], logdir: Path) -> Proc:
+def start(name: str, cmd: list[str], logdir: Path, env: dict[str, str] | None = None) -> Proc:
     log = logdir / f"{name}.log"
     handle = open(log, "wb")
     # own process group (stopped as a whole); SIGINT back to default in case this script runs as a
     # background job, whose children would otherwise inherit SIGINT ignored
     popen = subprocess.Popen(cmd, stdout=handle, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                             env=_child_env(), start_new_session=True,
+                             env={**_child_env(), **(env or {})}, start_new_session=True,
                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     handle.close()
     return Proc(name, popen, log)
@@ -351,16 +352,17 @@ class Control:
             return True, accept_ns, None, None, end_ns
         return True, accept_ns, response.status, response.result, end_ns
 
-    def grasp_cycle(self) -> dict:
+    def grasp_cycle(self, prefix: str = "") -> dict:
         """One pinch Grasp goal (sent again while refused for now: streams not flowing yet), then
-        the hand opened by a MoveMotors position goal."""
+        the hand opened by a MoveMotors position goal. prefix: the hand's namespace ("/left")."""
         from prisma_msgs.action import Grasp, MoveMotors
 
         from prisma_common.goal_refusal import RETRY_LATER, refusal_code
 
         deadline = time.monotonic() + 20.0
         while True:
-            accepted, accept_ns, status, result, end_ns = self.send(Grasp, "/prisma/grasp", Grasp.Goal(**GRASP), 20.0)
+            accepted, accept_ns, status, result, end_ns = self.send(Grasp, f"{prefix}/prisma/grasp",
+                                                                    Grasp.Goal(**GRASP), 20.0)
             # the node accepts every goal and aborts one it cannot run yet at once, saying why
             accepted = accepted and not (result is not None and refusal_code(result.reason) in RETRY_LATER)
             if accepted or time.monotonic() > deadline:
@@ -372,7 +374,7 @@ class Control:
         # at full speed, thumb first, each until its open stop: a fast release keeps the presenting
         # support from letting go, and opening both at once would roll the ball along the pads (the
         # sim world keeps it), ~0.3 mm per grasp, until the pads miss it
-        opened = [self.send(MoveMotors, "/prisma/motors/move",
+        opened = [self.send(MoveMotors, f"{prefix}/prisma/motors/move",
                             MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0), 20.0)
                   for motor in ("thumb_flexion", "fingers")]
         out["opened"] = all(o[3] is not None and o[3].success for o in opened)
@@ -380,14 +382,16 @@ class Control:
 
 
 # ---- the probe ----------------------------------------------------------------------------------
-def start_probe(topics: list[str], bag: Path, logdir: Path, control: Control) -> Proc:
+def start_probe(topics: list[str], bag: Path, logdir: Path, control: Control,
+                host: Any = None, env: dict[str, str] | None = None) -> Proc:
+    """`ros2 bag record` of `topics` (on another host: two_hosts.Host, with its DDS environment)."""
     qos = bag.parent / f"{bag.name}_qos.yaml"
     # a deep keep-last queue, so the probe never loses what the graph published
     qos.write_text("".join(f"{t}:\n  history: keep_last\n  depth: 1000\n  reliability: reliable\n"
                            f"  durability: volatile\n" for t in topics))
     cmd = ["ros2", "bag", "record", "-s", "mcap", "-o", str(bag), "--include-hidden-topics",
            "--qos-profile-overrides-path", str(qos), *topics]
-    proc = start(f"probe_{bag.name}", cmd, logdir)
+    proc = start(f"probe_{bag.name}", host.run(cmd) if host else cmd, logdir, env)
     # recording starts once the recorder has subscribed to every topic that has a publisher (some,
     # such as /diagnostics for the relays, have none)
     deadline = time.monotonic() + 60.0
@@ -415,7 +419,8 @@ class Recording:
     diagnostics: list = field(default_factory=list)  # (stamp_ns, name, level, message)
 
 
-def read_probe(bag: Path) -> Recording:
+def read_probe(bag: Path, prefix: str = "") -> Recording:
+    """The probe's bag; prefix: a hand's namespace ("/left"), its topics read as the root hand's."""
     from mcap.reader import make_reader
     from rclpy.serialization import deserialize_message
     from rosidl_runtime_py.utilities import get_message
@@ -431,6 +436,8 @@ def read_probe(bag: Path) -> Recording:
         with open(path, "rb") as stream:
             for schema, channel, message in make_reader(stream).iter_messages():
                 topic = channel.topic
+                if prefix and topic.startswith(prefix + "/"):
+                    topic = topic[len(prefix):]
                 if topic not in types:
                     types[topic] = get_message(schema.name)
                 if topic in (MOVE_STATUS, MOVE_FEEDBACK, "/diagnostics"):
@@ -928,6 +935,269 @@ def profile_hand(control: Control, out: Path, seconds: float = 8.0, rate: int = 
     return result
 
 
+# ---- the graph across two hosts ----------------------------------------------------------------
+# bimanual.launch.py's nodes: (label, node name, namespace, the computer parts:= puts it on)
+BIMANUAL_NODES = ([(f"{hand}/{node}", node, f"/{hand}", side) for hand in ("left", "right")
+                   for node, side in (("tactile_driver", "robot"), ("motor_driver", "robot"),
+                                      ("robot_state_publisher", "robot"), ("force_estimator", "workstation"),
+                                      ("manipulation", "workstation"), ("tactile_markers", "workstation"))]
+                  + [("glove/glove_driver", "glove_driver", "", "robot"),
+                     ("glove/glove_perception", "glove_perception", "", "workstation")])
+HOSTS_HAND = "/left"  # the hand the grasps run on and the latency probe records
+# --hosts-graph: the launch command and its nodes (hand: the one hand alone, under the same namespace)
+HOSTS_GRAPHS = {"bimanual": (["bimanual.launch.py"], BIMANUAL_NODES),
+                "hand": (["hand.launch.py", f"namespace:={HOSTS_HAND[1:]}"],
+                         [n for n in BIMANUAL_NODES if n[2] == HOSTS_HAND])}
+LAYOUTS = ("one host", "two hosts")
+CLONE_NEWNET = 0x40000000
+
+
+def enter_netns(name: str) -> None:
+    """Move this process's main thread into the network namespace `name` (`ip netns add`): every
+    thread and process it starts from then on (rclpy's DDS participant, ros2 launch, the probes) is
+    on that host."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    fd = os.open(f"/run/netns/{name}", os.O_RDONLY)
+    try:
+        if libc.setns(fd, CLONE_NEWNET) != 0:
+            errno = ctypes.get_errno()
+            raise OSError(errno, f"setns into network namespace {name}: {os.strerror(errno)}")
+    finally:
+        os.close(fd)
+
+
+def namespaced_node_pids(root_pids: list[int], nodes: list[tuple[str, str, str, str]],
+                         timeout_s: float = 90.0) -> dict[str, int]:
+    """The pid of each of `nodes` (BIMANUAL_NODES rows) launched under `root_pids` (launch_ros
+    passes `-r __node:=<name>` and, under a namespace, `-r __ns:=<namespace>`)."""
+    deadline = time.monotonic() + timeout_s
+    found: dict[str, int] = {}
+    while time.monotonic() < deadline:
+        for pid in [d for root in root_pids for d in descendants(root)]:
+            try:
+                argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+            except OSError:
+                continue
+            ns = next((a[len(b"__ns:="):].decode() for a in argv if a.startswith(b"__ns:=")), "")
+            for label, node, namespace, _ in nodes:
+                if f"__node:={node}".encode() in argv and ns.rstrip("/") == namespace:
+                    found[label] = pid
+        if len(found) == len(nodes):
+            return found
+        time.sleep(0.5)
+    raise RuntimeError(f"launched nodes not found after {timeout_s:.0f} s: missing "
+                       f"{sorted({n[0] for n in nodes} - set(found))}")
+
+
+def link_counters(interface: str) -> dict[str, int]:
+    """Bytes and packets through this namespace's end of the veth (rx: from the robot)."""
+    done = subprocess.run(["ip", "-j", "-s", "link", "show", "dev", interface], capture_output=True, text=True,
+                          check=True)
+    stats = json.loads(done.stdout)[0]["stats64"]
+    return {f"{way}_{what}": int(stats[way][what]) for way in ("rx", "tx") for what in ("bytes", "packets")}
+
+
+def link_rates(before: dict[str, int], after: dict[str, int], seconds: float) -> dict:
+    """Per direction: packets/s and bytes/s on the link (IP packets of UDP: DDS data, acks, discovery)."""
+    return {direction: {"packets_s": round((after[f"{way}_packets"] - before[f"{way}_packets"]) / seconds, 1),
+                        "bytes_s": round((after[f"{way}_bytes"] - before[f"{way}_bytes"]) / seconds)}
+            for direction, way in (("robot -> workstation", "rx"), ("workstation -> robot", "tx"))}
+
+
+def crossing_topics(control: Control) -> list[dict]:
+    """Every topic published on one computer and subscribed on the other (bimanual.launch.py split):
+    its direction and how many subscriber processes on the far side (DDS sends each its own copy)."""
+    side = {(ns or "/", node): where for _, node, ns, where in BIMANUAL_NODES}
+    out = []
+    for topic, _ in control.node.get_topic_names_and_types():
+        pubs = {side.get((i.node_namespace, i.node_name)) for i in control.node.get_publishers_info_by_topic(topic)}
+        subs = [side.get((i.node_namespace, i.node_name)) for i in control.node.get_subscriptions_info_by_topic(topic)]
+        for where in ("robot", "workstation"):
+            far = [s for s in subs if s is not None and s != where]
+            if where in pubs and far:
+                out.append({"topic": topic, "direction": f"{where} -> {far[0]}", "far_subscribers": len(far)})
+    return sorted(out, key=lambda t: (t["direction"], t["topic"]))
+
+
+def bag_rates(bag: Path) -> dict[str, dict]:
+    """Messages/s and serialised bytes/s per topic of a probe's bag (over the span of its receipts)."""
+    from mcap.reader import make_reader
+
+    seen: dict[str, list[int]] = {}  # topic -> [count, bytes, first, last receipt ns]
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as stream:
+            for _, channel, message in make_reader(stream).iter_messages():
+                c = seen.setdefault(channel.topic, [0, 0, message.log_time, message.log_time])
+                c[0] += 1
+                c[1] += len(message.data)
+                c[2], c[3] = min(c[2], message.log_time), max(c[3], message.log_time)
+    out = {}
+    for topic, (n, size, first, last) in seen.items():
+        rate = (n - 1) / ((last - first) * 1e-9) if n > 1 and last > first else 0.0
+        out[topic] = {"msgs_s": round(rate, 1), "bytes_s": round(size / n * rate)}
+    return out
+
+
+def run_hosts(control: Control, layout: str, out: Path, hosts: Any, discovery: str, graph: str = "bimanual",
+              settle_s: float = 5.0, cpu_s: float = 12.0, link_s: float = 10.0, grasps: int = 5,
+              quiet: tuple[float | None, float] = (None, 0.0)) -> dict:
+    """The graph of HOSTS_GRAPHS on one host (parts:=all in the workstation's namespace) or split
+    (the robot part in the robot's namespace): CPU of every node, then (split) what crosses the
+    link, then the latency probe on the workstation while pinch grasps run on the left hand."""
+    launch_args, nodes = HOSTS_GRAPHS[graph]
+    before = wait_quiet(*quiet)
+    tag = f"hosts_{layout.replace(' ', '_')}_{time.strftime('%H%M%S')}"
+    logdir = out / tag
+    logdir.mkdir(parents=True, exist_ok=True)
+    launch = ["ros2", "launch", "prisma_bringup", *launch_args]
+    robot_env = hosts.dds_env(hosts.robot, discovery)
+    if layout == "one host":
+        procs = [start("bimanual", launch, logdir)]
+    else:
+        procs = [start("bimanual_robot", hosts.robot.run([*launch, "parts:=robot"]), logdir, robot_env),
+                 start("bimanual_workstation", [*launch, "parts:=workstation"], logdir)]
+    result: dict = {"kind": layout, "machine_before": before, "discovery": discovery, "graph": graph}
+    probes: list[Proc] = []
+    try:
+        hands = sorted({ns for _, _, ns, _ in nodes if ns})
+        control.wait_publishers([f"{h}/prisma/hand/{s}" for h in hands for s in ("taxels", "wrench")]
+                                + (["/stag/hand_pose"] if graph == "bimanual" else []), 120.0, procs)
+        pids = namespaced_node_pids([p.popen.pid for p in procs], nodes)
+        pids.update({f"launch ({p.name})": p.popen.pid for p in procs})
+        time.sleep(settle_s)
+        if layout == "two hosts":
+            link0 = link_counters(hosts.workstation.interface)
+        result["cpu"] = measure_cpu(pids, cpu_s)
+        if layout == "two hosts":
+            result["link_idle"] = link_rates(link0, link_counters(hosts.workstation.interface),
+                                             result["cpu"]["window_s"])
+            # what each crossing topic carries: recorded on the side that publishes it, where the
+            # recorder adds no copy to the link
+            crossing = crossing_topics(control)
+            bags = {}
+            for where, host in (("robot", hosts.robot), ("workstation", None)):
+                topics = [t["topic"] for t in crossing if t["direction"].startswith(where)]
+                if topics:
+                    probes.append(start_probe(topics, logdir / f"link_{where}", logdir, control, host,
+                                              robot_env if host else None))
+                    bags[where] = logdir / f"link_{where}"
+            time.sleep(link_s)
+            stop(probes)
+            probes = []
+            rates = {t: r for bag in bags.values() for t, r in bag_rates(bag).items()}
+            result["crossing"] = [t | rates.get(t["topic"], {"msgs_s": 0.0, "bytes_s": 0}) for t in crossing]
+        topics = [f"{HOSTS_HAND}{t}" for t in ("/prisma/hand/contact", "/prisma/hand/wrench")] + [
+            f"{HOSTS_HAND}{MOVE_STATUS}", f"{HOSTS_HAND}{MOVE_FEEDBACK}"]
+        probes.append(start_probe(topics, logdir / "probe", logdir, control))
+        link0 = link_counters(hosts.workstation.interface) if layout == "two hosts" else None
+        t0 = time.monotonic()
+        cycles = [control.grasp_cycle(HOSTS_HAND) for _ in range(grasps)]
+        if link0 is not None:
+            result["link_grasping"] = link_rates(link0, link_counters(hosts.workstation.interface),
+                                                 time.monotonic() - t0)
+        stop(probes)
+        probes = []
+        _check_alive(procs)
+        rec = read_probe(logdir / "probe", HOSTS_HAND)
+    finally:
+        stop(probes + procs)
+    result["grasps"] = [{k: g[k] for k in ("success", "reason", "opened")} for g in cycles]
+    windows = [(g["accept_ns"], g["end_ns"]) for g in cycles if g["accepted"]]
+    stats, _ = latencies(rec, windows)
+    move, counts = move_latency_real(rec, cycles)
+    stats["move_accepted"] = _stats(move) | counts
+    result["latency"] = {k: v for k, v in stats.items() if "/" not in k}
+    return result
+
+
+def summarise_hosts(runs: list[dict]) -> dict:
+    """Medians (and spread over repeats) of the one-host and two-host runs, side by side."""
+    by = {k: [r for r in runs if r["kind"] == k] for k in LAYOUTS}
+    out: dict = {"cpu_pct": {}, "latency_ms": {}, "repeats": len(by["two hosts"]),
+                 "graph": " ".join(HOSTS_GRAPHS[runs[0].get("graph", "bimanual")][0])}
+
+    def cpu(run: dict, labels: list[str]) -> float:
+        return sum(run["cpu"]["processes"][label]["cpu_pct"] for label in labels)
+
+    nodes = HOSTS_GRAPHS[runs[0].get("graph", "bimanual")][1]
+    groups = {label: [label] for label, *_ in nodes}
+    for hand in sorted({ns for _, _, ns, _ in nodes if ns}):
+        for where in ("robot", "workstation"):
+            groups[f"{hand[1:]} hand, {where} part"] = [lb for lb, _, ns, w in nodes if ns == hand and w == where]
+        groups[f"{hand[1:]} hand"] = [lb for lb, _, ns, _ in nodes if ns == hand]
+    for where in ("robot", "workstation"):
+        groups[f"{where} computer (its nodes)"] = [lb for lb, *_, w in nodes if w == where]
+    groups["all nodes"] = [lb for lb, *_ in nodes]
+    for name, labels in groups.items():
+        one = [cpu(r, labels) for r in by["one host"]]
+        two = [cpu(r, labels) for r in by["two hosts"]]
+        out["cpu_pct"][name] = {"one host": _median_spread(one), "two hosts": _median_spread(two),
+                                "ratio": _median_spread([b / a for a, b in zip(one, two) if a])}
+    for hop in ("contact_received", "wrench_received", "move_accepted", "contact_published", "wrench_published"):
+        entry = {}
+        for q in ("p50_ms", "p99_ms"):
+            one = [r["latency"][hop].get(q) for r in by["one host"]]
+            two = [r["latency"][hop].get(q) for r in by["two hosts"]]
+            entry[q] = {"one host": _median_spread(one), "two hosts": _median_spread(two),
+                        "added": _median_spread([b - a for a, b in zip(one, two) if a is not None and b is not None])}
+        entry["n"] = {k: [r["latency"][hop]["n"] for r in by[k]] for k in LAYOUTS}
+        out["latency_ms"][hop] = entry
+    out["grasps"] = {k: [f"{sum(g['success'] for g in r['grasps'])}/{len(r['grasps'])}" for r in by[k]]
+                     for k in LAYOUTS}
+    split = by["two hosts"]
+    for window in ("link_idle", "link_grasping"):
+        out[window] = {d: {q: _median_spread([r[window][d][q] for r in split]) for q in ("packets_s", "bytes_s")}
+                       for d in ("robot -> workstation", "workstation -> robot")}
+    topics: dict[tuple[str, str], list] = {}
+    for r in split:
+        for t in r["crossing"]:
+            topics.setdefault((t["direction"], t["topic"]), []).append(t)
+    out["crossing"] = [{"direction": d, "topic": t, "far_subscribers": rows[0]["far_subscribers"],
+                        "msgs_s": _median_spread([x["msgs_s"] for x in rows]),
+                        "bytes_s": _median_spread([x["bytes_s"] for x in rows])}
+                       for (d, t), rows in sorted(topics.items())]
+    out["machine"] = {k: [r["cpu"][k] for r in runs] for k in ("others_pct", "loadavg_1min")}
+    return out
+
+
+def markdown_hosts(h: dict) -> list[str]:
+    graph = h.get("graph", "bimanual.launch.py")
+    out = [f"### One host and two hosts: {graph} (% of one core, median (min-max) of {h['repeats']} runs each)",
+           "", "| processes | one host | two hosts | two / one |", "|---|---|---|---|"]
+    for name, row in h["cpu_pct"].items():
+        out.append(f"| {name} | {_cell(row['one host'])} | {_cell(row['two hosts'])} | {_cell(row['ratio'])} |")
+    out += ["", f"### Latency, {HOSTS_HAND} hand, probe on the workstation (ms)", "",
+            "| from the taxel stamp to | one host p50 | two hosts p50 | one host p99 | two hosts p99 | p99 added "
+            "| samples (one; two) |", "|---|---|---|---|---|---|---|"]
+    names = {"contact_received": "ContactState received at the workstation's probe",
+             "wrench_received": "WrenchStamped received at the workstation's probe",
+             "move_accepted": "MoveMotors goal accepted at the motor driver (robot)",
+             "contact_published": "ContactState published (DDS source time)",
+             "wrench_published": "WrenchStamped published (DDS source time)"}
+    for hop, label in names.items():
+        e = h["latency_ms"][hop]
+        out.append(f"| {label} | {_cell(e['p50_ms']['one host'])} | {_cell(e['p50_ms']['two hosts'])} | "
+                   f"{_cell(e['p99_ms']['one host'])} | {_cell(e['p99_ms']['two hosts'])} | "
+                   f"{_cell(e['p99_ms']['added'])} | {sum(e['n']['one host'])}; {sum(e['n']['two hosts'])} |")
+    out += ["", f"Grasps (succeeded/sent): one host {', '.join(h['grasps']['one host'])}; two hosts "
+                f"{', '.join(h['grasps']['two hosts'])}.", "",
+            "### On the link (IP packets and bytes, both hands and the glove)", "",
+            "| window | direction | packets/s | bytes/s |", "|---|---|---|---|"]
+    for window, label in (("link_idle", "no goal"), ("link_grasping", "pinch grasps on the left hand")):
+        for d, row in h[window].items():
+            out.append(f"| {label} | {d} | {_cell(row['packets_s'])} | {_cell(row['bytes_s'])} |")
+    out += ["", "| direction | topic | subscribers across | messages/s | serialised bytes/s (one copy) |",
+            "|---|---|---|---|---|"]
+    for t in h["crossing"]:
+        out.append(f"| {t['direction']} | {t['topic']} | {t['far_subscribers']} | {_cell(t['msgs_s'])} | "
+                   f"{_cell(t['bytes_s'])} |")
+    out += ["", f"Other load during the CPU windows (% of one core): {h['machine']['others_pct']}; 1-min load "
+                f"average at each window's start and end: {h['machine']['loadavg_1min']}.", ""]
+    return out
+
+
 # ---- the whole measurement -----------------------------------------------------------------------
 def _median_spread(values: list[float]) -> dict:
     v = [x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))]
@@ -1107,6 +1377,8 @@ def markdown(results: dict) -> str:
                 f"Other load during the CPU windows (% of one core, all other processes): "
                 f"{h['machine']['others_pct']}; 1-min load average at the window's start and end: "
                 f"{h['machine']['loadavg_1min']}.", ""]
+    if "hosts_summary" in results:
+        out += markdown_hosts(results["hosts_summary"])
     if results.get("sweep"):
         out += ["### Scan-rate sweep (5 fingers, pinch grasps running, probe = ros2 bag record)", "",
                 "| commanded Hz | graph: received Hz | no wrench | no contact | stale | grasps | "
@@ -1182,7 +1454,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweep-s", type=float, default=12.0, help="probe recording per sweep rate (s)")
     parser.add_argument("--parts", default="hand,sweep,glove,entities,profile",
                         help="which measurements, comma separated (hand, sweep, glove, entities, profile, "
-                             "markers)")
+                             "markers); hosts (alone): the bimanual graph on one host and split across two "
+                             "network namespaces (root)")
+    parser.add_argument("--hosts-discovery", choices=("subnet", "static"), default="subnet",
+                        help="--parts hosts: DDS discovery over the link (test/support/two_hosts.py)")
+    parser.add_argument("--hosts-graph", choices=tuple(HOSTS_GRAPHS), default="bimanual",
+                        help="--parts hosts: both hands and the glove, or the left hand alone")
     parser.add_argument("--quiet-below", type=float,
                         help="before each run, wait until the machine uses at most this CPU %% (of one core)")
     parser.add_argument("--quiet-wait", type=float, default=600.0, help="... for at most this many seconds")
@@ -1205,10 +1482,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: {missing}", file=sys.stderr)
         return 2
     parts = set(args.parts.split(","))
-    unknown = parts - {"hand", "sweep", "glove", "entities", "profile", "markers"}
+    unknown = parts - {"hand", "sweep", "glove", "entities", "profile", "markers", "hosts"}
     if unknown:
         parser.error(f"unknown --parts {sorted(unknown)}; choose from hand, sweep, glove, entities, profile, "
-                     "markers")
+                     "markers, hosts")
+    if "hosts" in parts and parts != {"hosts"}:
+        parser.error("--parts hosts runs alone: it moves this process onto the workstation's network namespace")
     if "profile" in parts and shutil.which("py-spy") is None:
         parser.error("--parts profile needs py-spy on PATH (pip install py-spy)")
     quiet = (args.quiet_below, args.quiet_wait)
@@ -1220,8 +1499,37 @@ def main(argv: list[str] | None = None) -> int:
                                  "rmw": os.environ.get("RMW_IMPLEMENTATION")},
                      "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": " ".join(sys.argv),
                      "graph_probe": args.graph_probe}
-    control = Control()
+    hosts = None
+    if "hosts" in parts:
+        sys.path.insert(0, str(HERE.parent / "test" / "support"))
+        from two_hosts import HostsUnavailable, TwoHosts
+
+        try:
+            hosts = TwoHosts.create()
+        except HostsUnavailable as exc:
+            print(f"skipped: two hosts need network namespaces: {exc}", file=sys.stderr)
+            return 2
+        # this process (the goals' client) runs on the workstation, with its DDS settings
+        enter_netns(hosts.workstation.netns)
+        os.environ.update(hosts.dds_env(hosts.workstation, args.hosts_discovery))
+        results["hosts_discovery"] = args.hosts_discovery
     try:
+        control = Control()
+    except BaseException:
+        if hosts is not None:
+            hosts.delete()
+        raise
+    try:
+        if "hosts" in parts:
+            results["hosts"] = []
+            for i in range(args.repeat):
+                for layout in LAYOUTS:
+                    print(f"bimanual graph, {layout}, run {i + 1}/{args.repeat}", flush=True)
+                    results["hosts"].append(run_hosts(control, layout, args.out, hosts, args.hosts_discovery,
+                                                      args.hosts_graph, cpu_s=args.cpu_s, grasps=args.grasps,
+                                                      quiet=quiet))
+            results["hosts_summary"] = summarise_hosts(results["hosts"])
+            print(json.dumps(results["hosts_summary"], indent=1), flush=True)
         if "hand" in parts:
             results["hand"] = []
             for i in range(args.repeat):
@@ -1260,9 +1568,12 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps(results["profile"], indent=1), flush=True)
     finally:
         control.close()
+        if hosts is not None:
+            hosts.delete()
         if not args.keep_bags:
-            for bag in args.out.glob("*/probe"):
-                shutil.rmtree(bag, ignore_errors=True)
+            for bag in [*args.out.glob("*/probe"), *args.out.glob("*/link_*")]:
+                if bag.is_dir():
+                    shutil.rmtree(bag, ignore_errors=True)
     results["finished"] = time.strftime("%Y-%m-%d %H:%M:%S")
     results["machine"]["loadavg_at_end"] = [round(x, 2) for x in os.getloadavg()]
     path = args.out / "results.json"

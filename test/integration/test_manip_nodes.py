@@ -26,14 +26,15 @@ from geometry_msgs.msg import Vector3, Wrench, WrenchStamped  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate, MoveMotors  # noqa: E402
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rosidl_runtime_py.utilities import get_message  # noqa: E402
+from rclpy.task import Future  # noqa: E402
+from rosidl_runtime_py.utilities import get_action, get_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import (
     FINGERS,  # noqa: E402
     MOTOR_NAMES,  # noqa: E402
 )
-from prisma_common.messages import make_header
+from prisma_common.messages import make_header, robot_types
 from prisma_common.parameters import ParameterError  # noqa: E402
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
 from prisma_hand_sim.hand_world import OBJECTS, HandWorld, released  # noqa: E402
@@ -41,6 +42,7 @@ from prisma_hand_sim.pad_model import PadModel  # noqa: E402
 from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S, GraspRequest  # noqa: E402
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
 from prisma_motor_driver.motor_driver_node import MotorDriverNode  # noqa: E402
+from prisma_motor_driver.ros_conversions import move_goal_to_msg, velocity_goal  # noqa: E402
 from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg  # noqa: E402
 from prisma_tactile_driver.taxels import TaxelFrame
 
@@ -638,6 +640,39 @@ def test_manipulation_node_destroyed_mid_goal_stops_the_motors_within_half_a_sec
     assert not h.motor.core.runner.active  # the goal was dropped
     assert ros.wait_for_log(name="motor_driver", contains="MoveMotors goal ended: timeout")
     assert all(t <= last_refresh for t, _ in h.move_goals)
+
+
+def test_a_move_goal_delivered_after_its_lease_is_refused_and_ends_nothing(ros, hand):
+    """A MoveMotors goal that a dropped link held back arrives with its lease over: the motor
+    driver refuses it (its stamp says when it was sent), and manipulation, which has sent newer
+    goals since, lets that refusal pass: the grasp goes on to force_reached."""
+    ros.capture_logs()
+    h = hand(stand_world())
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch"))
+    assert handle.accepted
+    ros.advance(0.2, step=STEP, settle=True)
+    sent_ns = ros.now_ns() - 350 * MS  # a refresh sent 0.35 s ago, delivered now
+    held_back = move_goal_to_msg(get_message_or_action, velocity_goal({"fingers": 60.0}, MOVE_LEASE_S, sent_ns))
+    late = send(ros, f"{NS}/prisma/motors/move", MoveMotors, held_back)
+    refused = ros.result(late, timeout_sec=5.0)
+    assert refused.status == GoalStatus.STATUS_ABORTED
+    assert refused.result.reason.startswith("invalid: its timeout 0.3 s ended before it arrived (sent 350 ms ago")
+    assert ros.wait_for_log(name="motor_driver", contains="its timeout 0.3 s ended before it arrived (sent 350 ms ago")
+    m = h.manipulation
+    accepted, ended = Future(), Future()
+    accepted.set_result(late)
+    ended.set_result(refused)
+    # the answers to a goal that newer ones replaced: its acceptance, then its refusal
+    m._on_move_accepted(accepted, m._move_seq - 1)
+    m._on_move_result(ended, m._move_seq - 1)
+    result = finish(ros, handle)
+    assert (result.status, result.result.reason) == (GoalStatus.STATUS_SUCCEEDED, "force_reached")
+    assert ros.logs(name="manipulation", contains="MoveMotors goal rejected") == []
+
+
+def get_message_or_action(name: str):
+    """The message-class lookup of the converters, for action-derived types too."""
+    return robot_types(get_message, get_action)(name)
 
 
 def test_foreign_joint_states_during_a_goal_change_nothing(ros, hand):

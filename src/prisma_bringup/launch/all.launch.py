@@ -3,6 +3,7 @@
     ros2 launch prisma_bringup all.launch.py                       # both simulated
     ros2 launch prisma_bringup all.launch.py sim:=false glove_backend:=serial glove_port:=/dev/ttyACM0
     ros2 launch prisma_bringup all.launch.py glove:=false
+    ros2 launch prisma_bringup all.launch.py parts:=robot         # the drivers; parts:=workstation the rest
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
@@ -24,17 +25,21 @@ def generate_launch_description():
                               description="Also start the STAG glove nodes"),
         DeclareLaunchArgument("glove_backend", default_value="sim", choices=["sim", "serial", "replay"]),
         DeclareLaunchArgument("glove_port", default_value="/dev/ttyACM0"),
+        DeclareLaunchArgument("parts", default_value="all", choices=["all", "robot", "workstation"],
+                              description="Which computer's share of hand and glove to start (hand.launch.py)"),
     ]
     hand = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": LaunchConfiguration("sim"),
                           "tactile_backend": LaunchConfiguration("tactile_backend"),
-                          "motor_backend": LaunchConfiguration("motor_backend")}.items(),
+                          "motor_backend": LaunchConfiguration("motor_backend"),
+                          "parts": LaunchConfiguration("parts")}.items(),
     )
     glove = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),
         launch_arguments={"backend": LaunchConfiguration("glove_backend"),
-                          "port": LaunchConfiguration("glove_port")}.items(),
+                          "port": LaunchConfiguration("glove_port"),
+                          "parts": LaunchConfiguration("parts")}.items(),
         condition=IfCondition(LaunchConfiguration("glove")),
     )
     return LaunchDescription(declared_arguments + [hand, glove])

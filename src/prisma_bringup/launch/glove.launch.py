@@ -4,13 +4,17 @@
     ros2 launch prisma_bringup glove.launch.py backend:=serial port:=/dev/ttyACM0
     ros2 launch prisma_bringup glove.launch.py backend:=replay replay_file:=/data/stag/metadata.mat
     ros2 launch prisma_bringup glove.launch.py perception:=false
+    ros2 launch prisma_bringup glove.launch.py parts:=robot        # the driver; parts:=workstation perception
+
+parts:= splits the glove between two computers on one ROS domain as hand.launch.py does: robot runs
+glove_driver (beside the readout board), workstation glove_perception (the networks), all both.
 
 Every parameter not given here comes from config/glove_driver.yaml and config/glove_perception.yaml.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
@@ -30,7 +34,11 @@ def generate_launch_description():
         DeclareLaunchArgument("perception", default_value="true", choices=["true", "false"],
                               description="Also run glove_perception (object, hand pose, weight)"),
         DeclareLaunchArgument("namespace", default_value="", description="Namespace for the glove nodes"),
+        DeclareLaunchArgument("parts", default_value="all", choices=["all", "robot", "workstation"],
+                              description="Which computer's share to start: robot (glove_driver), workstation "
+                                          "(glove_perception) or all"),
     ]
+    parts = LaunchConfiguration("parts")
 
     driver = Node(
         package="stag_glove", executable="glove_driver", name="glove_driver",
@@ -39,11 +47,13 @@ def generate_launch_description():
                     {"backend": LaunchConfiguration("backend"),
                      "port": ParameterValue(LaunchConfiguration("port"), value_type=str),
                      "replay_file": ParameterValue(LaunchConfiguration("replay_file"), value_type=str)}],
+        condition=IfCondition(PythonExpression(["'", parts, "' != 'workstation'"])),
     )
     perception = Node(
         package="stag_glove", executable="glove_perception", name="glove_perception",
         namespace=namespace, output="screen",
         parameters=[PathJoinSubstitution([config, "glove_perception.yaml"])],
-        condition=IfCondition(LaunchConfiguration("perception")),
+        condition=IfCondition(PythonExpression(["'", LaunchConfiguration("perception"), "' == 'true' and '",
+                                                parts, "' != 'robot'"])),
     )
     return LaunchDescription(declared_arguments + [driver, perception])

@@ -5,6 +5,7 @@
     ros2 launch prisma_bringup hand.launch.py sim:=false tactile_backend:=i2c
     ros2 launch prisma_bringup hand.launch.py model_bundle:=/path/to/bundle namespace:=left
     ros2 launch prisma_bringup hand.launch.py hardware:=emulated   # + tactile_backend:=i2c
+    ros2 launch prisma_bringup hand.launch.py parts:=robot         # on the robot; parts:=workstation beside it
 
 sim:=true runs the drivers' sim backends: motor_driver simulates the motors and publishes
 /joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world)
@@ -24,6 +25,12 @@ Beside them: robot_state_publisher (the hand's description from prisma_descripti
 /tf_static for every frame the hand's messages name; under a namespace its frames get the prefix
 `<namespace>/`, and the drivers stamp their messages with it) and tactile_markers (the pads drawn in
 RViz, idle until a display subscribes). rviz:=true opens RViz with the hand, its taxels and forces.
+
+parts:= splits the hand between two computers on one ROS domain (docs/architecture.md, "Across
+machines"): parts:=robot starts what talks to the hardware (tactile_driver, motor_driver,
+robot_state_publisher; the emulator with hardware:=emulated), parts:=workstation the rest
+(force_estimator, manipulation, tactile_markers, RViz); parts:=all (the default) both. The nodes do
+not know where the others run: same topics, same actions.
 
 The control path (the four nodes, and the emulator with hardware:=emulated) runs with real-time
 scheduling, SCHED_FIFO rt_priority:=20, ahead of every ordinary process: a plotting tool, a recorder,
@@ -69,9 +76,14 @@ def generate_launch_description():
     namespace = LaunchConfiguration("namespace")
     hardware = LaunchConfiguration("hardware")
     emulator_dir = LaunchConfiguration("emulator_dir")
-    emulated = IfCondition(PythonExpression(["'", hardware, "' == 'emulated'"]))
-    simulated = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'true'"]))
-    on_robot = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'false'"]))
+    parts = LaunchConfiguration("parts")
+    robot_side = ["'", parts, "' != 'workstation'"]
+    workstation_side = ["'", parts, "' != 'robot'"]
+    emulated = IfCondition(PythonExpression(["'", hardware, "' == 'emulated' and ", *robot_side]))
+    simulated = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'true' and ",
+                                              *robot_side]))
+    on_robot = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'false' and ",
+                                             *robot_side]))
 
     declared_arguments = [
         DeclareLaunchArgument("sim", default_value="true", choices=["true", "false"],
@@ -107,6 +119,10 @@ def generate_launch_description():
                                           "none at the root"),
         DeclareLaunchArgument("rviz", default_value="false", choices=["true", "false"],
                               description="Open RViz with the hand model, its taxels, contacts and forces"),
+        DeclareLaunchArgument("parts", default_value="all", choices=["all", "robot", "workstation"],
+                              description="Which computer's share to start: robot (the drivers and "
+                                          "robot_state_publisher), workstation (force_estimator, manipulation, "
+                                          "the display tools) or all"),
         DeclareLaunchArgument("rt_priority", default_value="20",
                               description="SCHED_FIFO priority of the control path (1-99; 0: no real-time scheduling)"),
         DeclareLaunchArgument("nice", default_value="-5",
@@ -118,6 +134,7 @@ def generate_launch_description():
     given_prefix = LaunchConfiguration("frame_prefix")
     frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
                                      "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
+    on_workstation = IfCondition(PythonExpression(workstation_side))
     pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
     # read by each process at start, before its threads exist (prisma_common/scheduling.py)
     priority = {"PRISMA_RT_PRIORITY": LaunchConfiguration("rt_priority"), "PRISMA_NICE": LaunchConfiguration("nice")}
@@ -183,11 +200,13 @@ def generate_launch_description():
         namespace=namespace, output="screen", additional_env=priority, exec_name="force_estimator",
         parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
                     {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
+        condition=on_workstation,
     )
     manipulation = Node(
         package="prisma_manipulation", executable="manipulation", name="manipulation",
         namespace=namespace, output="screen", additional_env=priority, exec_name="manipulation",
         parameters=[PathJoinSubstitution([config, "manipulation.yaml"]), {"frame_id_format": pad_frames}],
+        condition=on_workstation,
     )
     description = ParameterValue(
         Command(["xacro ", PathJoinSubstitution([FindPackageShare("prisma_description"), "urdf",
@@ -196,14 +215,17 @@ def generate_launch_description():
         package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
         namespace=namespace, output="screen",
         parameters=[{"robot_description": description, "frame_prefix": frame_prefix}],
+        condition=IfCondition(PythonExpression(robot_side)),
     )
     tactile_markers = Node(
         package="prisma_visualization", executable="tactile_markers", name="tactile_markers",
         namespace=namespace, output="screen",
         parameters=[PathJoinSubstitution([config, "tactile_markers.yaml"])],
+        condition=on_workstation,
     )
     rviz = OpaqueFunction(function=rviz_for_this_hand, args=[config, namespace, frame_prefix],
-                          condition=IfCondition(LaunchConfiguration("rviz")))
+                          condition=IfCondition(PythonExpression(["'", LaunchConfiguration("rviz"), "' == 'true' and ",
+                                                                  *workstation_side])))
 
     nodes = [tactile_sim, tactile_hardware, motors_sim, motors_hardware,
              emulator, tactile_emulated, motors_emulated, force_estimator, manipulation,

@@ -186,7 +186,7 @@ class ClosedLoop:
     def _carry_out(self, actions: list, scan: Scan) -> None:
         for action in actions:
             if isinstance(action, SendMove):
-                self.motor.start(velocity_goal(action.velocities_rpm, action.timeout_s), scan.stamp_ns)
+                self.motor.start(velocity_goal(action.velocities_rpm, action.timeout_s, scan.stamp_ns), scan.stamp_ns)
             elif isinstance(action, StopMotors):
                 self.motor.cancel()
             elif isinstance(action, Finished):

@@ -220,20 +220,23 @@ class ManipulationNode(Node):
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
         seq = self._move_seq
-        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s))
+        # stamped: the lease counts from now, so a goal a dropped link delivers late is refused
+        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s, self._now_ns()))
         future = self._move_client.send_goal_async(goal)
         future.add_done_callback(lambda f, s=seq: self._on_move_accepted(f, s))
 
     def _on_move_accepted(self, future, seq: int) -> None:
         handle = future.result()
+        if seq != self._move_seq:
+            # a newer command or a stop came while this one was on its way: it must not keep running
+            # (if a newer goal already replaced it on the motor driver, the cancel is simply refused),
+            # and its rejection (the motor driver refuses one delivered after its lease) ends nothing
+            if handle.accepted:
+                handle.cancel_goal_async()
+            return
         if not handle.accepted:
             self.get_logger().error("MoveMotors goal rejected by the motor driver")
             self._apply(self.core.on_move_result("motor_fault: MoveMotors goal rejected", self._now_ns()))
-            return
-        if seq != self._move_seq:
-            # a newer command or a stop came while this one was on its way: it must not keep running
-            # (if a newer goal already replaced it on the motor driver, the cancel is simply refused)
-            handle.cancel_goal_async()
             return
         self._move_handle = handle
         handle.get_result_async().add_done_callback(lambda f, s=seq: self._on_move_result(f, s))

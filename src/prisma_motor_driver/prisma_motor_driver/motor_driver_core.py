@@ -9,7 +9,15 @@ from prisma_common.goal_refusal import INVALID, NOT_READY, Refusal
 
 from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
-from .motor_goals import GoalStartError, MoveFeedback, MoveGoal, MoveGoalRunner, MoveResult, validate_goal
+from .motor_goals import (
+    GoalStartError,
+    MoveFeedback,
+    MoveGoal,
+    MoveGoalRunner,
+    MoveResult,
+    goal_expired,
+    validate_goal,
+)
 from .node_config import MotorDriverConfig
 
 
@@ -87,13 +95,14 @@ class MotorDriverCore:
             self._new_errors.append(error)
             self._reported_error = error
 
-    def validate(self, goal: MoveGoal) -> Refusal | None:
+    def validate(self, goal: MoveGoal, now_ns: int | None = None) -> Refusal | None:
         """Why the goal is refused (the node aborts it at once with this reason), else None:
-        not_ready while the bus is not connected, invalid for a malformed goal. A goal naming a
-        faulted motor is valid: it fails at start with the fault reason."""
+        not_ready while the bus is not connected, invalid for a malformed goal or (given the time it
+        arrives) one whose timeout ended on the way. A goal naming a faulted motor is valid: it
+        fails at start with the fault reason."""
         if not self.connected:
             return Refusal(NOT_READY, f"motor bus not connected: {self.last_error or 'not opened yet'}")
-        reason = validate_goal(goal, self.bus.motors)
+        reason = validate_goal(goal, self.bus.motors) or (goal_expired(goal, now_ns) if now_ns is not None else None)
         return Refusal(INVALID, reason) if reason else None
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:

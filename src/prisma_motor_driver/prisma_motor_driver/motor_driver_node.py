@@ -76,7 +76,7 @@ class MotorDriverNode(Node):
 
     async def _execute(self, goal_handle):
         goal = move_goal_from_msg(goal_handle.request)
-        refusal = self.core.validate(goal)
+        refusal = self.core.validate(goal, self._now_ns())
         if refusal is not None:
             self.get_logger().warning(f"MoveMotors goal refused: {refusal}")
             goal_handle.abort()

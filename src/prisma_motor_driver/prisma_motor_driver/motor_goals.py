@@ -14,6 +14,11 @@ Goal semantics (MoveMotors.action):
   a [min, max] pair per motor (flattened).
 - a velocity-mode motor already at its stop position in its direction of travel when the goal starts
   is not driven (a re-sent command does not push a stopped motor into its limit again);
+- `stamp_ns` (when the client sent the goal, by its clock; 0 = not given): the timeout counts from
+  there, but never from later than the goal's arrival (a client clock ahead of the driver's cannot
+  lengthen it); a goal whose timeout has passed when it arrives is rejected. A velocity goal is a
+  lease its client renews by sending the next one: one that a dropped link held back and delivered
+  once the link came back would otherwise start the motors after its client had stopped them;
 - cancel stops the motors ("canceled"); a new goal preempts the running one ("preempted"); a hardware
   error on ANY motor turns that motor's torque off and aborts the running goal with a reason naming
   the motor, its ID and the error bit; a bus failure aborts it with "motor_fault: communication ...".
@@ -45,6 +50,7 @@ class MoveGoal:
     targets: list[float]
     position_limits: list[float] = field(default_factory=list)
     timeout_s: float = 0.0
+    stamp_ns: int = 0  # when the client sent it (0: not given)
 
 
 @dataclass
@@ -93,6 +99,17 @@ def validate_goal(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[s
     return goal_fault(goal, motors, faults or {})
 
 
+def goal_expired(goal: MoveGoal, now_ns: int) -> str | None:
+    """Why a stamped goal with a timeout arrives too late to run, else None."""
+    if goal.stamp_ns <= 0 or goal.timeout_s <= 0:
+        return None
+    age_ns = now_ns - goal.stamp_ns
+    if age_ns < goal.timeout_s * 1e9:
+        return None
+    return (f"its timeout {goal.timeout_s:g} s ended before it arrived (sent {age_ns / 1e6:.0f} ms ago by its "
+            f"stamp): held up on the way (a link that dropped?), or the client's clock is behind this one")
+
+
 def goal_fault(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[str, int]) -> str | None:
     """The fault reason naming each of the goal's motors with an active hardware error, else None."""
     return "; ".join(fault_reason(m, motors[m].servo_id, faults[m]) for m in goal.motors if faults.get(m)) or None
@@ -120,6 +137,7 @@ class MoveGoalRunner:
         self.position_tolerance_rad = position_tolerance_rad
         self.goal: MoveGoal | None = None
         self.start_ns = 0
+        self.deadline_ns = 0  # when the running goal's timeout ends it (timeout > 0)
         self.faults: dict[str, int] = {}  # motor -> Hardware Error Status seen
         self.fault_log: list[str] = []
         self._stopped: set[str] = set()
@@ -172,6 +190,8 @@ class MoveGoalRunner:
                 self.fault_log.append(f"stop failed: {stop_exc}")
             raise GoalStartError(exc, preempted) from exc
         self.goal, self.start_ns, self._stopped = goal, stamp_ns, stopped
+        start = min(stamp_ns, goal.stamp_ns) if goal.stamp_ns > 0 else stamp_ns
+        self.deadline_ns = start + round(goal.timeout_s * 1e9)
         return preempted
 
     def _at_stop(self, goal: MoveGoal, index: int, position: float) -> bool:
@@ -219,7 +239,7 @@ class MoveGoalRunner:
             errors = [abs(states[m].position_rad - t) for m, t in zip(goal.motors, goal.targets)]
             if max(errors) <= self.position_tolerance_rad:
                 return feedback, self._finish(True, "reached", stop=False)
-        if goal.timeout_s > 0 and stamp_ns - self.start_ns >= goal.timeout_s * 1e9:
+        if goal.timeout_s > 0 and stamp_ns >= self.deadline_ns:
             return feedback, self._finish(goal.mode == VELOCITY, "timeout")
         return feedback, None
 

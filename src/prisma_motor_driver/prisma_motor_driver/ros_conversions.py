@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from prisma_common.messages import Types, make_header, sequence_field
+from prisma_common.messages import Types, make_header, ns_from_stamp, sequence_field, stamp_from_ns
 
 from .backend import MotorState
 from .control_table import rpm_to_rad_s
@@ -42,7 +42,7 @@ def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
         motors=list(goal.motors), mode=goal.mode,
         targets=sequence_field(cls, goal.targets, np.float64),
         position_limits=sequence_field(cls, goal.position_limits, np.float64),
-        timeout=float(goal.timeout_s),
+        timeout=float(goal.timeout_s), stamp=stamp_from_ns(types, goal.stamp_ns),
     )
 
 
@@ -50,11 +50,13 @@ def move_goal_from_msg(msg: Any) -> MoveGoal:
     # `timeout` is a float32: 0.3 arrives as 0.30000001192..., which would end a 0.3 s goal one
     # 10 ms tick late; microseconds are far below a tick and far above float32's error
     return MoveGoal(list(msg.motors), str(msg.mode), [float(t) for t in msg.targets],
-                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6))
+                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6), ns_from_stamp(msg.stamp))
 
 
-def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float) -> MoveGoal:
-    return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s)
+def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float, stamp_ns: int = 0) -> MoveGoal:
+    """A velocity goal; `stamp_ns` (the sending instant) makes its timeout count from then."""
+    return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s,
+                    stamp_ns)
 
 
 def move_feedback_to_msg(types: Types, fb: MoveFeedback) -> Any:

@@ -59,6 +59,15 @@ def test_driver_reconnects_with_exponential_backoff_and_reports_it():
     assert str(core.validate(MoveGoal(["fingers"], "velocity", [1.0]))).startswith("not_ready: motor bus not connected")
 
 
+def test_validation_at_arrival_refuses_a_goal_whose_timeout_ended_on_the_way():
+    core = MotorDriverCore(MotorDriverConfig(backend="sim"))
+    core.connect(0)
+    late = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, stamp_ns=1000 * MS)
+    assert core.validate(late, 1299 * MS) is None
+    assert str(core.validate(late, 2000 * MS)).startswith("invalid: its timeout 0.3 s ended before it arrived (sent 1000 ms ago")
+    assert core.validate(late) is None  # no arrival time given: the form alone
+
+
 def test_bus_error_while_preempting_ends_the_old_goal_and_the_new_one():
     bus = FlakyBus(failures=0)
     bus.now, stops, writes = 0, [], []

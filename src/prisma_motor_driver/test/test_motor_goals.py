@@ -7,7 +7,7 @@ import math
 import pytest
 
 from prisma_motor_driver.backend import default_motors
-from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner
+from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner, goal_expired
 from prisma_motor_driver.sim_backend import SimMotorBus
 
 MS = 1_000_000
@@ -66,6 +66,28 @@ def test_velocity_goal_timeout_cancel_and_preempt_stop_or_hand_over():
     assert preempted.reason == "preempted"
     _, _, result = _run(runner, bus, t + 5000 * MS, start_ns=t + 310 * MS)
     assert result.success and result.reason == "reached"
+
+
+def test_a_stamped_goal_times_out_from_its_stamp_and_one_arriving_after_its_timeout_is_refused():
+    """A velocity goal sent at 1.00 s with a 0.3 s lease: delivered at 1.05 s it runs until 1.30 s;
+    delivered at 1.35 s (a link that dropped held it back) it is refused, naming the delay. A stamp
+    from a client clock ahead of the driver's (arrival before the stamp) times out from the arrival."""
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    sent = 1000 * MS
+    goal = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, stamp_ns=sent)
+    assert goal_expired(goal, sent + 50 * MS) is None
+    runner.start(goal, sent + 50 * MS)
+    t, _, result = _run(runner, bus, 3000 * MS, start_ns=sent + 50 * MS)
+    assert result.reason == "timeout" and t == sent + 300 * MS
+    assert goal_expired(goal, sent + 350 * MS) == (
+        "its timeout 0.3 s ended before it arrived (sent 350 ms ago by its stamp): held up on the way "
+        "(a link that dropped?), or the client's clock is behind this one")
+    assert goal_expired(MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3), 10**12) is None  # unstamped
+    ahead = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, stamp_ns=5000 * MS)
+    runner.start(ahead, 4000 * MS)
+    t, _, result = _run(runner, bus, 9000 * MS, start_ns=4000 * MS)
+    assert result.reason == "timeout" and t == 4300 * MS
 
 
 def test_a_resent_velocity_goal_continues_seamlessly_and_spares_a_motor_at_its_stop():
