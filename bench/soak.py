@@ -101,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         stop_process(hand)
         ros.shutdown()
-    summary = {"started": started, "load": not args.no_load, "rt_priority": args.rt_priority, "loadavg_end": os.getloadavg(), **report.summary()}
+    summary = {"started": started, "load": not args.no_load, "rt_priority": args.rt_priority,
+               "loadavg_end": os.getloadavg(), **report.summary()}
     tmp = args.out / "soak.json.partial"
     tmp.write_text(json.dumps({**summary, "rss_timeline": report.rss_timeline}, indent=1))
     tmp.replace(args.out / "soak.json")  # whole or not at all

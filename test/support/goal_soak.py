@@ -4,8 +4,9 @@ force_reached), a horizontal Manipulate (SUCCEEDED edge_lost), a vertical Manipu
 reached_goal); then the tactile driver's ~/replace_object puts the ball back between the open
 fingers, as an operator would (the horizontal manipulation rolled it to the thumb pad's edge). The
 soak starts once the graph takes goals (an opening GripperCommand, sent until it is not refused);
-after that every goal is sent once: a refusal (`not_ready`, `busy`) or any other end is a failure. The nodes' resident memory is read from /proc after the first cycle (what a node allocates
-once, its first goals' code paths and buffers, is not growth) and at the end.
+after that every goal is sent once: a refusal (`not_ready`, `busy`) or any other end is a failure.
+The nodes' resident memory is read from /proc after the first cycle (what a node allocates once,
+its first goals' code paths and buffers, is not growth) and at the end.
 
 Used by test/integration/test_soak.py (two minutes, in CI) and bench/soak.py (twenty, beside the
 load harness: docs/performance.md).

@@ -52,7 +52,9 @@ class HostProbe:
         """rt_priority > 0: the probe runs at that SCHED_FIFO priority where the system permits it (an
         instrument above a graph at real-time priority that fills the machine still sees in time)."""
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "RCUTILS_COLORIZED_OUTPUT": "0", **(env or {})}
-        argv = [sys.executable, str(Path(__file__).resolve()), *(["--rt-priority", str(rt_priority)] * (rt_priority > 0))]
+        argv = [sys.executable, str(Path(__file__).resolve())]
+        if rt_priority > 0:
+            argv += ["--rt-priority", str(rt_priority)]
         self.proc = subprocess.Popen(run(argv), stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=full_env,
                                      start_new_session=True)

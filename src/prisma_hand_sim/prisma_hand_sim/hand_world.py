@@ -184,7 +184,8 @@ class HandWorld:
         self._released_ns = 0 if o.released else None
         self.state = self._solve(self.state.stamp_ns)
         self._pad_tangent = self._tangents(self.state)
-        return f"{o.name} re-placed at the thumb pad's middle (thumb rotation {self.positions['thumb_rotation']:+.3f} rad)"
+        rotation = self.positions["thumb_rotation"]
+        return f"{o.name} re-placed at the thumb pad's middle (thumb rotation {rotation:+.3f} rad)"
 
     def elapsed_s(self, stamp_ns: int) -> float:
         """Seconds from the world's first stamp to stamp_ns: the time a Disturbance's start_s counts."""

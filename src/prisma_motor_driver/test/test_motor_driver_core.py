@@ -64,7 +64,8 @@ def test_validation_at_arrival_refuses_a_goal_whose_timeout_ended_on_the_way():
     core.connect(0)
     late = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, stamp_ns=1000 * MS)
     assert core.validate(late, 1299 * MS) is None
-    assert str(core.validate(late, 2000 * MS)).startswith("invalid: its timeout 0.3 s ended before it arrived (sent 1000 ms ago")
+    assert str(core.validate(late, 2000 * MS)).startswith(
+        "invalid: its timeout 0.3 s ended before it arrived (sent 1000 ms ago")
     assert core.validate(late) is None  # no arrival time given: the form alone
 
 
