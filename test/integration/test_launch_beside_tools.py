@@ -1,6 +1,7 @@
 """The hand graph with the robot's own tools running beside it, ten consecutive pinch Grasp goals
-each followed by opening the hand, all SUCCEEDED `force_reached`: no goal is stopped by a stream
-starved of CPU (sensor_stale) and none is retried.
+each followed by opening the hand and re-placing the ball (the sim world's ~/replace_object), all
+SUCCEEDED `force_reached`: no goal is stopped by a stream starved of CPU (sensor_stale) and none is
+retried.
 - `hand.launch.py sim:=true`, rqt_plot (the executable, plotting the thumb threshold against taxel
   3, as the README's rqt section starts it) and `ros2 bag record` of the README's topic list; then
   the bag holds every topic of the list.
@@ -30,6 +31,7 @@ if importlib.util.find_spec("PyQt5") is None:
 
 from prisma_msgs.action import Grasp, MoveMotors  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 # the README's `ros2 bag record` topic list
@@ -97,6 +99,10 @@ def grasp_and_open_ten_times(ros) -> list[tuple[int, str]]:
             opened = ros.result(ros.send_until_started(
                 move, MoveMotors.Goal(motors=[motor], mode="velocity", targets=[-OPEN_RPM], timeout=0.0)))
             assert opened.result.success, opened.result.reason
+        # the ball back between the open fingers, as an operator puts it between trials (each
+        # grasp and opening rolls it a little along the pads)
+        replaced = ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
+        assert replaced.success, replaced.message
     return outcomes
 
 

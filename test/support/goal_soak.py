@@ -3,7 +3,7 @@ force_reached), a horizontal Manipulate (SUCCEEDED edge_lost), a vertical Manipu
 0.3 s after it starts (CANCELED) and a GripperCommand to position 0 that opens the hand (SUCCEEDED
 reached_goal); then the tactile driver's ~/replace_object puts the ball back between the open
 fingers, as an operator would (the horizontal manipulation rolled it to the thumb pad's edge). The
-soak starts once the graph takes goals (an opening GripperCommand, sent until it is not refused);
+soak starts once the graph takes goals (a pinch sent until it is not refused, then the hand opened);
 after that every goal is sent once: a refusal (`not_ready`, `busy`) or any other end is a failure.
 The nodes' resident memory is read from /proc after the first cycle (what a node allocates once,
 its first goals' code paths and buffers, is not growth) and at the end.
@@ -134,7 +134,15 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
                "manipulate": ros.action_client(Manipulate, f"{namespace}/prisma/manipulate", wait_sec=90.0),
                "gripper": ros.action_client(GripperCommand, f"{namespace}/prisma/gripper_cmd", wait_sec=90.0)}
     open_hand = GripperCommand.Goal(command=GripperCommandMsg(position=0.0, max_effort=0.0))
-    ros.result(ros.send_until_started(clients["gripper"], open_hand, timeout_sec=60.0), timeout_sec=60.0)
+    # the graph takes goals: a pinch (sent again while refused for now), then the hand opened (a
+    # GripperCommand result has no reason to tell a refusal by: sent until it opens)
+    first = ros.send_until_started(clients["grasp"], Grasp.Goal(grasp="pinch"), timeout_sec=90.0)
+    ros.result(first, timeout_sec=60.0)
+    deadline = time.monotonic() + 60.0
+    opened = EXPECTED["gripper open"]
+    while _outcome(ros.result(ros.send_goal(clients["gripper"], open_hand), timeout_sec=60.0)) != opened:
+        assert time.monotonic() < deadline, "the hand did not open in 60 s"
+        ros.spin_for(0.5)
     report = SoakReport(seconds=0.0)
 
     def replace_object() -> None:
