@@ -10,6 +10,7 @@ A node process ends one of three ways, and the exit status says which:
 """
 from __future__ import annotations
 
+import gc
 import signal
 from collections.abc import Callable
 
@@ -22,6 +23,18 @@ from rclpy.node import Node
 from prisma_common.scheduling import apply_priority_from_env
 
 SHUTDOWN_CHECK_PERIOD_S = 0.25  # the longest a stop request can wait when rclpy's wake-up comes too early
+
+
+def settle_garbage_collector() -> None:
+    """Collect once, then exempt everything alive from later collections (gc.freeze).
+
+    A node starts with 30-40 thousand objects (rclpy, numpy, its modules) that live as long as it
+    does, and every full collection walks them all: 10-25 ms on the project's 2-core development
+    machine when idle, longer beside a memory-bandwidth hog, a pause the 100 ms stale rule counts
+    against the stream. Frozen, a full collection walks only what the node allocated since.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 def run_node(make_node: Callable[[], Node], logger_name: str,
@@ -48,6 +61,7 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
         # waiting, and a node with no timer of its own (glove_perception) then never sees the
         # shutdown. A steady-clock timer bounds that to one period, whatever the node's clock.
         node.create_timer(SHUTDOWN_CHECK_PERIOD_S, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        settle_garbage_collector()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
