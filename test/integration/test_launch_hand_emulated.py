@@ -63,7 +63,9 @@ EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()
 SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
 # "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm)
 STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
-SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
+# its own time limit well beyond the grasp's 10 s default: on a loaded machine the fault CLI takes
+# seconds to start, and the fault must come while the grasp still runs
+SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0, timeout=60.0)
 # the thumb rotates at 0.92 rpm (4 velocity units): edge_lost after ~5 s, time for a fault mid-goal
 SLOW_HORIZONTAL = Manipulate.Goal(motion="horizontal", speed_rpm=1.0)
 # the motor driver's bus counters that a servo not answering moves
@@ -212,7 +214,10 @@ class TestHandEmulated(unittest.TestCase):
         self.assertTrue(ros.wait_for_log(name="manipulation",
                                          contains="manipulate goal ended: sensor_stale (taxels/thumb "),
                         "the abort does not name the thumb's taxels")
-        ros.spin_for(0.5)
+        # what the motor driver published 0.5 s after the abort came here (this process may receive
+        # /joint_states late on a loaded machine: wait for that message, not for 0.5 s)
+        stop_by_ns = ros.now_ns() + int(0.5e9)
+        self.assertTrue(ros.spin_until(lambda: stamp_ns(self.joints[-1]) >= stop_by_ns, 10.0))
         self.assertTrue(stopped(self.joints[-1]), f"still moving: {list(self.joints[-1].velocity)}")
         self.assertTrue(ros.wait_for_log(name="tactile_driver", contains=f"serial port {EMULATOR_DIR / 'hub'} lost"))
 
