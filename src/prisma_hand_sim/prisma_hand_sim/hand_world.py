@@ -139,12 +139,8 @@ class HandWorld:
         self._stamp_ns: int | None = None
         self._origin_ns: int | None = None  # the first stamp moved to: disturbance times count from it
         self._applied = [0.0] * len(self.disturbances)
-        self._width_mm = 0.0
-        self._bx, self._by = 0.0, 0.0
-        self._fixture = self.obj.residual_fixture_n_per_mm if self.obj.released else self.obj.fixture_n_per_mm
-        self._held_since_ns: int | None = None
-        self._released_ns: int | None = 0 if self.obj.released else None
         self._pad_tangent: dict[str, tuple[float, float]] | None = None
+        self._present_object()
         self.state = self._solve(0)
         self._pad_tangent = self._tangents(self.state)
 
@@ -175,17 +171,21 @@ class HandWorld:
         if touching:
             raise ValueError(f"the object cannot be re-placed while {', '.join(touching)} touch it: "
                              "open the hand first (GripperCommand position 0)")
-        o = self.obj
-        self._bx = -self.params.thumb_lateral_mm_per_rad * self.positions["thumb_rotation"]
-        self._by = 0.0
-        self._width_mm = 0.0
-        self._fixture = o.residual_fixture_n_per_mm if o.released else o.fixture_n_per_mm
-        self._held_since_ns = None
-        self._released_ns = 0 if o.released else None
+        self._present_object()
         self.state = self._solve(self.state.stamp_ns)
         self._pad_tangent = self._tangents(self.state)
         rotation = self.positions["thumb_rotation"]
-        return f"{o.name} re-placed at the thumb pad's middle (thumb rotation {rotation:+.3f} rad)"
+        return f"{self.obj.name} re-placed at the thumb pad's middle (thumb rotation {rotation:+.3f} rad)"
+
+    def _present_object(self) -> None:
+        """The object as presented: no shift or width change, on its support (or already held by the
+        hand alone when `released`), centred where the thumb pad at its present rotation touches."""
+        self._bx = 0.0 - self.params.thumb_lateral_mm_per_rad * self.positions["thumb_rotation"]  # never -0.0
+        self._by = 0.0
+        self._width_mm = 0.0
+        self._fixture = self.obj.residual_fixture_n_per_mm if self.obj.released else self.obj.fixture_n_per_mm
+        self._held_since_ns: int | None = None
+        self._released_ns: int | None = 0 if self.obj.released else None
 
     def elapsed_s(self, stamp_ns: int) -> float:
         """Seconds from the world's first stamp to stamp_ns: the time a Disturbance's start_s counts."""
