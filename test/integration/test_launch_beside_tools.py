@@ -122,7 +122,8 @@ def test_ten_pinch_grasps_with_rviz_and_the_tactile_markers_beside_the_graph(ros
             assert ros.spin_until(lambda: len(joints) > 50 and len(markers) > 10, 30.0)
             outcomes = grasp_and_open_ten_times(ros)
             assert hand.proc.poll() is None, hand.output[-3000:]
-            assert "rviz2" in readers()  # RViz is still up and watching
+            # RViz is still up and watching
+            assert "rviz2" in readers(), (sorted(readers()), hand.output[-3000:])
         finally:
             stop_process(hand)
     ended = ros.logs(name="manipulation", contains="goal ended")

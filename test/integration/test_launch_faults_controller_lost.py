@@ -16,7 +16,7 @@ import unittest
 
 import pytest
 
-from ros_harness import RosHarness, closing_at_10_rpm, require_ros, stamp_ns
+from ros_harness import SIM_STOPPED_RAD_S, RosHarness, closing_at_10_rpm, require_ros, stamp_ns, stopped
 
 require_ros()
 
@@ -30,7 +30,6 @@ from prisma_msgs.action import Grasp  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 # the sim motors' velocity loop decays exponentially (tau 10 ms): "0" is below this, in rad/s
-STOPPED_RAD_S = 1e-3
 KILL_STOP_LIMIT_S = 0.5
 
 
@@ -42,10 +41,6 @@ def generate_test_description():
         launch_arguments={"sim": "true"}.items(),
     )
     return launch.LaunchDescription([hand, launch_testing.actions.ReadyToTest()])
-
-
-def stopped(msg: JointState) -> bool:
-    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
 
 
 class TestControllerLost(unittest.TestCase):
@@ -90,13 +85,13 @@ class TestControllerLost(unittest.TestCase):
         ros.spin_for(1.5)
         after = [m for m in joints[received_before:] if stamp_ns(m) > kill_ns]
         self.assertTrue(after, "no /joint_states after the kill")
-        self.assertFalse(stopped(after[0]), "the motors were not moving at the kill")
-        first_stop = next((i for i, m in enumerate(after) if stopped(m)), None)
+        self.assertFalse(stopped(after[0], SIM_STOPPED_RAD_S), "the motors were not moving at the kill")
+        first_stop = next((i for i, m in enumerate(after) if stopped(m, SIM_STOPPED_RAD_S)), None)
         self.assertIsNotNone(first_stop, f"still moving 1.5 s after the kill: {list(after[-1].velocity)}")
         stop_s = (stamp_ns(after[first_stop]) - kill_ns) * 1e-9
         print(f"kill -9 manipulation mid-grasp: every velocity 0 {stop_s * 1e3:.0f} ms after the kill")
         self.assertLess(stop_s, KILL_STOP_LIMIT_S)
-        self.assertEqual([list(m.velocity) for m in after[first_stop:] if not stopped(m)], [])
+        self.assertEqual([list(m.velocity) for m in after[first_stop:] if not stopped(m, SIM_STOPPED_RAD_S)], [])
         # the motor driver stopped them itself: the goal that was no longer refreshed timed out
         self.assertTrue(ros.spin_until(lambda: len(ros.logs(name="motor_driver", contains=expired)) > expiries_before,
                                        5.0), f"motor_driver logged: {ros.logs(name='motor_driver')[-5:]}")

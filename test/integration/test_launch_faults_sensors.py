@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import NodeProcess, RosHarness, closing_at_10_rpm, require_ros, stamp_ns
+from ros_harness import SIM_STOPPED_RAD_S, NodeProcess, RosHarness, closing_at_10_rpm, require_ros, stamp_ns, stopped
 
 require_ros()
 
@@ -53,7 +53,6 @@ from prisma_tactile_driver.pty_hub import PtyHubPort  # noqa: E402
 HUB_DIR = Path(tempfile.gettempdir()) / f"prisma_fault_hub_{os.getpid()}"
 HUB_LINK = HUB_DIR / "ttyHUB"
 ABORTED, CANCELED = 6, 5  # action_msgs/GoalStatus
-STOPPED_RAD_S = 1e-3  # the sim motors' velocity decays exponentially (tau 10 ms): "0" is below this
 STALE_TIMEOUT_S = 0.1  # config/manipulation.yaml stale_timeout
 STOP_AFTER_STALE_S = 0.1  # the motors stop within 100 ms of the watchdog's stale limit
 REFUSED_NO_DRIVER = ("not_ready: MoveMotors action server prisma/motors/move not available "
@@ -119,10 +118,6 @@ class HubOnPty:
             time.sleep(max(0.0, due - time.monotonic()))
 
 
-def stopped(msg: JointState) -> bool:
-    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
-
-
 class TestMissingParts(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -178,7 +173,7 @@ class TestMissingParts(unittest.TestCase):
         canceled = handle.cancel_goal_async()
         ros.spin_until(canceled, 10.0)
         self.assertEqual(ros.result(handle).status, CANCELED)
-        self.assertTrue(ros.spin_until(lambda: self.joints and stopped(self.joints[-1]), 5.0))
+        self.assertTrue(ros.spin_until(lambda: self.joints and stopped(self.joints[-1], SIM_STOPPED_RAD_S), 5.0))
 
     def test_2_hub_unplugged_mid_grasp(self):
         """Motors stopped: measured by header stamps, from the last taxel frame the driver received
@@ -209,13 +204,13 @@ class TestMissingParts(unittest.TestCase):
         last_frame_ns = max(stamp_ns(m) for f in FINGERS for m in self.taxels[f])
         self.assertLess(last_frame_ns, unplugged_ns)
         after = [m for m in self.joints[received_before:] if stamp_ns(m) > last_frame_ns]
-        self.assertFalse(stopped(after[0]), "the motors were not moving at the unplug")
-        first_stop = next((i for i, m in enumerate(after) if stopped(m)), None)
+        self.assertFalse(stopped(after[0], SIM_STOPPED_RAD_S), "the motors were not moving at the unplug")
+        first_stop = next((i for i, m in enumerate(after) if stopped(m, SIM_STOPPED_RAD_S)), None)
         self.assertIsNotNone(first_stop, f"still moving: {list(after[-1].velocity)}")
         stop_s = (stamp_ns(after[first_stop]) - last_frame_ns) * 1e-9
         print(f"hub unplugged mid-grasp: every velocity 0 {stop_s * 1e3:.0f} ms after the last taxel frame")
         self.assertLess(stop_s, STALE_TIMEOUT_S + STOP_AFTER_STALE_S)
-        self.assertEqual([list(m.velocity) for m in after[first_stop:] if not stopped(m)], [])
+        self.assertEqual([list(m.velocity) for m in after[first_stop:] if not stopped(m, SIM_STOPPED_RAD_S)], [])
         # the driver says why, naming the port
         self.assertTrue(ros.wait_for_log(name="tactile_driver", contains=f"serial port {HUB_LINK} lost"))
 

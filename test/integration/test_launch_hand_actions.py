@@ -21,7 +21,6 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
 from __future__ import annotations
 
-import math
 import subprocess
 import time
 import unittest
@@ -40,6 +39,7 @@ from ros_harness import (
     require_ros,
     result_reason,
     stamp_ns,
+    stopped,
 )
 
 require_ros()
@@ -56,10 +56,9 @@ from sensor_msgs.msg import JointState  # noqa: E402
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
-# "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm), which
-# reads 0 there. The sim motors' velocity follows the command with a 10 ms time constant: from
-# 10 rpm it is below that 38 ms after the stop.
-STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
+# stopped(): every joint below one velocity unit of an X-series Dynamixel (0.229 rpm), which reads 0
+# there. The sim motors' velocity follows the command with a 10 ms time constant: from 10 rpm it is
+# below that 38 ms after the stop.
 CANCEL_STOP_S = 0.05
 RETRY_S = 0.1
 K = 0.8  # config/manipulation.yaml
@@ -77,10 +76,6 @@ HORIZONTAL = Manipulate.Goal(motion="horizontal")
 def generate_test_description():
     return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
                                      launch_testing.actions.ReadyToTest()])
-
-
-def stopped(msg: JointState) -> bool:
-    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
 
 
 class TestHandActions(unittest.TestCase):

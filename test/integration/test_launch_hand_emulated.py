@@ -26,7 +26,6 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 from __future__ import annotations
 
 import json
-import math
 import os
 import tempfile
 import unittest
@@ -43,6 +42,7 @@ from ros_harness import (
     include_launch,
     require_ros,
     stamp_ns,
+    stopped,
 )
 
 require_ros()
@@ -61,8 +61,6 @@ from prisma_bringup.sim_runner import EXPECTED_REASONS  # noqa: E402
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
 SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
-# "0" as the motor reports it: below one velocity unit of an X-series Dynamixel (0.229 rpm)
-STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
 # its own time limit well beyond the grasp's 10 s default: on a loaded machine the fault CLI takes
 # seconds to start, and the fault must come while the grasp still runs
 SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0, timeout=60.0)
@@ -86,10 +84,6 @@ def fault(*args: str) -> str:
 
 def emulator_status() -> dict:
     return json.loads(fault("status"))
-
-
-def stopped(msg: JointState) -> bool:
-    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
 
 
 class TestHandEmulated(unittest.TestCase):

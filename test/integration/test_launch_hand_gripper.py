@@ -28,6 +28,7 @@ from ros_harness import (
     assert_clean_shutdown,
     gripper_goal,
     include_launch,
+    joint,
     require_ros,
     run_gripper_goal,
     stamp_ns,
@@ -53,10 +54,6 @@ BIAS_SAMPLES = 100  # config/force_estimator.yaml
 def generate_test_description():
     return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
                                      launch_testing.actions.ReadyToTest()])
-
-
-def joint(msg: JointState, motor: str) -> float:
-    return float(msg.position[list(msg.name).index(motor)])
 
 
 class TestHandGripper(unittest.TestCase):

@@ -15,7 +15,6 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
 from __future__ import annotations
 
-import math
 import time
 import unittest
 
@@ -26,9 +25,11 @@ from ros_harness import (
     assert_clean_shutdown,
     gripper_goal,
     include_launch,
+    joint,
     require_ros,
     run_gripper_goal,
     stamp_ns,
+    stopped,
 )
 
 require_ros()
@@ -42,7 +43,6 @@ from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
-STOPPED_RAD_S = 0.229 * 2 * math.pi / 60  # below one X-series velocity unit (0.229 rpm)
 CANCEL_STOP_S = 0.5
 
 
@@ -50,14 +50,6 @@ CANCEL_STOP_S = 0.5
 def generate_test_description():
     return launch.LaunchDescription([include_launch("hand.launch.py", sim="true", sim_object="none"),
                                      launch_testing.actions.ReadyToTest()])
-
-
-def joint(msg: JointState, motor: str, field: str = "position") -> float:
-    return float(getattr(msg, field)[list(msg.name).index(motor)])
-
-
-def stopped(msg: JointState) -> bool:
-    return all(abs(v) < STOPPED_RAD_S for v in msg.velocity)
 
 
 class TestEmptyHandGripper(unittest.TestCase):

@@ -12,6 +12,7 @@ everything else runs on wall time and is awaited with `spin_until`.
 """
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -666,6 +667,23 @@ def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float
             ros.spin_for(0.2)
             continue
         return outcome
+
+
+# /joint_states "stopped": every joint slower than this. On Dynamixel X-series motors (emulated
+# included) the smallest velocity the bus reports is one unit, 0.229 rpm; the sim motors' velocity
+# decays exponentially (tau 10 ms) and never reads exactly 0, so their "0" is below SIM_STOPPED_RAD_S.
+STOPPED_RAD_S = 0.229 * 2 * math.pi / 60
+SIM_STOPPED_RAD_S = 1e-3
+
+
+def stopped(msg: Any, below_rad_s: float = STOPPED_RAD_S) -> bool:
+    """No joint of this /joint_states message moves at `below_rad_s` or faster."""
+    return all(abs(v) < below_rad_s for v in msg.velocity)
+
+
+def joint(msg: Any, motor: str, field: str = "position") -> float:
+    """One motor's position (or `field`: velocity, effort) in a /joint_states message."""
+    return float(getattr(msg, field)[list(msg.name).index(motor)])
 
 
 def closing_at_10_rpm(joints: list) -> bool:
