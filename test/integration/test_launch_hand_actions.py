@@ -178,13 +178,15 @@ class TestHandActions(unittest.TestCase):
     def test_3_grasp_and_manipulate_sent_together(self):
         """Both goals go out before either is answered. Exactly one runs to its normal end; the other
         is aborted `busy: a <kind> goal ...`, the reason in its result and the log. Both refused for
-        now happens only while a stream they need is late: then both are sent again."""
+        now happens only while a stream they need is late, and the first over before the second
+        reached the node only on a busy machine: then both are sent again."""
         ros = self.ros
         normal_end = {"grasp": ("SUCCEEDED", "force_reached"), "manipulate": ("SUCCEEDED", "edge_lost")}
-        # from the ball held in a pinch (whatever the tests before left), where either can run
-        _, held = self.run_goal(PINCH)
-        self.assertEqual(goal_outcome(held), normal_end["grasp"])
         for _ in range(100):
+            # from the ball held in a pinch (whatever came before), where either can run
+            _, held = self.run_goal(PINCH)
+            self.assertEqual(goal_outcome(held), normal_end["grasp"])
+            logged = len(ros.logs(name="manipulation"))
             futures = [self.grasp.send_goal_async(PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
             self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))  # noqa: B023 - spin_until runs it now
             handles = dict(zip(("grasp", "manipulate"), (f.result() for f in futures)))
@@ -194,6 +196,15 @@ class TestHandActions(unittest.TestCase):
             print(f"sent together: {ended}")
             if all(refusal_for_now(r.result) for r in results.values()):
                 ros.spin_for(RETRY_S)
+                continue
+            # The pinch from a held ball ends at once: on a busy machine it can be over before the
+            # other goal reaches the node, and then both rightly run, one after the other (the node's
+            # log: started, ended, started). Only goals that met in the node count.
+            ros.spin_for(0.2)  # the last "goal ended" line
+            events = [m.split(" goal ")[1].split(":")[0] for m in ros.logs(name="manipulation")[logged:]
+                      if " goal started: " in m or " goal ended: " in m]
+            if events[:3] == ["started", "ended", "started"]:
+                print(f"not together (the first ended before the second started): {ended}")
                 continue
             break
         ran = [kind for kind, r in results.items() if r.status == SUCCEEDED]

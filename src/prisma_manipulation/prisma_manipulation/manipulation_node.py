@@ -197,6 +197,8 @@ class ManipulationNode(Node):
             self.get_logger().warning(f"{kind.action} goal refused: {refusal}")
             goal_handle.abort()
             return kind.result_to_msg(self.types, self.core.refused(kind.kind, refusal))
+        # with "goal ended" below, the log shows which goals overlapped and which came one after another
+        self.get_logger().info(f"{kind.kind} goal started: {request}")
         done = self._goal_done = Future()
         self._goal = goal_handle
         self._apply(actions)  # may end it at once (a gripper already at its position)
