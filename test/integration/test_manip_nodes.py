@@ -355,6 +355,12 @@ def test_gripper_command_closes_to_the_force_limit_and_opens(ros, hand):
     efforts = [f.feedback.effort for f in feedback]
     assert max(efforts[:-1]) < 1.0 <= efforts[-1]  # stopped on the first sample at the limit
     assert ros.wait_for_log(severity="info", name="manipulation", contains="gripper goal ended: force_reached")
+    # each goal that ran logged its start, with the request as the node read it, before its end
+    assert [m for m in ros.logs(name="manipulation") if " goal " in m] == [
+        "gripper goal started: GripperRequest(position=0.0, max_effort=0.0)",
+        "gripper goal ended: reached",
+        "gripper goal started: GripperRequest(position=9.0, max_effort=1.0)",
+        "gripper goal ended: force_reached"]
     ros.advance(0.1, step=STEP, settle=True)
     assert still(h.joints[-1]) and max(h.world.forces().values()) <= 1.1
     opened = finish(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0)))
