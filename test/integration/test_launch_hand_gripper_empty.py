@@ -94,15 +94,14 @@ class TestEmptyHandGripper(unittest.TestCase):
         self.assertEqual((outcome.status, r.reached_goal, r.stalled), (SUCCEEDED, True, False))
         self.assertGreater(r.position, 8.85)
         self.assertLess(r.effort, 0.2)  # the estimator's reading of untouched pads
-        self.ros.spin_for(0.3)
-        self.assertAlmostEqual(joint(self.joints[-1], "fingers"), 9.0, delta=0.05)
-        self.assertAlmostEqual(joint(self.joints[-1], "thumb_flexion"), 7.0, delta=0.05)
+        last = self.ros.message_at(self.joints, 0.3)  # published 0.3 s on, however late it comes here
+        self.assertAlmostEqual(joint(last, "fingers"), 9.0, delta=0.05)
+        self.assertAlmostEqual(joint(last, "thumb_flexion"), 7.0, delta=0.05)
 
     def test_3_position_0_opens(self):
         outcome = self.run_gripper(gripper_goal(0.0))
         self.assertEqual((outcome.status, outcome.result.reached_goal), (SUCCEEDED, True))
-        self.ros.spin_for(0.3)
-        self.assertAlmostEqual(joint(self.joints[-1], "fingers"), 0.0, delta=0.1)
+        self.assertAlmostEqual(joint(self.ros.message_at(self.joints, 0.3), "fingers"), 0.0, delta=0.1)
 
     def test_4_cancel_while_closing_stops_the_motors_within_half_a_second(self):
         """Rule: cancel_ns = the wall clock when the cancel request was sent (the nodes stamp

@@ -340,6 +340,22 @@ class RosHarness:
                 raise AssertionError(f"{type(goal).__name__} still refused after {timeout_sec} s: {reason}")
             self.spin_for(retry_sec)
 
+    def message_at(self, received: list, seconds_from_now: float, timeout_sec: float = 10.0) -> Any:
+        """The first message in `received` (a `collect` list) stamped `seconds_from_now` or later,
+        waiting for it. On a loaded machine this process receives a stream late: after a sleep,
+        `received[-1]` can still be a message from before it (AssertionError at the timeout)."""
+        at_ns = self.now_ns() + int(seconds_from_now * 1e9)
+        start = len(received)
+
+        def found() -> Any:
+            return next((m for m in received[start:] if stamp_ns(m) >= at_ns), None)
+
+        if not self.spin_until(lambda: found() is not None, timeout_sec + seconds_from_now):
+            newest = f"{(stamp_ns(received[-1]) - at_ns) * 1e-9:+.3f} s" if received else "none"
+            raise AssertionError(f"no message stamped {seconds_from_now} s from now within {timeout_sec} s "
+                                 f"(newest: {newest})")
+        return found()
+
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
                               timeout_sec: float = 60.0, period_sec: float = 0.1) -> None:
         """Wait until the latest header stamp in `follower` (a `collect` list) is within `lag_sec` of
