@@ -31,6 +31,7 @@ from ros_harness import (
     hand_fault,
     include_launch,
     require_ros,
+    run_hand_fault,
     stamp_ns,
 )
 
@@ -126,16 +127,11 @@ class TestHandEmulatedI2C(unittest.TestCase):
 
 
     def test_4_hub_faults_refused_on_the_i2c_link(self):
-        import shutil
-        import subprocess
-
         before = json_status()
         self.assertEqual(before["tactile_link"], "i2c")
         self.assertNotIn("hub", before)
         self.assertFalse((EMULATOR_DIR / "hub").exists())
-        command = [shutil.which("prisma-hand-fault") or "prisma-hand-fault", "--dir", str(EMULATOR_DIR),
-                   "hub-unplug", "--seconds", "1"]
-        done = subprocess.run(command, capture_output=True, text=True, timeout=30)
+        done = run_hand_fault(EMULATOR_DIR, "hub-unplug", "--seconds", "1")
         lines = done.stderr.strip().splitlines()
         self.assertEqual((done.returncode, len(lines)), (2, 1), done.stderr)
         self.assertTrue(lines[0].startswith("prisma-hand-fault: error: hub-unplug: "), lines[0])

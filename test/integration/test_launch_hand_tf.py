@@ -153,6 +153,8 @@ class TestHandTf(unittest.TestCase):
         client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
         joints = ros.collect(JointState, "/joint_states")
         tf = ros.collect(TFMessage, "/tf")
+        # both readers matched before the goal: on a busy machine discovery takes longer than a pinch
+        self.assertTrue(ros.spin_until(lambda: joints and tf, 30.0), "no /joint_states or /tf")
         result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
         ros.stop_collecting(joints, tf)
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
