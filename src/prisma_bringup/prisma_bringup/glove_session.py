@@ -3,7 +3,9 @@
 A scripted user session of the synthetic glove (`stag_glove.synthetic.SyntheticGlove`, one
 wearer/placement, the configured share of shorted frames): ~8 s of the empty hand moving, then for
 each object a grasp recording of 60 frames followed by ~3 s of open, empty hand (the release that
-clears perception's buffer, > `release_frames`), paced at the glove's `frame_rate_hz`. It is polled
+clears perception's buffer, > `release_frames`), paced at the glove's `frame_rate_hz`. The grasps
+hold the object without lifting it (the object set's kind of recording): /stag/weight, learned on
+lifts, has no load to read here and says so in the plot (docs/glove.md, "Weight"). It is polled
 at the driver's `poll_rate_hz` by `GloveDriver` with the node's frame processing. After the
 empty-hand phase the session calls `capture_empty_hand()`, as a user calls `~/capture_empty_hand`.
 Every processed frame goes to `GlovePerception` with the bundles of
@@ -75,6 +77,9 @@ class SessionGloveBackend:
         empty = self.glove.record(None, session, EMPTY_FIRST_FRAMES)
         yield from ((raw, EMPTY_HAND, False) for raw in empty.raw)
         for obj in self.objects:
+            # no load: handling the object then lifting it in the same contact episode puts lifted
+            # frames, unlike anything the object bundle learned, into the buffer of its last
+            # decision (19/26 objects instead of 22/26), and lifting throughout costs more (13/26)
             grasp = self.glove.record(obj, session, GRASP_FRAMES)
             yield from ((raw, obj.name, bool(c)) for raw, c in zip(grasp.raw, grasp.contact))
             release = self.glove.record(None, session, RELEASE_FRAMES, pose="empty")
@@ -128,9 +133,9 @@ class GloveRecording:
     reason: str = ""
     object_weights_g: dict[str, float] = field(default_factory=dict)
     bundles: dict[str, str] = field(default_factory=dict)
-    # the weight bundle's linear baseline, grams = a * sum(pressure) + b (least squares over the
-    # weight set's frames: on the synthetic glove the sum hardly depends on the weight, so it is
-    # nearly flat at the set's mean weight; docs/glove.md, "Weight")
+    # the weight bundle's linear baseline, grams = a * sum(pressure) + b, least squares over the
+    # weight set's lifts: their grip grows with the load, so the sum carries the weight, blurred by
+    # contact area and friction (docs/glove.md, "Weight"). This session's grasps carry no load.
     baseline_a_b: tuple[float, float] = (0.0, 0.0)
 
 
@@ -310,6 +315,9 @@ def plot(rec: GloveRecording, path: Path) -> None:
     a, b = rec.baseline_a_b
     ax.plot(t, [f.baseline_g for f in frames], ".", ms=3, color="tab:orange",
             label=f"linear baseline {a:.2f} g x sum(pressure) {b:+.0f} g (least squares over the weight set)")
+    # both estimates learned lifts, whose grip carries the weight; these grasps carry none
+    ax.set_title("no lift in this session: the weight estimates have no load to read "
+                 "(both were fitted on lifts)", fontsize=9, loc="left")
     ax.set_ylabel("weight (g)")
     ax.set_xlabel("time (s)")
     shown = [w for f in frames for w in (f.weight_g, f.baseline_g)] + true_w

@@ -18,8 +18,15 @@ What it models, and why each part is there (the real data has all of it):
   train/test split by session, as in the paper.
 - Readout: 10-bit counts, baseline below the 500-count knee, soft saturation, ADC noise; non-sensor
   cells are constant (so the mask is recoverable from data). Optional shorted frames (> 950).
-- Weight set: lifting adds a load that presses the object toward the palm side of the contact, on
-  top of the (weight-dependent, noisy) grip; the target for leave-one-object-out regression.
+- Weight set (recordings given a load): a lift's grip must keep the load from slipping, load /
+  (2 friction) between opposed contacts, and people hold a safety margin above that (grip force
+  follows load force: Johansson & Westling). That force, spread over the contact and more toward
+  the palm, comes on top of the grasp's own grip; a press harder than the skin takes widens the
+  contact patch. So a frame's pressure sum follows the weight, blurred by contact area, the object's
+  friction and the lift's margin (on the real glove the sum-based baseline is informative too).
+  The target for leave-one-object-out regression. Friction has a random stream of its own and the
+  margin is drawn in lifts only: recordings without a load (object and pose sets, the live stream)
+  do not depend on either.
 
 Durations are in frames of the glove's ~7.3 frames/s. The generator is deterministic for a seed.
 """
@@ -105,6 +112,16 @@ class SyntheticConfig:
     grip_spread: float = 0.25                   # log-sd of grip per grasp
     crease_gain: float = 0.35                   # posture signal at full flexion (pressure units)
     weight_range_g: tuple[float, float] = (15.0, 1000.0)
+    # Lifts (the weight set): a grip holds a load between opposed contacts once it reaches
+    # load / (2 friction); people grip with a safety margin above that (Johansson & Westling 1984)
+    lift_safety: float = 1.4                    # median grip over the least grip that holds the load
+    lift_safety_spread: float = 0.25            # log-sd of the safety margin, per lift
+    friction: tuple[float, float] = (0.8, 0.3)  # skin-object friction coefficient: median, log-sd per object
+    # pressure summed over the cells per newton of grip; sets the object set's holding grip of a
+    # ~100 g object (0.45 over contacts summing to ~35-65) near the ~1 N people use for one
+    pressure_per_newton: float = 25.0
+    lift_peak_pressure: float = 0.8             # a lift's contact patch widens above this peak pressure
+    lift_spread_cells: tuple[float, float] = (3.0, 1.5)  # widest widening: sd along, across the fingers
     short_probability: float = 0.0
     seed: int = 0
 
@@ -132,6 +149,7 @@ class ObjectSpec:
     modes: list[GraspMode]
     texture: np.ndarray    # [rows, cols] in 0..1
     grip: float            # typical grip intensity
+    friction: float = 0.8  # skin-object friction coefficient: how hard a lift must squeeze
 
 
 @dataclass
@@ -168,7 +186,11 @@ class SyntheticGlove:
         self.creases = self._crease_maps()
         self.crease_gain = np.exp(self.rng.normal(0.0, 0.2, self.shape))  # this hand's creases
         self.glove_baseline = self.rng.normal(*config.baseline_counts, self.shape)
-        self.objects = self._make_objects()
+        # friction from a stream of its own: drawn from self.rng it would change the objects and every
+        # recording after them, among them the object and pose sets the shipped bundles learned from
+        lift_rng = np.random.default_rng([config.seed, 1])
+        self.objects = [replace(o, friction=float(config.friction[0] * np.exp(lift_rng.normal(0, config.friction[1]))))
+                        for o in self._make_objects()]
         rows = np.arange(self.shape[0])[:, None] / (self.shape[0] - 1)
         self._load_profile = np.broadcast_to(0.3 + 0.7 * rows, self.shape)  # more load toward the palm
 
@@ -307,7 +329,8 @@ class SyntheticGlove:
     def record(self, obj: ObjectSpec | None, session: Session, n_frames: int,
                pose: str | None = None, load_g: float | None = None) -> Recording:
         """A recording of `n_frames`: repeated grasps of `obj` (None = empty hand moving, or a
-        hand `pose` held without object). `load_g` adds the lifting load of the weight set."""
+        hand `pose` held without object). With `load_g` (grams) every grasp lifts that load, as in
+        the weight set."""
         cfg, rng = self.config, self.rng
         creases = np.stack([self._shifted(c, session.shift) for c in self.creases])
         pose_out = np.zeros((n_frames,) + self.shape, np.float32)
@@ -334,6 +357,9 @@ class SyntheticGlove:
                 placement = placement + rng.normal(0, cfg.object_jitter_cells, 2)
                 grip = obj.grip * np.exp(rng.normal(0, cfg.grip_spread))
                 base_field = self.contact_field(strength, obj.texture)
+                if load_g is not None:
+                    base_field = self._lift_field(base_field, grip, obj, load_g)
+                    grip = 1.0  # part of the lift's pressure
                 target = mode.flexion + session.flexion_offset + rng.normal(0, 0.08, 5)
             elif pose is not None:
                 spec = POSES[pose]
@@ -358,11 +384,7 @@ class SyntheticGlove:
                 if base_field is not None and e > 0:
                     placement = placement + rng.normal(0, cfg.object_drift_cells, 2)  # the object rolls a little
                     field_ = self._shifted(base_field, tuple(placement))
-                    if load_g is not None:  # lifting presses the object toward the palm side
-                        field_ = field_ * (grip + 0.9 * load_g / (load_g + 250.0) * self._load_profile)
-                    else:
-                        field_ = field_ * grip
-                    object_out[t] = field_ * e * wobble
+                    object_out[t] = field_ * grip * e * wobble
                 contact[t] = obj is not None and e > 0
                 mode_out[t] = mode_index if contact[t] else -1
                 level[t] = e
@@ -378,6 +400,25 @@ class SyntheticGlove:
                 r, c = np.argwhere(self.mask)[rng.integers(self.mask.sum())]
                 raw[i, r, c] = rng.integers(960, 1024)
         return Recording(raw, contact, pose_out, object_out, mode_out, level)
+
+    def _lift_field(self, contact: np.ndarray, grip: float, obj: ObjectSpec, load_g: float) -> np.ndarray:
+        """Pressure of one lift in hand coordinates: the grasp's own grip on `contact` plus the grip
+        force that holds the load, spread over the contact with more of it toward the palm."""
+        cfg = self.config
+        safety = cfg.lift_safety * np.exp(self.rng.normal(0, cfg.lift_safety_spread))
+        force = cfg.pressure_per_newton * safety * load_g * 9.81e-3 / (2.0 * obj.friction)
+        share = contact * self._load_profile
+        share = share / max(float(share.sum()), 1e-12)
+        # Pressing harder than the skin takes at the peak widens the contact patch (soft pads, the
+        # finger wrapping further, the fabric): without it a heavy load in a small grasp would only
+        # saturate a few sensors. Mostly along the finger, whose neighbours across are other fingers.
+        spread, step = share, 0
+        while force * float(spread.max()) > cfg.lift_peak_pressure and step < 6:
+            step += 1
+            sigma = tuple(step / 6 * w for w in cfg.lift_spread_cells)
+            spread = ndimage.gaussian_filter(share, sigma) * self.mask
+            spread = spread / max(float(spread.sum()), 1e-12)
+        return contact * grip + spread * force
 
     # ------------------------------------------------------------------------------ datasets
     def object_dataset(self) -> GloveDataset:

@@ -94,6 +94,30 @@ def test_weight_set_is_one_recording_per_object():
     assert per_object[order[-1]] > per_object[order[0]]
 
 
+def test_lifts_leave_the_load_free_sets_as_they_were():
+    """The lift model's settings (friction, safety margin, force scale) act on recordings with a
+    load only: the object and pose sets, which the shipped object and pose bundles were trained on,
+    stay the same frames."""
+    base = dict(n_objects=4, frames_per_session=30, seed=1)
+    other = dict(friction=(0.3, 0.6), lift_safety=3.0, pressure_per_newton=80.0)
+    a, b = SyntheticGlove(SyntheticConfig(**base)), SyntheticGlove(SyntheticConfig(**base, **other))
+    assert [o.friction for o in a.objects] != [o.friction for o in b.objects]
+    np.testing.assert_array_equal(a.object_dataset().pressure, b.object_dataset().pressure)
+    np.testing.assert_array_equal(a.pose_dataset(frames_per_session=10).pressure,
+                                  b.pose_dataset(frames_per_session=10).pressure)
+    assert not np.array_equal(a.weight_dataset(2, 4).pressure, b.weight_dataset(2, 4).pressure)
+
+
+def test_lift_pressure_sum_follows_the_weight():
+    """The grip holding a lift grows with its load, so over the weight set a frame's pressure sum
+    correlates with the object's weight (the linear baseline's information), though far from fully:
+    contact area, friction and the safety margin vary."""
+    ds = SyntheticGlove(SyntheticConfig(seed=0)).weight_dataset(grasps_per_object=2, frames_per_grasp=5)
+    sums = normalise(ds.pressure).reshape(len(ds), -1).sum(1)
+    r = np.corrcoef(sums, ds.weights_g[ds.object_id])[0, 1]
+    assert 0.4 < r < 0.9
+
+
 def test_pose_set_has_eight_poses():
     glove = SyntheticGlove(SyntheticConfig(seed=2))
     ds = glove.pose_dataset(frames_per_session=30)
