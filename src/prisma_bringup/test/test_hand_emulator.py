@@ -20,8 +20,10 @@ import select
 import signal
 import stat
 import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,8 +119,20 @@ def delta(after: dict, before: dict) -> dict:
     return {k: after[k] - before[k] for k in after}
 
 
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(list(args), capture_output=True, text=True, timeout=20)
+def console_script(name: str) -> str:
+    """This interpreter's own console script `name` where it has one: a version manager's shim on
+    PATH forks a chain of shells first, seconds on a loaded machine."""
+    script = Path(sys.executable).with_name(name)
+    return str(script) if script.exists() else name
+
+
+def run_cli(name: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([console_script(name), *args], capture_output=True, text=True, timeout=60)
+
+
+# the emulator as hand.launch.py runs it, at the control path's priority (its exit latency below is a
+# property of the emulator, not of how busy this machine is); the default priority where not permitted
+EMULATOR_ENV = {**os.environ, "PRISMA_RT_PRIORITY": "20", "PRISMA_NICE": "-5"}
 
 
 # ---- lifecycle --------------------------------------------------------------------------------
@@ -454,10 +468,10 @@ def test_cli_emulator_refuses_an_occupied_control_socket_path(tmp_path):
 
 def test_cli_running_emulator_answers_faults_and_stops_on_sigint(tmp_path):
     d = str(tmp_path)
-    proc = subprocess.Popen(["prisma-hand-emulator", "--dir", d, "--seconds", "20"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([console_script("prisma-hand-emulator"), "--dir", d, "--seconds", "20"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=EMULATOR_ENV)
     try:
-        assert select.select([proc.stdout], [], [], 10.0)[0], "the emulator printed nothing in 10 s"
+        assert select.select([proc.stdout], [], [], 60.0)[0], "the emulator printed nothing in 60 s"
         assert proc.stdout.readline().startswith("emulated hand (hand, 100 Hz)")
         done = run_cli("prisma-hand-fault", "--dir", d, "status")
         assert done.returncode == 0, done.stderr
@@ -484,10 +498,11 @@ def test_cli_on_sigterm_removes_what_it_made_and_refuses_faults_of_the_other_lin
     """`--tactile-link i2c`: the bus socket and no hub; hub-unplug is refused in one line naming the
     link; SIGTERM (what `ros2 launch` sends) removes the devices and the directories it created."""
     d = tmp_path / "made" / "hand"
-    proc = subprocess.Popen(["prisma-hand-emulator", "--dir", str(d), "--tactile-link", "i2c", "--linger", "0",
-                             "--seconds", "20"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([console_script("prisma-hand-emulator"), "--dir", str(d), "--tactile-link", "i2c",
+                             "--linger", "0", "--seconds", "20"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=EMULATOR_ENV)
     try:
-        assert select.select([proc.stdout], [], [], 10.0)[0], "the emulator printed nothing in 10 s"
+        assert select.select([proc.stdout], [], [], 60.0)[0], "the emulator printed nothing in 60 s"
         assert f"i2c {d / 'i2c.sock'}" in proc.stdout.readline()
         assert sorted(os.listdir(d)) == sorted(DEVICES["i2c"])
         done = run_cli("prisma-hand-fault", "--dir", str(d), "hub-unplug", "--seconds", "1")
