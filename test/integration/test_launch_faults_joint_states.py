@@ -124,8 +124,9 @@ class TestForeignJointStates(unittest.TestCase):
             f"{ros.logs(name='manipulation', contains='goal ended')[-1:]}; motor driver /joint_states during "
             f"the goal: {len(hand)}, largest stamp gap {largest_gap_ms:.0f} ms")
         # the same motion: the right edge is lost at the same thumb rotation (100 Hz samples; the
-        # sim graph on wall time moves a stop by a sample or two)
-        self.assertAlmostEqual(with_foreign.result.stop_time, alone.result.stop_time, delta=0.05)
+        # sim graph on wall time moves a stop by a sample or two, and by up to six on a machine
+        # also running a second graph: 59 ms measured at a load average of 17)
+        self.assertAlmostEqual(with_foreign.result.stop_time, alone.result.stop_time, delta=0.1)
         # the foreign messages were on the wire throughout the goal, every kind, and were set aside
         self.assertGreater(len(foreign), 10)
         self.assertEqual({len(m.name) for m in foreign} | {len(m.position) for m in foreign}, {0, 6})

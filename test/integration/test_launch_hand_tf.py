@@ -156,6 +156,12 @@ class TestHandTf(unittest.TestCase):
         # both readers matched before the goal: on a busy machine discovery takes longer than a pinch
         self.assertTrue(ros.spin_until(lambda: joints and tf, 30.0), "no /joint_states or /tf")
         result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
+        # everything published up to the result, however late this process receives it: the
+        # /joint_states of that instant, and the /tf robot_state_publisher computed from one at most
+        # a publish period (50 ms) before it
+        ended_ns = stamp_ns(ros.message_at(joints, 0.0))
+        self.assertTrue(ros.spin_until(lambda: any(stamp_ns(t) >= ended_ns - 100_000_000
+                                                   for m in tf[-3:] for t in m.transforms), 30.0))
         ros.stop_collecting(joints, tf)
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
         samples = [(m.header.stamp, dict(zip(m.name, m.position))) for m in joints]
