@@ -122,8 +122,12 @@ def test_ten_pinch_grasps_with_rviz_and_the_tactile_markers_beside_the_graph(ros
             assert ros.spin_until(lambda: len(joints) > 50 and len(markers) > 10, 30.0)
             outcomes = grasp_and_open_ten_times(ros)
             assert hand.proc.poll() is None, hand.output[-3000:]
-            # RViz is still up and watching
-            assert "rviz2" in readers(), (sorted(readers()), hand.output[-3000:])
+            # RViz is still up and watching: its process alive, and in the graph. RViz runs at the
+            # default priority beside the hogs; a moment starved past its DDS lease takes it out of
+            # the others' graph until its next announcement (seen once in ten passes), so wait for that
+            assert "process has died" not in "".join(line for line in hand.output.splitlines(True)
+                                                     if "[rviz2-" in line), hand.output[-3000:]
+            assert ros.spin_until(lambda: "rviz2" in readers(), 30.0), (sorted(readers()), hand.output[-3000:])
         finally:
             stop_process(hand)
     ended = ros.logs(name="manipulation", contains="goal ended")
