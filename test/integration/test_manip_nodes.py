@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ros_harness import require_ros, stamp_ns
+from ros_harness import SIM_STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
 
 require_ros()
 
@@ -213,29 +213,20 @@ def finish(ros, handle, timeout_sec=120.0):
     return future.result()
 
 
-def joint(msg, field, motor):
-    return float(getattr(msg, field)[list(msg.name).index(motor)])
-
-
-def still(msg) -> bool:
-    """Every motor at rest in a /joint_states message."""
-    return all(abs(v) < 1e-3 for v in msg.velocity)
-
-
 def braking_ns(joints, after_ns, motor):
     """Stamp of the first /joint_states after `after_ns` in which `motor` slows down (the stop
     command reached it; the velocity loop then decays with its 10 ms time constant)."""
     later = [m for m in joints if stamp_ns(m) > after_ns]
-    speeds = [abs(joint(m, "velocity", motor)) for m in later]
+    speeds = [abs(joint(m, motor, "velocity")) for m in later]
     return next(stamp_ns(m) for m, v0, v1 in zip(later[1:], speeds, speeds[1:]) if v1 < 0.9 * v0)
 
 
 def velocity(joints, motor):
-    return joint(joints[-1], "velocity", motor)
+    return joint(joints[-1], motor, "velocity")
 
 
 def position(joints, motor):
-    return joint(joints[-1], "position", motor)
+    return joint(joints[-1], motor, "position")
 
 
 # ---- goals -----------------------------------------------------------------------------------------
@@ -362,7 +353,7 @@ def test_gripper_command_closes_to_the_force_limit_and_opens(ros, hand):
         "gripper goal started: GripperRequest(position=9.0, max_effort=1.0)",
         "gripper goal ended: force_reached"]
     ros.advance(0.1, step=STEP, settle=True)
-    assert still(h.joints[-1]) and max(h.world.forces().values()) <= 1.1
+    assert stopped(h.joints[-1], SIM_STOPPED_RAD_S) and max(h.world.forces().values()) <= 1.1
     opened = finish(ros, send(ros, f"{NS}/prisma/gripper_cmd", GripperCommand, gripper_goal(0.0)))
     assert opened.status == GoalStatus.STATUS_SUCCEEDED
     assert (opened.result.stalled, opened.result.reached_goal) == (False, True)
@@ -395,7 +386,7 @@ def test_gripper_cancel_and_stale_sensors_stop_the_motors(ros, hand):
     assert 100 * MS < ros.now_ns() - silent_from <= 140 * MS
     assert ros.wait_for_log(severity="warn", name="manipulation", contains="gripper goal ended: sensor_stale")
     ros.advance(0.1, step=STEP, settle=True)
-    assert still(h.joints[-1])
+    assert stopped(h.joints[-1], SIM_STOPPED_RAD_S)
 
 
 @pytest.mark.parametrize("action, name, goal, reason", [
@@ -637,12 +628,12 @@ def test_manipulation_node_destroyed_mid_goal_stops_the_motors_within_half_a_sec
     ros.destroy_node(h.manipulation)  # as if its process died: no refresh, no cancel
     lost_at = ros.now_ns()
     ros.advance(0.6, step=STEP, settle=True)
-    stopped = next(m for m in h.joints if stamp_ns(m) > lost_at and still(m))
-    assert stamp_ns(stopped) - lost_at <= 500 * MS
+    first_still = next(m for m in h.joints if stamp_ns(m) > lost_at and stopped(m, SIM_STOPPED_RAD_S))
+    assert stamp_ns(first_still) - lost_at <= 500 * MS
     # the goal's 0.3 s lease from its last refresh ends on the driver's tick at that instant; the
     # next /joint_states shows the motors braking
     assert braking_ns(h.joints, lost_at, "fingers") - last_refresh == MOVE_LEASE_S * 1e9 + 10 * MS
-    assert all(still(m) for m in h.joints if stamp_ns(m) >= stamp_ns(stopped))
+    assert all(stopped(m, SIM_STOPPED_RAD_S) for m in h.joints if stamp_ns(m) >= stamp_ns(first_still))
     assert not h.motor.core.runner.active  # the goal was dropped
     assert ros.wait_for_log(name="motor_driver", contains="MoveMotors goal ended: timeout")
     assert all(t <= last_refresh for t, _ in h.move_goals)
@@ -849,7 +840,7 @@ def test_sim_stack_tactile_driver_fed_by_motor_driver_through_hand_world(ros):
     lost_ns = next(stamp_ns(c) for c in contacts if stamp_ns(c) >= goal_sent and "right" in list(c.lost_edges))
     assert (lost_ns - goal_sent) * 1e-9 == pytest.approx(r.stop_time, abs=1e-6)
     ros.advance(0.2, step=STEP, settle=True)
-    rotation = joint(joints[-1], "position", "thumb_rotation")
+    rotation = joint(joints[-1], "thumb_rotation", "position")
     assert rotation == pytest.approx(0.0, abs=0.03)  # back at the start angle
 
 

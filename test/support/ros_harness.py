@@ -649,16 +649,19 @@ def _fault_cli_priority() -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FAULT_CLI_RT_PRIORITY))
 
 
-def run_hand_fault(emulator_dir: str | Path, *args: str) -> subprocess.CompletedProcess:
-    """Run `prisma-hand-fault --dir <emulator_dir> <args>` (the emulated hand's fault CLI): this
-    interpreter's own console script (not a version manager's shim, which forks a chain of shells
-    first), at FAULT_CLI_RT_PRIORITY."""
-    import shutil
+def console_script(name: str) -> str:
+    """This interpreter's own console script `name` where it has one, else `name` from PATH: a version
+    manager's shim on PATH forks a chain of shells first, seconds on a loaded machine."""
     import sys
 
-    script = Path(sys.executable).with_name("prisma-hand-fault")
-    command = [str(script) if script.exists() else shutil.which("prisma-hand-fault") or "prisma-hand-fault",
-               "--dir", str(emulator_dir), *args]
+    script = Path(sys.executable).with_name(name)
+    return str(script) if script.exists() else name
+
+
+def run_hand_fault(emulator_dir: str | Path, *args: str) -> subprocess.CompletedProcess:
+    """Run `prisma-hand-fault --dir <emulator_dir> <args>` (the emulated hand's fault CLI, its
+    `console_script`) at FAULT_CLI_RT_PRIORITY."""
+    command = [console_script("prisma-hand-fault"), "--dir", str(emulator_dir), *args]
     return subprocess.run(command, capture_output=True, text=True, timeout=30, preexec_fn=_fault_cli_priority)
 
 

@@ -20,10 +20,8 @@ import select
 import signal
 import stat
 import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,6 +36,7 @@ from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_socket import SocketSMBus
 from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size
 from prisma_tactile_driver.serial_backend import SerialHubBackend
+from ros_harness import console_script
 
 TICK_S = 0.01  # the emulator's 100 Hz scan period
 RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV
@@ -117,13 +116,6 @@ def read_frames(backend: SerialHubBackend, clock: Clock, n: int, timeout_s: floa
 
 def delta(after: dict, before: dict) -> dict:
     return {k: after[k] - before[k] for k in after}
-
-
-def console_script(name: str) -> str:
-    """This interpreter's own console script `name` where it has one: a version manager's shim on
-    PATH forks a chain of shells first, seconds on a loaded machine."""
-    script = Path(sys.executable).with_name(name)
-    return str(script) if script.exists() else name
 
 
 def run_cli(name: str, *args: str) -> subprocess.CompletedProcess:
