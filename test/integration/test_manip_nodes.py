@@ -871,9 +871,12 @@ def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
     # bounded by the goals of the last 10 s, not by the length of the motion: a goal is kept until
     # 10 s after it ended (preempted 0.1 s after it was sent, or expired after its 0.3 s lease) plus
     # rcl's expiry check. A loaded machine sends a few goals late and then catches up, so the
-    # bound counts the goals actually sent in that window rather than assuming 10 a second.
+    # bound counts the goals actually sent in that window rather than assuming 10 a second. The
+    # 0.5 s margin is the server's lag behind the client on a loaded machine: the goal is accepted
+    # after it was sent and the expiry timer runs in the executor this loop keeps busy (CI once
+    # counted 101 goals against a 0.2 s margin's 100).
     for at, count in tracked:
-        assert count <= sum(1 for t in sent if at - (10.0 + MOVE_LEASE_S + 0.2) <= t <= at)
+        assert count <= sum(1 for t in sent if at - (10.0 + MOVE_LEASE_S + 0.5) <= t <= at)
     assert 90 <= counts[-1] < 130 - 20
     final = status[-1]  # as the last goal started: every goal kept (expiry itself publishes nothing)
     assert 90 <= len(final.status_list) <= max(counts) + 1
