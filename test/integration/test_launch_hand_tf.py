@@ -79,6 +79,10 @@ class TestHandTf(unittest.TestCase):
 
     @classmethod
     def tearDownClass(cls):
+        # the listener's spin thread first: left spinning, it raises ExternalShutdownException when
+        # rclpy shuts down (tf2_ros stops it only in __del__)
+        cls.listener.executor.shutdown()
+        cls.listener.dedicated_listener_thread.join()
         cls.listener.unregister()
         cls.tf_node.destroy_node()
         cls.ros.shutdown()
