@@ -75,6 +75,16 @@ TOGETHER_PINCH = Grasp.Goal(grasp="pinch", finger_force=0.8)
 TOGETHER_PINCH_STARTED = "grasp goal started: GraspRequest(grasp='pinch', finger_force=0.8"
 
 
+def goal_span(log: list[str], started: str, ended: str) -> tuple[int, int] | None:
+    """Indices in a node's log of the last line beginning with `started` and of the first line
+    beginning with `ended` after it: one goal's start and end (None until both have arrived)."""
+    first = max((i for i, m in enumerate(log) if m.startswith(started)), default=None)
+    if first is None:
+        return None
+    last = next((i for i in range(first + 1, len(log)) if log[i].startswith(ended)), None)
+    return None if last is None else (first, last)
+
+
 @pytest.mark.launch_test
 def generate_test_description():
     return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
@@ -223,19 +233,13 @@ class TestHandActions(unittest.TestCase):
     def one_after_the_other(self) -> bool:
         """The last TOGETHER_PINCH and the last Manipulate ran one after the other (by the node's
         log, which this process may receive late: waits for both goals' end lines)."""
-        def lines() -> list[str]:
-            return [m for m in self.ros.logs(name="manipulation") if " goal started: " in m or " goal ended: " in m]
+        def spans() -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
+            log = self.ros.logs(name="manipulation")
+            return (goal_span(log, TOGETHER_PINCH_STARTED, "grasp goal ended: "),
+                    goal_span(log, "manipulate goal started: ", "manipulate goal ended: "))
 
-        def span(started: str, ended: str) -> tuple[int, int] | None:
-            found = lines()
-            first = max((i for i, m in enumerate(found) if m.startswith(started)), default=None)
-            last = next((i for i in range(first + 1, len(found)) if found[i].startswith(ended)), None) \
-                if first is not None else None
-            return None if last is None else (first, last)
-
-        spans = lambda: (span(TOGETHER_PINCH_STARTED, "grasp goal ended: "),  # noqa: E731
-                         span("manipulate goal started: ", "manipulate goal ended: "))
-        self.assertTrue(self.ros.spin_until(lambda: None not in spans(), 30.0), lines()[-6:])
+        self.assertTrue(self.ros.spin_until(lambda: None not in spans(), 30.0),
+                        self.ros.logs(name="manipulation", contains=" goal ")[-6:])
         (g0, g1), (m0, m1) = spans()
         return g1 < m0 or m1 < g0
 
