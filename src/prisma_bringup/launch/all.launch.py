@@ -4,6 +4,7 @@
     ros2 launch prisma_bringup all.launch.py sim:=false glove_backend:=serial glove_port:=/dev/ttyACM0
     ros2 launch prisma_bringup all.launch.py glove:=false
     ros2 launch prisma_bringup all.launch.py parts:=robot         # the drivers; parts:=workstation the rest
+    ros2 launch prisma_bringup all.launch.py sim:=false hand_config:=~/hands/pad7   # the hand's directory
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
@@ -27,13 +28,16 @@ def generate_launch_description():
         DeclareLaunchArgument("glove_port", default_value="/dev/ttyACM0"),
         DeclareLaunchArgument("parts", default_value="all", choices=["all", "robot", "workstation"],
                               description="Which computer's share of hand and glove to start (hand.launch.py)"),
+        DeclareLaunchArgument("hand_config", default_value="auto",
+                              description="The hand's directory (hand.launch.py): auto, none or a directory"),
     ]
     hand = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": LaunchConfiguration("sim"),
                           "tactile_backend": LaunchConfiguration("tactile_backend"),
                           "motor_backend": LaunchConfiguration("motor_backend"),
-                          "parts": LaunchConfiguration("parts")}.items(),
+                          "parts": LaunchConfiguration("parts"),
+                          "hand_config": LaunchConfiguration("hand_config")}.items(),
     )
     glove = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),

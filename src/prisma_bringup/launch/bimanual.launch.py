@@ -5,11 +5,13 @@ namespace:=right, glove.launch.py at the root (/stag/...).
     ros2 launch prisma_bringup bimanual.launch.py parts:=robot         # on the robot; parts:=workstation beside it
     ros2 launch prisma_bringup bimanual.launch.py sim:=false left_motor_port:=/dev/ttyUSB0 \
         left_tactile_port:=/dev/ttyUSB1 right_motor_port:=/dev/ttyUSB2 right_tactile_port:=/dev/ttyUSB3
+    ros2 launch prisma_bringup bimanual.launch.py sim:=false left_hand_config:=~/hands/pad7   # a hand's directory
 
 Each hand is its own graph (/left/prisma/grasp, /right/prisma/grasp, /left/joint_states, ...; frames
 prefixed left/ and right/): a goal on one hand never touches the other's motors. parts:= splits all
 three between two computers as hand.launch.py and glove.launch.py do (docs/architecture.md,
-"Across machines").
+"Across machines"). Each hand has its own directory (hand_config, hand.launch.py): by default
+~/.config/prisma_hand/left and .../right on the hardware, none in sim.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction, IncludeLaunchDescription
@@ -38,6 +40,10 @@ def generate_launch_description():
                               description="Serial port of the right hand's Dynamixel adapter (sim:=false)"),
         DeclareLaunchArgument("right_tactile_port", default_value="/dev/ttyUSB3",
                               description="Serial port of the right hand's fingertip hub (sim:=false)"),
+        *(DeclareLaunchArgument(f"{side}_hand_config", default_value="auto",
+                                description=f"The {side} hand's directory (hand.launch.py hand_config): auto = "
+                                            f"~/.config/prisma_hand/{side} with sim:=false, none in sim; none; "
+                                            "or a directory") for side in ("left", "right")),
     ]
     ports = {"left": (LaunchConfiguration("left_motor_port"), LaunchConfiguration("left_tactile_port")),
              "right": (LaunchConfiguration("right_motor_port"), LaunchConfiguration("right_tactile_port"))}
@@ -46,7 +52,8 @@ def generate_launch_description():
     hands = [GroupAction([IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": LaunchConfiguration("sim"), "namespace": side, "parts": parts,
-                          "motor_port": ports[side][0], "tactile_port": ports[side][1]}.items(),
+                          "motor_port": ports[side][0], "tactile_port": ports[side][1],
+                          "hand_config": LaunchConfiguration(f"{side}_hand_config")}.items(),
     )], scoped=True) for side in ("left", "right")]
     glove = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),

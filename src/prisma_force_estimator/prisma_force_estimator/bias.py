@@ -15,7 +15,7 @@ thing being corrected.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +28,7 @@ DEFAULT_CONTACT_VOLTAGE = 0.55
 class BiasResult:
     success: bool
     message: str
+    warning: bool = False  # taken, but something the operator must know (not saved to the hand directory)
 
 
 class WrenchBias:
@@ -64,6 +65,11 @@ class WrenchBias:
         self.offsets = {f: np.mean(np.stack(w), axis=0) for f, w in self._wrenches.items()}
         detail = "; ".join(f"{f} Fz {o[2]:+.4f} N" for f, o in self.offsets.items())
         return BiasResult(True, f"biased over {self.samples} samples: {detail}")
+
+    def restore(self, offsets: Mapping[str, np.ndarray]) -> None:
+        """Offsets saved by an earlier take() (the hand directory's force_bias.yaml), for the
+        fingers this bias serves; the others keep none."""
+        self.offsets = {f: np.asarray(o, dtype=np.float64) for f, o in offsets.items() if f in self._wrenches}
 
     def describe(self, finger: str) -> str:
         """The finger's offset for /diagnostics: fx fy fz (N) tx ty tz (N*m), or none."""

@@ -28,6 +28,10 @@ class ForceEstimatorConfig(Params):
     # finger -> bundle directory; "" = use model_bundle. ROS parameters finger_bundles.<finger>.
     finger_bundles: dict[str, str] = parameter({f: "" for f in FINGERS}, "model bundle directory for the {finger}; "
                                                                           "'' = model_bundle")
+    # the physical hand's directory (hand_directory.py): its bundles.yaml beats model_bundle, its
+    # force_bias.yaml is applied at start and rewritten by ~/bias
+    hand_config: str = parameter("", "per-hand directory (bundles.yaml, force_bias.yaml); '' = none: the shipped "
+                                     "config only, ~/bias not saved")
     fingers: list[str] = parameter(list(FINGERS), "fingers whose taxels are estimated",
                                    rules=f"distinct names of {', '.join(FINGERS)}")
     frame_id_format: str = parameter("", "header.frame_id of the wrenches: '' = the input TaxelArray's, else a "

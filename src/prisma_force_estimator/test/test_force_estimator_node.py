@@ -11,6 +11,7 @@ import shutil
 
 import numpy as np
 import pytest
+import yaml
 
 from repo_paths import CONFIG, node_parameters
 from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
@@ -24,6 +25,7 @@ from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from prisma_common.hand_config import HandConfigError  # noqa: E402
 from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # noqa: E402
 from prisma_force_estimator.inference import ForceEstimator  # noqa: E402
 from prisma_force_estimator.node_config import ForceEstimatorConfig, ParameterError  # noqa: E402
@@ -165,6 +167,54 @@ def test_bias_service_zeroes_the_no_load_wrench_and_refuses_in_contact(ros, node
     assert ros.spin_until(lambda: len(diagnostics) == 2)
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     assert values["bias"] == " ".join(f"{v:.4f}" for v in offset)  # the first offset, kept
+
+
+def test_bias_is_saved_to_the_hand_directory_and_loaded_by_a_restarted_node(ros, node_cls, bundles, tmp_path):
+    """With hand_config, ~/bias writes force_bias.yaml there (the message names it); the next start
+    subtracts that bias from the first wrench on, and a node with another network does not."""
+    hand_dir = tmp_path / "hand"
+    params = {"model_bundle": str(bundles["cnn2"]), "fingers": ["thumb"], "bias_samples": 3,
+              "hand_config": str(hand_dir)}
+    reference = ForceEstimator.from_bundle(bundles["cnn2"])
+    rest = np.array(PadParams().rest_volts, dtype=np.float32)
+    t0 = ros.now_ns()
+    ros.capture_logs()
+    node = ros.node(node_cls, params=params)
+    assert ros.wait_for_log(severity="info", name="force_estimator",
+                            contains=f"hand directory {hand_dir}: nothing saved yet")
+    for k in range(3):
+        send(ros, node, "thumb", taxel_msg("thumb", t0 + k * 10_000_000, rest))
+    response = ros.call(Trigger, "/force_estimator/bias", Trigger.Request())
+    offset = reference.estimate(np.stack([rest] * 3)).mean(axis=0)
+    saved = hand_dir / "force_bias.yaml"
+    assert response.success
+    assert response.message == f"biased over 3 samples: thumb Fz {offset[2]:+.4f} N; saved to {saved}"
+    entry = yaml.safe_load(saved.read_text())["force_bias"]["thumb"]
+    np.testing.assert_allclose(entry["offset"], offset, atol=1e-6)
+    assert (entry["bundle"], entry["samples"], entry["note"]) == (str(bundles["cnn2"]), 3, "~/bias")
+    ros.destroy_node(node)
+
+    wrenches = ros.collect(WrenchStamped, "/prisma/thumb/wrench")
+    restarted = ros.node(node_cls, params=params)
+    assert ros.wait_for_log(severity="info", name="force_estimator",
+                            contains=f"hand directory {hand_dir}: thumb: saved bias Fz {offset[2]:+.4f} N from ")
+    pressed = rest + np.float32(0.5)
+    send(ros, restarted, "thumb", taxel_msg("thumb", t0 + 10**9, pressed))
+    assert ros.spin_until(lambda: len(wrenches) == 1)
+    np.testing.assert_allclose(wrench_rows(wrenches)[0], reference.estimate(pressed[None])[0] - offset, atol=1e-5)
+    ros.destroy_node(restarted)
+
+    other = ros.node(node_cls, params={**params, "model_bundle": str(bundles["cnn"])})
+    assert ros.wait_for_log(severity="info", name="force_estimator",
+                            contains=f"thumb: saved bias not applied: taken with {bundles['cnn2']}, this run uses "
+                                     f"{bundles['cnn']}; take ~/bias again")
+    assert other.pipeline.bias.offsets == {}
+
+
+def test_a_damaged_hand_file_fails_at_start_naming_it(ros, node_cls, bundles, tmp_path):
+    (tmp_path / "force_bias.yaml").write_text("force_bias: [thumb]\n")
+    with pytest.raises(HandConfigError, match=f"{tmp_path / 'force_bias.yaml'}: 'force_bias' must be a mapping"):
+        ros.node(node_cls, params={"model_bundle": str(bundles["cnn2"]), "hand_config": str(tmp_path)})
 
 
 def test_per_finger_bundle_override_and_frame_id_format(ros, node_cls, bundles):
@@ -309,6 +359,16 @@ def test_main_logs_the_mismatch_and_exits_1(bundles, tmp_path):
     result = run_process([*RUN, "--ros-args", "-p", f"model_bundle:={broken}"])
     assert result.returncode == 1, result.output
     assert "[FATAL]" in result.output and "normalisation.input has 12 channels, expected 9" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_main_logs_a_damaged_hand_file_and_exits_1(bundles, tmp_path):
+    (tmp_path / "force_bias.yaml").write_text("force_bias:\n  thumb: {offset: [0, 0, 0], bundle: b, samples: 5}\n")
+    result = run_process([*RUN, "--ros-args", "-p", f"model_bundle:={bundles['cnn2']}",
+                          "-p", f"hand_config:={tmp_path}"])
+    assert result.returncode == 1, result.output
+    assert "[FATAL]" in result.output and f"{tmp_path / 'force_bias.yaml'}: force_bias thumb offset = [0, 0, 0] " \
+        "is not 6 numbers" in result.output
     assert "Traceback" not in result.output
 
 

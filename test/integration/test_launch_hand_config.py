@@ -1,0 +1,75 @@
+"""hand_config:= in the launch files: what directory motor_driver and force_estimator get as their
+`hand_config` parameter (evaluated in-process, no nodes started), and that every launch file that
+starts a hand hands the argument on (bimanual.launch.py one per hand).
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import ast
+import importlib.util
+
+import pytest
+
+from repo_paths import LAUNCH
+from ros_harness import require_ros
+
+require_ros()
+
+from launch import LaunchContext  # noqa: E402
+from launch.substitutions import TextSubstitution  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def hand_launch():
+    spec = importlib.util.spec_from_file_location("hand_launch", LAUNCH / "hand.launch.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("given, namespace, simulated, expected", [
+    ("auto", "", "False", "{xdg}/prisma_hand/default"),
+    ("auto", "left", "False", "{xdg}/prisma_hand/left"),
+    ("auto", "left", "True", ""),  # sim:=true or hardware:=emulated: none
+    ("none", "left", "False", ""),
+    ("{tmp}/pad7", "right", "True", "{tmp}/pad7"),  # given: used in sim as well
+])
+def test_the_nodes_parameter_follows_the_argument(hand_launch, monkeypatch, tmp_path, given, namespace, simulated,
+                                                  expected):
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
+    text = [TextSubstitution(text=t) for t in (given.format(tmp=tmp_path), namespace, simulated)]
+    value = hand_launch.HandConfigDir(*text).perform(LaunchContext())
+    assert value == expected.format(xdg=tmp_path / "xdg", tmp=tmp_path)
+
+
+def node_parameter_keys(launch_file: str) -> dict[str, list[set[str]]]:
+    """executable -> the literal keys of the parameter dicts of each of its Node(...) calls."""
+    found: dict[str, list[set[str]]] = {}
+    for call in ast.walk(ast.parse((LAUNCH / launch_file).read_text())):
+        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
+            keywords = {k.arg: k.value for k in call.keywords}
+            name = keywords["name"].value if isinstance(keywords.get("name"), ast.Constant) else None
+            keys = {k.value for d in ast.walk(keywords.get("parameters", ast.List(elts=[])))
+                    if isinstance(d, ast.Dict) for k in d.keys if isinstance(k, ast.Constant)}
+            found.setdefault(name, []).append(keys)
+    return found
+
+
+def test_every_motor_driver_and_force_estimator_gets_it():
+    nodes = node_parameter_keys("hand.launch.py")
+    assert len(nodes["motor_driver"]) == 3  # sim, hardware, emulated
+    for name in ("motor_driver", "force_estimator"):
+        assert all("hand_config" in keys for keys in nodes[name]), name
+
+
+@pytest.mark.parametrize("launch_file, declared, handed_on", [
+    ("all.launch.py", 'DeclareLaunchArgument("hand_config", default_value="auto"',
+     '"hand_config": LaunchConfiguration("hand_config")'),
+    # one per hand, declared for side in ("left", "right")
+    ("bimanual.launch.py", 'DeclareLaunchArgument(f"{side}_hand_config", default_value="auto"',
+     '"hand_config": LaunchConfiguration(f"{side}_hand_config")'),
+])
+def test_the_including_launch_files_hand_it_on(launch_file, declared, handed_on):
+    text = (LAUNCH / launch_file).read_text()
+    assert declared in text and handed_on in text
