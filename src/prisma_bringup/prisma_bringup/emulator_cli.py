@@ -29,6 +29,7 @@ from prisma_common.cli_args import (
     positive_int,
 )
 from prisma_common.scheduling import apply_priority_from_env
+from prisma_motor_driver.dynamixel_emulator import stderr_log
 
 from .hand_emulator import DEFAULT_DIR, TACTILE_LINKS, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings
 
@@ -66,7 +67,7 @@ def emulator_main(argv: list[str] | None = None) -> int:
         raise UserError(f"--dir {args.dir}: {exc.strerror or exc}; choose another path") from None
     paths = EmulatorPaths(args.dir.absolute())  # the drivers, started elsewhere, need whole paths
     hand = EmulatedHand(paths, EmulatorSettings(rate_hz=args.rate, world=args.world, seed=args.seed,
-                                                tactile_link=args.tactile_link))
+                                                tactile_link=args.tactile_link), log=stderr_log)
     stop = threading.Event()
     signals: list[int] = []
 
@@ -131,8 +132,17 @@ FAULTS: dict[str, tuple[str, list[tuple[str, Any, str, Any]]]] = {
     "servo-silent": ("a servo stops answering (off the bus)", [
         ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
         ("--seconds", non_negative_float, "back after this long (0 = at servo-clear)", 0.0)]),
-    "servo-clear": ("power-cycle servos: hardware errors cleared, answering again", [
+    "servo-clear": ("hardware error bits cleared and servos answering again (no power cycle)", [
         ("--motor", str, "one motor (default: all)", "")]),
+    "power-cycle": ("switch servos off and on: torque off, RAM (LED, bus watchdog, goals) reset, the position "
+                    "reported within one turn again; the hand keeps its pose", [
+        ("--motor", str, "one motor (default: all)", "")]),
+    "servo-baud": ("a servo configured at another baud rate (by another tool): silent at the driver's", [
+        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
+        ("--rate", positive_int, "its baud rate (1000000 restores it)", None)]),
+    "servo-place": ("turn a motor by hand to an angle (rad of its shaft, between its end stops)", [
+        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
+        ("--rad", float, "the angle (rad)", None)]),
     "push": ("push the object across the pads / to a narrower section", [
         ("--dx-mm", float, "slip toward the thumb pad's left side (mm)", 0.0),
         ("--dy-mm", float, "slip toward the thumb pad's top row (mm)", 0.0),

@@ -9,7 +9,8 @@ path:
   at the scan rate read by tactile_driver's serial backend through pyserial; or `i2c`, the pads'
   TCA9548A + MAX11617 bus served on `<dir>/i2c.sock`, reached by tactile_driver's i2c backend
   through smbus2 (`i2c_socket`). A robot has one of the two, so the emulator serves one.
-Every scan period `tick` reads the servos' present positions, moves the world to them, puts the
+Every scan period `tick` reads the servos' MECHANICAL angles (a servo's reported position loses
+whole turns at a power-up; the spools do not), moves the world to them, puts the
 pads' contacts through the pad model into counts (a hub frame or the ADC registers) and loads the
 servos with the world's tendon torques.
 
@@ -21,9 +22,14 @@ that device only: an unplugged hub never stops the servos from answering.
 Faults are applied by `apply`, as the emulator's control socket receives them (`prisma-hand-fault`):
 the hub unplugged and plugged back (a new pty behind the same link, sequence restarting at 0 as a
 powered-down Arduino does), garbage bytes and CRC-corrupted frames on the hub link, a pad's ADC not
-acknowledging or glitching on I2C, a servo hardware error bit, a servo off the bus, an external push
-on the object, and a new scenario world (the experimenter placing another object). A fault of the
+acknowledging or glitching on I2C, a servo hardware error bit, a servo off the bus, a servo power
+cycle (`power-cycle`: RAM reset, the turn count lost, the hand keeps its pose), a servo at another baud
+rate (`servo-baud`), a motor turned by hand (`servo-place`), an external push on the object, and a new
+scenario world (the experimenter placing another object). A fault of the
 tactile link the hand is not wired with (`i2c-nack` on the serial hub) is refused with the reason.
+
+Each motor has mechanical end stops (END_STOPS_RAD): its configured minimum, and 0.2 rad past its
+maximum; a servo driven into one stalls there at the current its mode allows (logged via `log`).
 
 Nothing here reads ROS. Time is `clock_ns()` (monotonic); the world's time starts at 0 with each
 scenario, so the scenarios' disturbances keep their timing.
@@ -44,6 +50,7 @@ from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldContactSource
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
 from prisma_motor_driver import control_table as ct
+from prisma_motor_driver.backend import DEFAULT_MAX_POSITIONS, DEFAULT_MIN_POSITIONS
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ServoPresent
 from prisma_motor_driver.sim_backend import SimMotorParams
 from prisma_tactile_driver.i2c_emulator import five_finger_bus
@@ -66,6 +73,11 @@ LINK_FAULTS = {"serial": ("hub-unplug", "hub-replug", "hub-garbage", "hub-crc"),
 # others start as prisma-sim's scenarios do (prisma_manipulation.scenarios.scenario_world).
 WORLDS = ("hand",) + SCENARIO_NAMES
 DEFAULT_DIR = Path("/tmp/prisma_hand_emulator")
+# Each motor's mechanical end stops (rad of the motor shaft from its zero): the open end is its
+# configured minimum, the far one this far past its configured maximum.
+END_STOP_MARGIN_RAD = 0.2
+END_STOPS_RAD = {name: (lo, hi + END_STOP_MARGIN_RAD)
+                 for name, lo, hi in zip(MOTOR_NAMES, DEFAULT_MIN_POSITIONS, DEFAULT_MAX_POSITIONS)}
 
 
 def world_for(name: str) -> HandWorld:
@@ -229,7 +241,8 @@ class HubLink:
 
 class EmulatedHand:
     def __init__(self, paths: EmulatorPaths, settings: EmulatorSettings | None = None,
-                 clock_ns: Callable[[], int] = time.monotonic_ns) -> None:
+                 clock_ns: Callable[[], int] = time.monotonic_ns, log: Callable[[str], None] | None = None) -> None:
+        """`log` gets the servos' event lines (a stall at an end stop, a bus watchdog firing)."""
         self.paths = paths
         self.settings = settings or EmulatorSettings()
         if self.settings.rate_hz <= 0:
@@ -247,7 +260,10 @@ class EmulatedHand:
         self._contacts = HandWorldContactSource(self.world)
         self._pads = SimHubBackend(self._contacts, FINGERS, seed=self.settings.seed)
         self.i2c_bus = five_finger_bus()
-        self.servos = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9)
+        self.servos = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9, log=log)
+        for name, (lo, hi) in END_STOPS_RAD.items():
+            self.servos.set_end_stops(MOTOR_IDS[name], *sorted((self._mechanical_ticks(name, lo),
+                                                                self._mechanical_ticks(name, hi))))
         self.hub = HubLink(paths.hub, self.settings.hub_buffer_bytes, np.random.default_rng(self.settings.seed))
         self._servo_faults_lock = threading.Lock()  # the tick expires them, the control thread sets them
         self._silent_until_ns: dict[str, int | None] = {}  # None = until servo-clear
@@ -256,6 +272,7 @@ class EmulatedHand:
         self._control = ControlServer(paths.control, self.request)
         self._made_dirs: list[Path] = []  # the directories start() created, innermost last
         self._place_servos()
+        self.servos.power_cycle()  # switched on in the world's pose: each count within one turn
 
     # ---- lifecycle -------------------------------------------------------------------------
     def start(self) -> EmulatedHand:
@@ -355,9 +372,15 @@ class EmulatedHand:
             self.hub.send(counts, now_ns)
 
     def _motor_positions(self, present: dict[int, ServoPresent]) -> dict[str, float]:
+        """The joints' motor angles: the world follows the spools' MECHANICAL angles (what a servo
+        reports loses whole turns at a power-up)."""
         s = self.settings
-        return {name: s.directions[i] * ct.ticks_to_rad(present[MOTOR_IDS[name]].position_ticks - s.zero_ticks[i])
+        return {name: s.directions[i] * ct.ticks_to_rad(present[MOTOR_IDS[name]].mechanical_ticks - s.zero_ticks[i])
                 for i, name in enumerate(MOTOR_NAMES)}
+
+    def _mechanical_ticks(self, motor: str, rad: float) -> float:
+        i = MOTOR_NAMES.index(motor)
+        return self.settings.zero_ticks[i] + ct.rad_to_ticks(self.settings.directions[i] * rad)
 
     def _expire_servo_faults(self, now_ns: int) -> None:
         with self._servo_faults_lock:
@@ -397,11 +420,20 @@ class EmulatedHand:
         positions = self._motor_positions(present)
         servos = {}
         for i, (name, servo_id) in enumerate(MOTOR_IDS.items()):
-            servo = present[servo_id]
+            servo, emulated = present[servo_id], self.servos.servos[servo_id]
             servos[name] = {"id": servo_id, "position_rad": round(positions[name], 4),
                             "velocity_rpm": round(self.settings.directions[i] * servo.velocity_rpm, 3),
                             "torque_on": servo.torque_on, "hardware_error": servo.hardware_error,
-                            "silent": self.servos.servos[servo_id].silent}
+                            "silent": emulated.silent, "baud_rate": emulated.baud_rate,
+                            "present_position_ticks": int(round(servo.position_ticks)),
+                            "mechanical_ticks": round(servo.mechanical_ticks, 1), "led": servo.led,
+                            "bus_watchdog": servo.bus_watchdog,
+                            "watchdog_firings": [
+                                {"at_s": round(f.at_s, 4), "position_ticks": round(f.position_ticks, 1)}
+                                for f in self.servos.watchdog_firings if f.servo_id == servo_id],
+                            "current_ma": round(ct.current_units_to_ma(servo.current_units), 1),
+                            "peak_current_ma": round(ct.current_units_to_ma(servo.peak_current_units), 1),
+                            "current_limit_ma": round(ct.current_units_to_ma(servo.current_limit_units), 1)}
         with self.lock:
             forces = {f: round(v, 4) for f, v in self.world.forces().items()}
             i2c = {"transfers": self.i2c_bus.transfers, "nacks": self.i2c_bus.nacks,
@@ -491,6 +523,30 @@ class EmulatedHand:
             self._servo_back(name)
         return f"{', '.join(motors)}: hardware error cleared, answering"
 
+    def _fault_power_cycle(self, motor: str = "") -> str:
+        motors = [motor] if motor else list(MOTOR_NAMES)
+        ids = [self._servo_id(name) for name in motors]
+        for servo_id in ids:
+            self.servos.power_cycle(servo_id)
+        return (f"{', '.join(motors)}: power-cycled (torque off, RAM reset, position within one turn; "
+                "the hand kept its pose)")
+
+    def _fault_servo_baud(self, motor: str, rate: int) -> str:
+        servo_id = self._servo_id(motor)
+        try:
+            self.servos.set_baud(servo_id, int(rate))
+        except (TypeError, ValueError) as exc:
+            raise FaultError(str(exc)) from None
+        return f"{motor} (ID {servo_id}) set to {int(rate)} baud"
+
+    def _fault_servo_place(self, motor: str, rad: float) -> str:
+        servo_id = self._servo_id(motor)
+        lo, hi = END_STOPS_RAD[motor]
+        if not isinstance(rad, (int, float)) or isinstance(rad, bool) or not lo <= rad <= hi:
+            raise FaultError(f"rad {rad!r}: {motor} moves between its end stops, {lo:g}..{hi:g} rad")
+        self.servos.place(servo_id, self._mechanical_ticks(motor, rad))
+        return f"{motor} (ID {servo_id}) turned by hand to {rad:g} rad (power-cycle to lose its turn count)"
+
     def _fault_push(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dwidth_mm: float = 0.0,
                     duration_s: float = 0.3) -> str:
         _check_non_negative("duration_s", duration_s)
@@ -516,10 +572,8 @@ class EmulatedHand:
 
     def _place_servos(self) -> None:
         """Put the servos where the world's hand is, at rest: the experimenter posing the hand."""
-        s = self.settings
-        for i, name in enumerate(MOTOR_NAMES):
-            servo_id = MOTOR_IDS[name]
-            self.servos.place(servo_id, s.zero_ticks[i] + ct.rad_to_ticks(s.directions[i] * self.world.positions[name]))
+        for name in MOTOR_NAMES:
+            self.servos.place(MOTOR_IDS[name], self._mechanical_ticks(name, self.world.positions[name]))
 
 
 _LINK_NAMES = {"serial": "fingertip hub's serial link", "i2c": "host's I2C bus"}

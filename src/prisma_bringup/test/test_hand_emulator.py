@@ -23,6 +23,7 @@ import subprocess
 import threading
 import time
 
+import dynamixel_sdk as sdk
 import numpy as np
 import pytest
 
@@ -65,10 +66,14 @@ class Rig:
         self.hand = EmulatedHand(self.paths, settings, clock_ns=self.clock).start()
         self._closers = [self.hand.close]
 
-    def tick(self, n: int = 1) -> None:
+    def tick(self, n: int = 1, bus: DynamixelBus | None = None) -> None:
+        """n scan periods; with `bus`, a read of the servos' state each (the driver's cycle, which
+        keeps their bus watchdogs fed)."""
         for _ in range(n):
             self.clock.advance(TICK_S)
             self.hand.tick(self.clock.ns)
+            if bus is not None:
+                bus.read_state()
 
     def bus(self) -> DynamixelBus:
         motors = MotorMap.from_lists(["fingers", "thumb_flexion", "thumb_rotation"], [1, 2, 3],
@@ -230,19 +235,27 @@ def test_motion_closes_the_grasp_and_loads_the_servos(rig):
     bus = r.bus()
     bus.set_velocities({"fingers": 60.0, "thumb_flexion": 60.0})
     r.hand.servos.sync()  # sync write has no status packet: let the servos take it before time moves
-    r.tick(30)  # 0.3 s at 2 pi rad/s: 1.9 rad, short of the thumb contact (2.5) and index (3.0)
+    r.tick(30, bus)  # 0.3 s at 2 pi rad/s: 1.9 rad, short of the thumb contact (2.5) and index (3.0)
     free, free_forces = bus.read_state(), r.hand.status()["forces_n"]
     assert free_forces["thumb"] == free_forces["index"] == 0.0
-    r.tick(170)
+    r.tick(80, bus)  # 1.1 s: 6.9 rad, short of the end stops (thumb flexion's at 7.2 rad, fingers' at 9.2)
     loaded, forces = bus.read_state(), r.hand.status()["forces_n"]
     assert forces["thumb"] > 0.5 and forces["index"] > 0.5
-    assert loaded["fingers"].position_rad == pytest.approx(2.0 * 2 * math.pi, rel=1e-3)
+    assert loaded["fingers"].position_rad == pytest.approx(1.1 * 2 * math.pi, rel=1e-3)
     loads = r.hand.world.motor_loads()
     for name in ("fingers", "thumb_flexion"):
         grown = loaded[name].current_ma - free[name].current_ma  # the speed term is the same in both
         assert grown > 0
         assert grown == pytest.approx(loads[name] / SimMotorParams().torque_constant_nm_per_a * 1e3,
                                       abs=ct.MA_PER_CURRENT_UNIT)
+    # on into the fingers' far end stop (0.2 rad past their 9.0 rad maximum): stalled there, pulling
+    # the Current Limit, the peak kept and the stall logged
+    r.tick(70, bus)
+    stalled, status = bus.read_state()["fingers"], r.hand.status()["servos"]["fingers"]
+    assert stalled.position_rad == pytest.approx(ct.ticks_to_rad(ct.rad_to_ticks(9.2)))
+    assert stalled.velocity_rpm == 0.0 and stalled.current_ma == pytest.approx(status["current_limit_ma"], abs=0.1)
+    assert status["peak_current_ma"] == status["current_limit_ma"] <= ct.current_units_to_ma(ct.CURRENT_LIMIT_MAX_UNITS)
+    assert any(line.startswith("servo 1: stalled at its hi end stop") for line in r.hand.servos.events)
 
 
 # ---- hub faults -------------------------------------------------------------------------------
@@ -510,3 +523,64 @@ def test_cli_on_sigterm_removes_what_it_made_and_refuses_faults_of_the_other_lin
         if proc.poll() is None:
             proc.kill()
         proc.communicate()
+
+
+# ---- servo power, baud, place and bus watchdog ------------------------------------------------------
+def test_servo_place_then_power_cycle_loses_the_turn_count_and_the_world_keeps_the_pose(rig):
+    """The fingers turned by hand 7.0 rad closed (past one turn) and the servos power-cycled: the
+    servo reports within one turn, the world (the mechanical angle) keeps 7.0 rad."""
+    r = rig()
+    assert r.hand.apply("servo-place", motor="fingers", rad=7.0).startswith("fingers (ID 1) turned")
+    assert r.hand.apply("power-cycle").startswith("fingers, thumb_flexion, thumb_rotation: power-cycled")
+    r.tick()
+    fingers = r.hand.status()["servos"]["fingers"]
+    mechanical = ct.rad_to_ticks(7.0)
+    assert (fingers["mechanical_ticks"], fingers["present_position_ticks"]) == (mechanical, mechanical - 4096)
+    assert fingers["position_rad"] == pytest.approx(7.0, abs=RAD_PER_TICK) and r.hand.world.positions["fingers"] == \
+        pytest.approx(7.0, abs=RAD_PER_TICK)
+    assert (fingers["torque_on"], fingers["led"], fingers["bus_watchdog"], fingers["watchdog_firings"]) == \
+        (False, 0, 0, [])
+    assert fingers["current_limit_ma"] == pytest.approx(ct.current_units_to_ma(ct.CURRENT_LIMIT_MAX_UNITS), abs=0.1)
+    with pytest.raises(FaultError, match="rad 9.5: fingers moves between its end stops, 0..9.2 rad"):
+        r.hand.apply("servo-place", motor="fingers", rad=9.5)
+    with pytest.raises(FaultError, match="'wrist'"):
+        r.hand.apply("power-cycle", motor="wrist")
+
+
+def test_servo_baud_silences_one_servo_at_the_drivers_rate_until_set_back(rig):
+    r = rig()
+    port = sdk.PortHandler(str(r.paths.servos))
+    assert port.openPort() and port.setBaudRate(1_000_000)
+    try:
+        ph = sdk.PacketHandler(2.0)
+        assert r.hand.apply("servo-baud", motor="thumb_flexion", rate=57600) == "thumb_flexion (ID 2) set to 57600 baud"
+        assert ph.ping(port, 2)[1] == sdk.COMM_RX_TIMEOUT and ph.ping(port, 1)[1] == sdk.COMM_SUCCESS
+        assert r.hand.status()["servos"]["thumb_flexion"]["baud_rate"] == 57600
+        with pytest.raises(FaultError, match="baud rate 12345"):
+            r.hand.apply("servo-baud", motor="thumb_flexion", rate=12345)
+        r.hand.apply("servo-baud", motor="thumb_flexion", rate=1_000_000)
+        assert ph.ping(port, 2)[1] == sdk.COMM_SUCCESS
+    finally:
+        port.closePort()
+
+
+def test_a_watchdog_fires_on_the_tick_alone_when_the_host_stops_talking(rig):
+    """Armed (100 ms), 30 rpm, then no packet at all (a SIGKILLed driver): the tick's own look at the
+    servos stops the fingers 100 ms after the last packet, and status says where and when."""
+    r = rig()
+    port = sdk.PortHandler(str(r.paths.servos))
+    assert port.openPort() and port.setBaudRate(1_000_000)
+    try:
+        ph = sdk.PacketHandler(2.0)
+        assert ph.write1ByteTxRx(port, 1, ct.ADDR_TORQUE_ENABLE, 1) == (sdk.COMM_SUCCESS, 0)
+        assert ph.write1ByteTxRx(port, 1, ct.ADDR_BUS_WATCHDOG, 5) == (sdk.COMM_SUCCESS, 0)
+        assert ph.write4ByteTxRx(port, 1, ct.ADDR_GOAL_VELOCITY, ct.rpm_to_units(30.0)) == (sdk.COMM_SUCCESS, 0)
+    finally:
+        port.closePort()
+    last_s = r.clock.ns * 1e-9
+    r.tick(50)
+    fingers = r.hand.status()["servos"]["fingers"]
+    ticks = 0.1 * ct.rpm_to_units(30.0) * ct.RPM_PER_VELOCITY_UNIT / 60.0 * ct.TICKS_PER_REV
+    assert fingers["bus_watchdog"] == -1 and fingers["velocity_rpm"] == 0.0
+    assert fingers["watchdog_firings"] == [{"at_s": round(last_s + 0.1, 4), "position_ticks": round(ticks, 1)}]
+    assert fingers["position_rad"] == pytest.approx(ct.ticks_to_rad(ticks), abs=1e-4)  # (status rounds)

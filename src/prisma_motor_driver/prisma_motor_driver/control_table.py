@@ -10,9 +10,13 @@ from dataclasses import dataclass
 
 # EEPROM area (writable only while torque is off).
 ADDR_MODEL_NUMBER = 0  # 2 B
+ADDR_FIRMWARE_VERSION = 6  # 1 B
 ADDR_ID = 7  # 1 B
 ADDR_BAUD_RATE = 8  # 1 B
 ADDR_OPERATING_MODE = 11  # 1 B
+ADDR_HOMING_OFFSET = 20  # 4 B, signed
+ADDR_PWM_LIMIT = 36  # 2 B
+ADDR_CURRENT_LIMIT = 38  # 2 B: caps Goal Current and the current every mode may draw
 ADDR_VELOCITY_LIMIT = 44  # 4 B
 ADDR_MAX_POSITION_LIMIT = 48  # 4 B
 ADDR_MIN_POSITION_LIMIT = 52  # 4 B
@@ -20,11 +24,15 @@ EEPROM_END = 64  # first RAM address
 
 # RAM area.
 ADDR_TORQUE_ENABLE = 64  # 1 B
+ADDR_LED = 65  # 1 B, off at power-up: the driver lights it on a servo it has homed (a power-up marker)
 ADDR_HARDWARE_ERROR_STATUS = 70  # 1 B
+ADDR_BUS_WATCHDOG = 98  # 1 B, signed: 0 off (writing 0 clears its error), 1..127 x 20 ms, -1 fired
+ADDR_GOAL_PWM = 100  # 2 B
 ADDR_GOAL_CURRENT = 102  # 2 B
 ADDR_GOAL_VELOCITY = 104  # 4 B
 ADDR_PROFILE_VELOCITY = 112  # 4 B
 ADDR_GOAL_POSITION = 116  # 4 B
+ADDR_MOVING = 122  # 1 B
 ADDR_PRESENT_CURRENT = 126  # 2 B, signed
 ADDR_PRESENT_VELOCITY = 128  # 4 B, signed
 ADDR_PRESENT_POSITION = 132  # 4 B, signed
@@ -41,7 +49,24 @@ MODE_CURRENT = 0
 MODE_VELOCITY = 1
 MODE_POSITION = 3
 MODE_EXTENDED_POSITION = 4  # multi-turn: tendon spools turn more than once
+MODE_CURRENT_BASED_POSITION = 5  # multi-turn, and Goal Current caps the pull: homing runs in it
 MODE_PWM = 16
+MODE_NAMES = {MODE_CURRENT: "current", MODE_VELOCITY: "velocity", MODE_POSITION: "position",
+              MODE_EXTENDED_POSITION: "extended_position", MODE_CURRENT_BASED_POSITION: "current_based_position",
+              MODE_PWM: "pwm"}
+
+# Bus Watchdog (98): 1..127 in 20 ms units; -1 (0xFF) once it fired. While it reads -1 every goal
+# register (Goal PWM, Goal Current, Goal Velocity, Goal Position) is read-only: a write gets the Data
+# Range error, until Bus Watchdog is written 0. Available from firmware v38.
+WATCHDOG_UNIT_S = 0.020
+WATCHDOG_MAX_UNITS = 127
+WATCHDOG_FIRED = -1
+WATCHDOG_MIN_FIRMWARE = 38
+GOAL_REGISTERS = ((ADDR_GOAL_PWM, 2), (ADDR_GOAL_CURRENT, 2), (ADDR_GOAL_VELOCITY, 4), (ADDR_GOAL_POSITION, 4))
+CURRENT_LIMIT_MAX_UNITS = 1193  # XM430-W350: Current Limit range 0..1193 (3.2 A)
+# Baud Rate (8) register values and the rates they select
+BAUD_RATES = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000, 6: 4_000_000,
+              7: 4_500_000}
 
 # Units.
 RPM_PER_VELOCITY_UNIT = 0.229
@@ -91,6 +116,20 @@ def rad_s_to_rpm(rad_s: float) -> float:
 
 def current_units_to_ma(units: int) -> float:
     return units * MA_PER_CURRENT_UNIT
+
+
+def ma_to_current_units(ma: float) -> int:
+    """Current units (Goal Current, Current Limit), rounded down: a limit never rounds up."""
+    return int(math.floor(ma / MA_PER_CURRENT_UNIT))
+
+
+def watchdog_units(period_s: float) -> int:
+    """Bus Watchdog value for a period (rounded up to the next 20 ms, at least one unit)."""
+    units = math.ceil(round(period_s / WATCHDOG_UNIT_S, 6))
+    if not 1 <= units <= WATCHDOG_MAX_UNITS:
+        raise ValueError(f"bus watchdog period {period_s} s outside {WATCHDOG_UNIT_S:g}.."
+                         f"{WATCHDOG_MAX_UNITS * WATCHDOG_UNIT_S:g} s")
+    return units
 
 
 def to_signed(value: int, n_bytes: int) -> int:
