@@ -884,3 +884,51 @@ def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
     size = len(serialize_message(final))
     assert size <= 4 + 4 + 28 * len(final.status_list)  # CDR: header, length, 28 bytes a goal (uuid, stamp, status)
     assert len(status) <= 2 * 130 + 10  # a status message as each goal starts and as each ends
+
+
+# ---- one controller per hand -------------------------------------------------------------------
+def test_a_second_manipulation_or_motor_driver_in_the_same_namespace_is_refused_at_start(ros, hand):
+    """Two controllers of one hand would both start every goal and send MoveMotors for it: the
+    second refuses to start (its main() exits 1 with this line); another namespace is another hand."""
+    from prisma_node_wiring.single_instance import AlreadyRunning
+
+    hand(stand_world(), sensors=False, wait=False)
+    # a controller of another name offering the same actions would be a second server of them (first:
+    # in one process, destroying a refused node of the same name hides the first one's endpoints' node)
+    with pytest.raises(AlreadyRunning, match=f"^{NS}/prisma/grasp is already served by {NS}/manipulation: "
+                                             f"{NS}/controller2 would be a second server of it"):
+        ros.node(ManipulationNode, namespace=NS, cli_args=["--ros-args", "-r", "__node:=controller2"], sim_time=True)
+    stop = "To restart it, stop it first (ctrl-C its launch, or `kill <pid>` of its process"
+    with pytest.raises(AlreadyRunning) as refused:
+        ros.node(ManipulationNode, namespace=NS, sim_time=True)
+    assert str(refused.value).startswith(f"{NS}/manipulation is already running in this ROS domain: not starting a "
+                                         f"second one. {stop}")
+    with pytest.raises(AlreadyRunning, match=f"^{NS}/motor_driver is already running in this ROS domain"):
+        ros.node(MotorDriverNode, namespace=NS, sim_time=True)
+    other_hand = ros.node(ManipulationNode, namespace=f"{NS}/right", sim_time=True)
+    assert other_hand.get_fully_qualified_name() == f"{NS}/right/manipulation"
+
+
+def test_a_move_goal_of_a_second_controller_is_refused_busy_while_the_grasp_holds_the_motors(ros, hand):
+    ros.capture_logs()
+    h = hand(stand_world())
+    handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", finger_force=0.8, thumb_force=1.0,
+                                                          speed_rpm=60.0, timeout=5.0))
+    ros.advance(0.2, step=STEP, settle=True)
+    assert h.move_goals and all(g.controller == f"{NS}/manipulation" for _, g in h.move_goals)
+    held = f"busy: MoveMotors held by {NS}/manipulation: its goal holds the motors for "
+    for controller, named in (("/other_controller", "/other_controller"),
+                              ("", "an anonymous client (empty controller)")):
+        sent_at = len(h.move_goals)
+        move = finish(ros, send(ros, f"{NS}/prisma/motors/move", MoveMotors,
+                                MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[-30.0],
+                                                controller=controller)))
+        assert move.status == GoalStatus.STATUS_ABORTED and move.result.reason.startswith(held)
+        assert move.result.reason.endswith(f"unless renewed; wait for its end, cancel it, or stop that controller "
+                                           f"(this goal's controller: {named})")
+        assert all(g.controller == f"{NS}/manipulation" for _, g in h.move_goals[sent_at:])  # never started
+    assert ros.wait_for_log(severity="warn", name="motor_driver", contains=f"MoveMotors goal refused: {held}")
+    outcome = finish(ros, handle)  # the grasp went on, its motors its own
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.reason == "force_reached"
+    assert h.commands() == [{"fingers": 60.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0},
+                            {"fingers": 0.0, "thumb_flexion": 60.0, "thumb_rotation": 0.0}]

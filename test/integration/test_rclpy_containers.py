@@ -132,7 +132,8 @@ def test_manipulation_converters_on_both_kinds_of_class(rclpy_types):
     e = ContactMonitor(0.8).evaluate("middle", 1_700_000_000_123_456_789, volts)
     states = {"fingers": MotorState("fingers", 1.5, 60.0, 250.0),
               "thumb_rotation": MotorState("thumb_rotation", -0.5, -20.0, 10.0)}
-    goal = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, -5.0], [8.0, 0.5], 2.5, 1_700_000_000_123_456_789)
+    goal = MoveGoal(["fingers", "thumb_flexion"], "velocity", [10.0, -5.0], [8.0, 0.5], 2.5, 1_700_000_000_123_456_789,
+                    "/left/manipulation")
     result = MoveResult(False, [1.0, 2.0], "motor_fault")
     for types in (rclpy_types, typestore_types):
         contact = contact_state_to_msg(types, e, "prisma_middle_pad")

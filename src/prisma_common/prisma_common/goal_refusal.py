@@ -8,7 +8,9 @@ goal would tell its client only "Goal was rejected"; an aborted one shows the re
 - `invalid`: the goal can never run as sent (a value beyond a limit, an unknown name): change it;
 - `not_ready`: the hand cannot run it yet (a stream it needs missing or stale, the motor driver or
   its bus down): send it again later;
-- `busy`: another goal runs on the same node: wait for its end or cancel it.
+- `busy`: another goal runs on the same node: wait for its end or cancel it;
+- `not_homed`: a motor's zero is not known since its servo powered up (the motor driver): home the
+  motors (the HomeMotors action, or `home:=true` at launch), then send it again.
 Nodes may add codes of their own (the manipulation node's `no_contact`).
 """
 from __future__ import annotations
@@ -18,6 +20,7 @@ from dataclasses import dataclass
 INVALID = "invalid"
 NOT_READY = "not_ready"
 BUSY = "busy"
+NOT_HOMED = "not_homed"
 RETRY_LATER = (NOT_READY, BUSY)  # the same goal may run when sent again
 
 
@@ -33,4 +36,4 @@ class Refusal:
 def refusal_code(reason: str) -> str | None:
     """The code of a result's reason text that is a refusal of a known code, else None."""
     code, sep, _ = reason.partition(": ")
-    return code if sep and code in (INVALID, NOT_READY, BUSY) else None
+    return code if sep and code in (INVALID, NOT_READY, BUSY, NOT_HOMED) else None

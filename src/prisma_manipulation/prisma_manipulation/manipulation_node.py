@@ -41,6 +41,7 @@ from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_fr
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
+from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
 from .manipulation_core import (
@@ -73,6 +74,9 @@ from .ros_conversions import (
     normal_force_from_wrench,
 )
 
+GRASP_ACTION, MANIPULATE_ACTION, GRIPPER_ACTION = "prisma/grasp", "prisma/manipulate", "prisma/gripper_cmd"
+GOAL_ACTIONS = (GRASP_ACTION, MANIPULATE_ACTION, GRIPPER_ACTION)
+
 
 @dataclass(frozen=True)
 class GoalKind:
@@ -90,6 +94,8 @@ class GoalKind:
 class ManipulationNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("manipulation", **kwargs)
+        # one controller per hand: a second would start every goal too and send MoveMotors for it
+        refuse_if_running(self, GOAL_ACTIONS)  # AlreadyRunning: exit 1
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = declare_config(self, ManipulationConfig)
         self.core = ManipulationCore(self.config)
@@ -124,11 +130,11 @@ class ManipulationNode(Node):
         }
         self._by_core_kind = {k.kind: k for k in self._kinds.values()}
         # every goal is accepted (rclpy's default goal callback): _execute aborts a refused one at once
-        self._grasp_server = ActionServer(self, Grasp, "prisma/grasp", self._execute,
+        self._grasp_server = ActionServer(self, Grasp, GRASP_ACTION, self._execute,
                                           cancel_callback=self._on_cancel, callback_group=group)
-        self._manipulate_server = ActionServer(self, Manipulate, "prisma/manipulate", self._execute,
+        self._manipulate_server = ActionServer(self, Manipulate, MANIPULATE_ACTION, self._execute,
                                                cancel_callback=self._on_cancel, callback_group=group)
-        self._gripper_server = ActionServer(self, GripperCommand, "prisma/gripper_cmd", self._execute,
+        self._gripper_server = ActionServer(self, GripperCommand, GRIPPER_ACTION, self._execute,
                                             cancel_callback=self._on_cancel, callback_group=group)
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
@@ -222,8 +228,10 @@ class ManipulationNode(Node):
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
         seq = self._move_seq
-        # stamped: the lease counts from now, so a goal a dropped link delivers late is refused
-        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s, self._now_ns()))
+        # stamped: the lease counts from now, so a goal a dropped link delivers late is refused; named:
+        # the motor driver serves one controller at a time and says which one holds the motors
+        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s, self._now_ns(),
+                                                          self.get_fully_qualified_name()))
         future = self._move_client.send_goal_async(goal)
         future.add_done_callback(lambda f, s=seq: self._on_move_accepted(f, s))
 
@@ -287,7 +295,7 @@ class ManipulationNode(Node):
 
 
 def main(args=None) -> None:
-    run_node(ManipulationNode, "manipulation", (ParameterError,), args)
+    run_node(ManipulationNode, "manipulation", (ParameterError, AlreadyRunning), args)
 
 
 if __name__ == "__main__":

@@ -12,13 +12,18 @@ from typing import Protocol
 
 from prisma_common.hand import MOTOR_NAMES
 
-from .control_table import describe_hardware_error
+from .control_table import CURRENT_LIMIT_MAX_UNITS, current_units_to_ma, describe_hardware_error
+
+CURRENT_LIMIT_MAX_MA = current_units_to_ma(CURRENT_LIMIT_MAX_UNITS)
 
 # The hand's motor map (same values as config/motor_driver.yaml), in MOTOR_NAMES order.
 DEFAULT_IDS = (1, 2, 3)
 DEFAULT_MIN_POSITIONS = (0.0, 0.0, -3.0)  # rad
 DEFAULT_MAX_POSITIONS = (9.0, 7.0, 3.0)  # rad
 DEFAULT_MAX_VELOCITIES_RPM = (70.0, 70.0, 70.0)
+# Current Limit of each servo: the hardest any command may pull a tendon (about half an XM430-W350's
+# stall current: a grasp's tendon loads stay well below it)
+DEFAULT_CURRENT_LIMITS_MA = (1200.0, 1200.0, 1200.0)
 
 
 @dataclass(frozen=True)
@@ -30,6 +35,7 @@ class MotorConfig:
     max_velocity_rpm: float
     direction: int = 1  # -1 when the servo is mounted so that its positive turn opens the joint
     zero_ticks: int = 0  # Present Position that means 0 rad
+    current_limit_ma: float = DEFAULT_CURRENT_LIMITS_MA[0]  # the servo's Current Limit
 
     def __post_init__(self) -> None:
         if self.name not in MOTOR_NAMES:
@@ -44,6 +50,9 @@ class MotorConfig:
             raise ValueError(f"motor {self.name}: max_velocity_rpm {self.max_velocity_rpm} must be > 0")
         if self.direction not in (1, -1):
             raise ValueError(f"motor {self.name}: direction {self.direction} must be 1 or -1")
+        if not 0 < self.current_limit_ma <= CURRENT_LIMIT_MAX_MA:
+            raise ValueError(f"motor {self.name}: current limit {self.current_limit_ma} mA outside "
+                             f"(0, {CURRENT_LIMIT_MAX_MA:.0f}] mA")
 
     def clamp(self, position_rad: float) -> float:
         return min(self.max_position_rad, max(self.min_position_rad, position_rad))
@@ -57,6 +66,8 @@ class MotorState:
     current_ma: float
     torque_on: bool = True
     hardware_error: int = 0  # Hardware Error Status bits (0 = healthy)
+    watchdog_fired: bool = False  # the servo's Bus Watchdog stopped it (no instruction in its period)
+    servo_reset: bool = False  # the servo powered up again while the bus was open: RAM and turn count lost
 
 
 @dataclass
@@ -82,9 +93,24 @@ def fault_reason(name: str, servo_id: int, status: int) -> str:
     return f"motor_fault: {name} (id {servo_id}) hardware error {describe_hardware_error(status)}"
 
 
+@dataclass
+class ServoInfo:
+    """What the bus found out about one servo when it opened it (diagnostics, prisma-doctor)."""
+
+    model: int = 0
+    firmware: int = 0
+    operating_mode: str = ""
+    watchdog_ms: float = 0.0  # the armed Bus Watchdog period, 0 = off
+    current_limit_ma: float = 0.0
+
+
 class MotorBus(Protocol):
     motors: dict[str, MotorConfig]
     stats: BusStats
+    # motors whose zero is known since their servo powered up (the sim's motors always know theirs)
+    homed: dict[str, bool]
+    needs_homing: bool  # False where the zero can never be lost (the sim)
+    servo_info: dict[str, ServoInfo]
 
     def open(self) -> None: ...
 
@@ -106,6 +132,20 @@ class MotorBus(Protocol):
 
     def torque_on(self, name: str) -> None:
         """Velocity mode, goal 0, torque on: the motor as open() leaves it (after its error cleared)."""
+
+    def rearm_watchdog(self, names: list[str]) -> None:
+        """Clear a fired Bus Watchdog and arm it again, the motors stopped (velocity 0)."""
+
+    def start_homing(self, names: list[str], rpm: float, current_ma: float) -> None:
+        """Turn the motors toward their open end (minimum position) at `rpm`, pulling at most
+        `current_ma`, until told otherwise."""
+
+    def finish_homing(self, name: str) -> int:
+        """The motor stands at its open end stop: its zero is set there (its minimum position is the
+        stop), it is marked homed and stopped (velocity mode, goal 0). Returns the zero (ticks)."""
+
+    def abort_homing(self, names: list[str]) -> None:
+        """Stop homing motors where they are (velocity mode, goal 0), not homed."""
 
 
 def check_velocity(config: MotorConfig, rpm: float) -> float:
@@ -132,6 +172,7 @@ class MotorMap:
         max_velocities: list[float],
         directions: list[int] | None = None,
         zero_ticks: list[int] | None = None,
+        current_limits_ma: list[float] | None = None,
     ) -> MotorMap:
         n = len(names)
         for label, values in (("motor_ids", ids), ("min_positions", min_positions),
@@ -142,9 +183,11 @@ class MotorMap:
             raise ValueError(f"motor_ids {ids} are not unique")
         directions = directions or [1] * n
         zero_ticks = zero_ticks or [0] * n
+        current_limits_ma = current_limits_ma or [DEFAULT_CURRENT_LIMITS_MA[0]] * n
         return cls({
             name: MotorConfig(name, int(ids[i]), float(min_positions[i]), float(max_positions[i]),
-                              float(max_velocities[i]), int(directions[i]), int(zero_ticks[i]))
+                              float(max_velocities[i]), int(directions[i]), int(zero_ticks[i]),
+                              float(current_limits_ma[i]))
             for i, name in enumerate(names)
         })
 

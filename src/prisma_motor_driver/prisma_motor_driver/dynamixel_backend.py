@@ -1,15 +1,24 @@
 """Dynamixel X-series motors over Protocol 2.0 with dynamixel-sdk.
 
-One GroupSyncRead of Present Current/Velocity/Position (126..135) and one of Hardware Error Status
-(70) per cycle; goals go out with GroupSyncWrite. Mode changes follow the firmware rule: torque off,
-write Operating Mode (EEPROM), torque on. Communication errors (no status packet, corrupt status,
-a sync read answered with a block of another length: the late status of an earlier instruction)
-are retried a bounded number of times and counted; exhausting the retries raises BusError. A
-port that fails underneath (the adapter unplugged: EIO from the read, the write or the SDK's
-input flush) raises BusError at once, naming the port and the OS reason.
+One GroupSyncRead of Present Current/Velocity/Position (126..135), one of Hardware Error Status (70)
+and one of Bus Watchdog (98) per cycle; goals go out with GroupSyncWrite. Mode changes follow the
+firmware rule: torque off, write Operating Mode (EEPROM), torque on. Communication errors (no status
+packet, corrupt status, a sync read answered with a block of another length: the late status of an
+earlier instruction) are retried a bounded number of times and counted; exhausting the retries raises
+BusError. A port that fails underneath (the adapter unplugged: EIO from the read, the write or the
+SDK's input flush) raises BusError at once, naming the port and the OS reason.
+
+Opening the bus makes each servo safe on its own before anything moves: its Current Limit (EEPROM)
+is written, so no command pulls a tendon harder; its Bus Watchdog is armed (`watchdog_s`), so a driver
+that dies or freezes, or a cable that is cut, stops the servo within that period: the driver's own
+traffic (three sync reads every tick) feeds it. A fired watchdog (Bus Watchdog reads -1; the goal
+registers refuse writes) is cleared by writing 0 and armed again (`rearm_watchdog`). The servo's LED
+(RAM, off at every power-up) marks it homed since it powered up (homing.py).
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 import termios
 from collections.abc import Callable, Mapping
 
@@ -19,7 +28,7 @@ import serial
 from prisma_common.os_errors import describe_os_error
 
 from . import control_table as ct
-from .backend import BusError, BusStats, MotorConfig, MotorState, check_velocity
+from .backend import BusError, BusStats, MotorConfig, MotorState, ServoInfo, check_velocity
 
 # Results worth another attempt: the packet may simply have been lost or garbled on the wire.
 _RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.COMM_TX_FAIL}
@@ -51,9 +60,11 @@ class DynamixelBus:
         motors: Mapping[str, MotorConfig],
         retries: int = 3,
         port_handler_factory: Callable[[str], sdk.PortHandler] = WaitingPortHandler,
+        watchdog_s: float = 0.1,
     ) -> None:
         if retries < 0:
             raise ValueError(f"retries {retries} must be >= 0")
+        self.watchdog_units = ct.watchdog_units(watchdog_s)  # ValueError beyond 20 ms..2.54 s
         self.port_name = port
         self.baudrate = baudrate
         self.motors = dict(motors)
@@ -64,10 +75,15 @@ class DynamixelBus:
         self._modes: dict[str, int] = {}
         self._state_reader = sdk.GroupSyncRead(self._port, self._packet, ct.STATE_START, ct.STATE_LENGTH)
         self._error_reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
+        self._watchdog_reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_BUS_WATCHDOG, 1)
         for config in self.motors.values():
             self._state_reader.addParam(config.servo_id)
             self._error_reader.addParam(config.servo_id)
+            self._watchdog_reader.addParam(config.servo_id)
         self.model_numbers: dict[str, int] = {}
+        self.needs_homing = True
+        self.homed = {name: False for name in self.motors}
+        self.servo_info: dict[str, ServoInfo] = {}
         self._open = False
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -87,11 +103,30 @@ class DynamixelBus:
             model, _, _ = self._retry(lambda c=config: self._packet.ping(self._port, c.servo_id),
                                       f"ping {name} (id {config.servo_id})", result_index=1, error_index=2)
             self.model_numbers[name] = model
-            self._write1(config, ct.ADDR_TORQUE_ENABLE, 0)
-            self._write1(config, ct.ADDR_OPERATING_MODE, ct.MODE_VELOCITY)
-            self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
-            self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
-            self._modes[name] = ct.MODE_VELOCITY
+            self._prepare(name, config, model)
+
+    def _prepare(self, name: str, config: MotorConfig, model: int) -> None:
+        """Make one servo safe before it moves (also after it powered up again and forgot its RAM):
+        its Current Limit, velocity mode stopped, torque on, its Bus Watchdog armed; homed where its
+        LED (off at power-up, lit by homing) says so."""
+        firmware = self._read1(config, ct.ADDR_FIRMWARE_VERSION, "firmware version")
+        if firmware < ct.WATCHDOG_MIN_FIRMWARE:
+            raise BusError(f"{name} (id {config.servo_id}): firmware v{firmware} has no Bus Watchdog (v"
+                           f"{ct.WATCHDOG_MIN_FIRMWARE} or later needed): update it with DYNAMIXEL Wizard 2.0")
+        limit_units = ct.ma_to_current_units(config.current_limit_ma)
+        self._write1(config, ct.ADDR_TORQUE_ENABLE, 0)
+        self._write2(config, ct.ADDR_CURRENT_LIMIT, limit_units)  # EEPROM: torque off
+        self._write1(config, ct.ADDR_OPERATING_MODE, ct.MODE_VELOCITY)
+        self._write1(config, ct.ADDR_BUS_WATCHDOG, 0)  # clears an error a fired watchdog left
+        self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
+        self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
+        self._write1(config, ct.ADDR_BUS_WATCHDOG, self.watchdog_units)
+        self._modes[name] = ct.MODE_VELOCITY
+        # the LED is off at power-up and lit by the homing that found this servo's zero
+        self.homed[name] = self._read1(config, ct.ADDR_LED, "LED") == 1
+        self.servo_info[name] = ServoInfo(model, firmware, ct.MODE_NAMES[ct.MODE_VELOCITY],
+                                          self.watchdog_units * ct.WATCHDOG_UNIT_S * 1e3,
+                                          ct.current_units_to_ma(limit_units))
 
     def close(self) -> None:
         """Torque off everywhere (best effort: a dead motor must not keep the others on), then close."""
@@ -117,6 +152,7 @@ class DynamixelBus:
         for attempt in range(attempts):
             self._retry(self._state_reader.txRxPacket, "sync read present state")
             self._retry(self._error_reader.txRxPacket, "sync read hardware error status")
+            self._retry(self._watchdog_reader.txRxPacket, "sync read bus watchdog")
             wrong = self._wrong_length_blocks()
             if wrong is None:
                 break
@@ -136,6 +172,7 @@ class DynamixelBus:
             raw = self._state_reader.data_dict[c.servo_id]
             present = ct.PresentState.from_bytes(raw)
             error = self._error_reader.getData(c.servo_id, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
+            watchdog = ct.to_signed(self._watchdog_reader.getData(c.servo_id, ct.ADDR_BUS_WATCHDOG, 1), 1)
             if error:
                 self.stats.hardware_errors += 1
             states[name] = MotorState(
@@ -145,6 +182,9 @@ class DynamixelBus:
                 current_ma=c.direction * ct.current_units_to_ma(present.current_units),
                 torque_on=True,
                 hardware_error=int(error),
+                watchdog_fired=watchdog == ct.WATCHDOG_FIRED,
+                # the watchdog this bus armed reads 0: the servo powered up again since (RAM lost)
+                servo_reset=watchdog == 0,
             )
         return states
 
@@ -152,7 +192,8 @@ class DynamixelBus:
         """What the last sync reads got of another length than asked, None if nothing."""
         for name, c in self.motors.items():
             for reader, what, length in ((self._state_reader, "present state", ct.STATE_LENGTH),
-                                         (self._error_reader, "hardware error status", 1)):
+                                         (self._error_reader, "hardware error status", 1),
+                                         (self._watchdog_reader, "bus watchdog", 1)):
                 block = reader.data_dict.get(c.servo_id)
                 if block is not None and len(block) != length:
                     return f"{name} (id {c.servo_id}) answered {len(block)} bytes of {what}, not {length}"
@@ -199,12 +240,54 @@ class DynamixelBus:
 
     def torque_on(self, name: str) -> None:
         # a power-cycled servo forgets its RAM, so every step of open() again, not just the torque
-        config = self._config(name)
-        self._write1(config, ct.ADDR_TORQUE_ENABLE, 0)
-        self._write1(config, ct.ADDR_OPERATING_MODE, ct.MODE_VELOCITY)
-        self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
-        self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
-        self._modes[name] = ct.MODE_VELOCITY
+        self._prepare(name, self._config(name), self.model_numbers.get(name, 0))
+
+    def rearm_watchdog(self, names: list[str]) -> None:
+        for name in names:
+            c = self._config(name)
+            self._write1(c, ct.ADDR_BUS_WATCHDOG, 0)  # the goal registers take writes again
+            if self._modes.get(name) == ct.MODE_VELOCITY:
+                self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
+            else:
+                self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c))
+            self._write1(c, ct.ADDR_BUS_WATCHDOG, self.watchdog_units)
+
+    def start_homing(self, names: list[str], rpm: float, current_ma: float) -> None:
+        for name in names:
+            c = self._config(name)
+            check_velocity(c, rpm)
+            if current_ma > c.current_limit_ma:
+                raise ValueError(f"motor {name}: homing current {current_ma} mA above its current limit "
+                                 f"{c.current_limit_ma} mA")
+        for name in names:
+            c = self._config(name)
+            self.homed[name] = False
+            self._write1(c, ct.ADDR_LED, 0)
+            # far enough toward the open end to reach it from anywhere, a lost turn included
+            span_rad = c.max_position_rad - c.min_position_rad + 2.0 * math.pi + 1.0
+            self._write1(c, ct.ADDR_TORQUE_ENABLE, 0)
+            self._write1(c, ct.ADDR_OPERATING_MODE, ct.MODE_CURRENT_BASED_POSITION)
+            self._write2(c, ct.ADDR_GOAL_CURRENT, ct.ma_to_current_units(current_ma))
+            self._write4(c, ct.ADDR_PROFILE_VELOCITY, ct.rpm_to_units(abs(rpm)))
+            self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c) - c.direction * ct.rad_to_ticks(span_rad))
+            self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)
+            self._modes[name] = ct.MODE_CURRENT_BASED_POSITION
+            self.stats.mode_changes += 1
+            self.servo_info[name] = dataclasses.replace(
+                self.servo_info.get(name, ServoInfo()), operating_mode=ct.MODE_NAMES[ct.MODE_CURRENT_BASED_POSITION])
+
+    def finish_homing(self, name: str) -> int:
+        c = self._config(name)
+        # the end stop is the motor's minimum position
+        zero = self._present_ticks(c) - c.direction * ct.rad_to_ticks(c.min_position_rad)
+        self.motors[name] = dataclasses.replace(c, zero_ticks=zero)
+        self._ensure_mode([name], ct.MODE_VELOCITY)
+        self._write1(c, ct.ADDR_LED, 1)
+        self.homed[name] = True
+        return zero
+
+    def abort_homing(self, names: list[str]) -> None:
+        self._ensure_mode(names, ct.MODE_VELOCITY)
 
     def hardware_error(self, name: str) -> int:
         """Hardware Error Status of one motor, read directly."""
@@ -232,17 +315,29 @@ class DynamixelBus:
             if mode == ct.MODE_VELOCITY:
                 self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
             else:
-                # the lambda runs inside _retry, within this iteration
-                present = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id,  # noqa: B023
-                                                                         ct.ADDR_PRESENT_POSITION),
-                                      f"read present position of {name}", result_index=1, error_index=2)[0]
-                self._write4(c, ct.ADDR_GOAL_POSITION, ct.to_signed(present, 4))
+                self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c))
             self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)
             self._modes[name] = mode
             self.stats.mode_changes += 1
+            if name in self.servo_info:
+                self.servo_info[name] = dataclasses.replace(self.servo_info[name], operating_mode=ct.MODE_NAMES[mode])
 
     def _write1(self, c: MotorConfig, address: int, value: int) -> None:
         self._retry(lambda: self._packet.write1ByteTxRx(self._port, c.servo_id, address, value),
+                    f"write {value} to address {address} of {c.name} (id {c.servo_id})", result_index=0, error_index=1)
+
+    def _read1(self, c: MotorConfig, address: int, what: str) -> int:
+        value, _, _ = self._retry(lambda: self._packet.read1ByteTxRx(self._port, c.servo_id, address),
+                                  f"read {what} of {c.name} (id {c.servo_id})", result_index=1, error_index=2)
+        return int(value)
+
+    def _present_ticks(self, c: MotorConfig) -> int:
+        value = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id, ct.ADDR_PRESENT_POSITION),
+                            f"read present position of {c.name}", result_index=1, error_index=2)[0]
+        return ct.to_signed(value, 4)
+
+    def _write2(self, c: MotorConfig, address: int, value: int) -> None:
+        self._retry(lambda: self._packet.write2ByteTxRx(self._port, c.servo_id, address, ct.to_unsigned(value, 2)),
                     f"write {value} to address {address} of {c.name} (id {c.servo_id})", result_index=0, error_index=1)
 
     def _write4(self, c: MotorConfig, address: int, value: int) -> None:

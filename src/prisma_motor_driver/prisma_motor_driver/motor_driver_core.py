@@ -1,14 +1,23 @@
 """What the motor_driver node does each tick, without ROS: read the bus, supervise the MoveMotors
-goal, reconnect a lost bus with exponential backoff, and summarise health for /diagnostics."""
+goal and the homing, reconnect a lost bus with exponential backoff, and summarise health for
+/diagnostics.
+
+The servos' own safety is watched here too: a Bus Watchdog that fired (the driver or the bus held up
+longer than its period: the servo stopped itself) ends the running goal, and is cleared and armed
+again with the motors still; a servo that powered up again while the bus was open (its watchdog reads
+0: its RAM and its turn count are lost) ends the goal and is no longer homed. A motor not homed since
+its servo powered up takes no MoveMotors goal (`not_homed`) until the homing found its zero."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
-from prisma_common.goal_refusal import INVALID, NOT_READY, Refusal
+from prisma_common.goal_refusal import BUSY, INVALID, NOT_HOMED, NOT_READY, Refusal
 
 from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
+from .homing import HomingRun, HomingSettings
 from .motor_goals import (
     GoalStartError,
     MoveFeedback,
@@ -21,12 +30,14 @@ from .motor_goals import (
 from .node_config import MotorDriverConfig
 
 
-def make_bus(config: MotorDriverConfig, start_ns: int | None = 0) -> MotorBus:
-    motors = config.motors()
+def make_bus(config: MotorDriverConfig, start_ns: int | None = 0, zeros: dict[str, int] | None = None) -> MotorBus:
+    """The configured bus; `zeros` (motor -> ticks, from the hand's directory) override zero_ticks."""
+    motors = config.motors(zeros)
     if config.backend == "dynamixel":
         from .dynamixel_backend import DynamixelBus  # dynamixel-sdk only where it is used
 
-        return DynamixelBus(config.port, config.baud, motors, retries=config.retries)
+        return DynamixelBus(config.port, config.baud, motors, retries=config.retries,
+                            watchdog_s=config.bus_watchdog)
     from .sim_backend import SimMotorBus
 
     initial = dict(zip(config.motor_names, (float(p) for p in config.sim_initial_positions)))
@@ -40,16 +51,54 @@ class StartOutcome:
 
 
 @dataclass
+class HomingFeedback:
+    motors: list[str]
+    positions: list[float]  # rad from where each started
+    currents: list[float]  # mA
+    homed: list[bool]
+
+
+@dataclass
+class HomingResult:
+    success: bool
+    reason: str
+    motors: list[str] = field(default_factory=list)
+    zero_ticks: list[int] = field(default_factory=list)
+    travel_rad: list[float] = field(default_factory=list)
+    stall_current_ma: list[float] = field(default_factory=list)
+
+    def zeros(self) -> dict[str, int]:
+        """The zeros found, by motor (what the node saves in the hand's directory)."""
+        return dict(zip(self.motors, self.zero_ticks))
+
+
+@dataclass
 class TickResult:
     states: dict[str, MotorState] | None  # None while the bus is down
     feedback: MoveFeedback | None = None
     result: MoveResult | None = None  # the running goal ended this tick
+    homing_feedback: HomingFeedback | None = None
+    homing_result: HomingResult | None = None  # the homing ended this tick
 
 
 class MotorDriverCore:
-    def __init__(self, config: MotorDriverConfig, bus: MotorBus | None = None, start_ns: int = 0) -> None:
+    def __init__(self, config: MotorDriverConfig, bus: MotorBus | None = None, start_ns: int = 0,
+                 zeros: dict[str, int] | None = None) -> None:
         self.config = config
-        self.bus = bus or make_bus(config, start_ns)
+        self.bus = bus or make_bus(config, start_ns, zeros)
+        # zeros this driver can vouch for: read from the hand's directory, or found by its homing; a
+        # servo's LED alone (lit by some homing) does not say which zero that homing found
+        self.known_zeros = dict(zeros or {})
+        self.homing: HomingRun | None = None
+        self.homing_wanted = config.home_at_start  # home as soon as the bus is open
+        self._homing_at_start = False  # the running homing is the one asked for at start
+        self.watchdog_firings = 0
+        self.servo_resets = 0
+        self._homing_zeros: dict[str, int] = {}
+        # after the end stops: where each homed motor goes before the homing ends (0 rad: the hand open,
+        # the thumb centred), and by when it must be there
+        self._homing_return: dict[str, float] = {}
+        self._homing_return_deadline_ns = 0
         self.runner = MoveGoalRunner(self.bus, config.position_profile_rpm, config.position_tolerance)
         self.connected = False
         self.last_error = ""
@@ -82,7 +131,18 @@ class MotorDriverCore:
         self.connected = True
         self._reported_error = ""  # the same error later is news again
         self._backoff_s = self.config.reconnect_backoff_initial
+        self._trust_only_known_zeros()
         return None
+
+    def _trust_only_known_zeros(self) -> None:
+        for name in self.bus.homed:
+            if self.bus.needs_homing and name not in self.known_zeros:
+                self.bus.homed[name] = False
+
+    def unhomed(self, motors: list[str] | None = None) -> list[str]:
+        """The motors (of `motors`, default all) whose zero is not known since their servo powered up."""
+        names = list(self.bus.motors) if motors is None else motors
+        return [m for m in names if m in self.bus.motors and not self.bus.homed.get(m, False)]
 
     def take_errors(self) -> list[str]:
         """Bus errors (open failures with the port and OS reason, a lost bus) that appeared since
@@ -98,12 +158,129 @@ class MotorDriverCore:
     def validate(self, goal: MoveGoal, now_ns: int | None = None) -> Refusal | None:
         """Why the goal is refused (the node aborts it at once with this reason), else None:
         not_ready while the bus is not connected, invalid for a malformed goal or (given the time it
-        arrives) one whose timeout ended on the way. A goal naming a faulted motor is valid: it
-        fails at start with the fault reason."""
+        arrives) one whose timeout ended on the way, busy while another controller holds the motors
+        (motor_goals.py). A goal naming a faulted motor is valid: it fails at start with the fault reason."""
         if not self.connected:
             return Refusal(NOT_READY, f"motor bus not connected: {self.last_error or 'not opened yet'}")
         reason = validate_goal(goal, self.bus.motors) or (goal_expired(goal, now_ns) if now_ns is not None else None)
-        return Refusal(INVALID, reason) if reason else None
+        if reason:
+            return Refusal(INVALID, reason)
+        busy = self.runner.busy_reason(goal, now_ns)
+        if busy:
+            return Refusal(BUSY, busy)
+        if self.homing is not None:
+            return Refusal(NOT_HOMED, f"homing {', '.join(self.homing.motors)}: send it when the homing has ended")
+        unhomed = self.unhomed(goal.motors)
+        if unhomed:
+            return Refusal(NOT_HOMED, f"{self._named(unhomed)} not homed since the servo powered up (the zero may be "
+                                      f"a turn off): home first (the HomeMotors action prisma/motors/home, or "
+                                      f"home:=true at launch)")
+        return None
+
+    def _named(self, motors: list[str]) -> str:
+        return ", ".join(f"{m} (id {self.bus.motors[m].servo_id})" for m in motors)
+
+    # ---- homing ----------------------------------------------------------------------------
+    def validate_homing(self, motors: list[str]) -> Refusal | None:
+        if not self.connected:
+            return Refusal(NOT_READY, f"motor bus not connected: {self.last_error or 'not opened yet'}")
+        unknown = [m for m in motors if m not in self.bus.motors]
+        if unknown:
+            return Refusal(INVALID, f"unknown motor(s) {unknown}; configured: {sorted(self.bus.motors)}")
+        if self.homing is not None:
+            return Refusal(BUSY, f"already homing {', '.join(self.homing.motors)}")
+        faulted = [m for m in (motors or list(self.bus.motors)) if self.runner.faults.get(m)]
+        if faulted:
+            return Refusal(NOT_READY, f"{self._named(faulted)} in hardware error: clear it (power cycle) first")
+        return None
+
+    def start_homing(self, motors: list[str], now_ns: int) -> tuple[MoveResult | None, HomingResult | None]:
+        """Home `motors` (empty = all; validated by validate_homing). Returns the running MoveMotors
+        goal's result (it ends: homing takes the motors) and, when the homing is over at once (the sim's
+        motors need none, or the bus failed), its result."""
+        names = list(motors) or list(self.bus.motors)
+        preempted = self.runner.abort("preempted: homing") if self.runner.active else None
+        if not self.bus.needs_homing:
+            return preempted, HomingResult(True, "homed: the sim motors start at their zero, nothing to find", names,
+                                           [self.bus.motors[m].zero_ticks for m in names], [0.0] * len(names),
+                                           [0.0] * len(names))
+        c = self.config
+        # a lost turn and a little more beyond the range: further, and the open end has no stop
+        max_travel = {m: self.bus.motors[m].max_position_rad - self.bus.motors[m].min_position_rad + 2 * math.pi + 0.5
+                      for m in names}
+        settings = HomingSettings(c.homing_rpm, c.homing_current_ma, c.homing_timeout, max_travel)
+        try:
+            self.bus.start_homing(names, c.homing_rpm, c.homing_current_ma)
+        except (BusError, ValueError) as exc:
+            try:
+                self.bus.abort_homing(names)
+            except BusError:
+                pass
+            return preempted, HomingResult(False, f"homing_failed: {exc}", names)
+        self.homing = HomingRun(names, settings, now_ns)
+        self._homing_at_start = False
+        self._homing_zeros, self._homing_return = {}, {}
+        return preempted, None
+
+    def cancel_homing(self) -> HomingResult | None:
+        if self.homing is None:
+            return None
+        self.homing.fail_all("canceled")
+        try:
+            self.bus.abort_homing([m for m in self.homing.motors if m not in self._homing_zeros])
+        except BusError as exc:
+            self._note_error(str(exc))
+        return self._end_homing()
+
+    def _step_homing(self, states: dict[str, MotorState], now_ns: int) -> TickResult:
+        run = self.homing
+        assert run is not None
+        feedback = HomingFeedback(list(run.motors), [run.motors[m].travel_rad for m in run.motors],
+                                  [states[m].current_ma for m in run.motors],
+                                  [m in self._homing_zeros for m in run.motors])
+        if self._homing_return:
+            return TickResult(states, homing_feedback=feedback, homing_result=self._step_return(states, now_ns))
+        step = run.step(states, now_ns)
+        try:
+            for name in step.found:
+                self._homing_zeros[name] = self.bus.finish_homing(name)
+                self.known_zeros[name] = self._homing_zeros[name]
+            if step.failed:
+                self.bus.abort_homing(step.failed)
+            if step.finished and self._homing_zeros:
+                # a motor whose open end is not its 0 (the thumb's rotation: -3 rad) goes to 0 first
+                c = self.bus.motors
+                self._homing_return = {m: c[m].clamp(0.0) for m in self._homing_zeros}
+                distance = max(abs(self._homing_return[m] - states[m].position_rad) for m in self._homing_return)
+                speed_rad_s = self.config.position_profile_rpm * 2 * math.pi / 60
+                self._homing_return_deadline_ns = now_ns + int((distance / speed_rad_s + 2.0) * 1e9)
+                self.bus.set_positions(self._homing_return, self.config.position_profile_rpm)
+                return TickResult(states, homing_feedback=feedback)
+        except BusError as exc:
+            return self._lost(exc, now_ns)
+        return TickResult(states, homing_feedback=feedback, homing_result=self._end_homing() if step.finished else None)
+
+    def _step_return(self, states: dict[str, MotorState], now_ns: int) -> HomingResult | None:
+        errors = {m: abs(states[m].position_rad - target) for m, target in self._homing_return.items()}
+        if max(errors.values()) <= self.config.position_tolerance:
+            return self._end_homing()
+        if now_ns >= self._homing_return_deadline_ns:
+            assert self.homing is not None
+            for name, error in errors.items():
+                if error > self.config.position_tolerance:
+                    self.homing.fail(name, f"homed, but stopped {error:.2f} rad short of 0 rad on the way back")
+            return self._end_homing()
+        return None
+
+    def _end_homing(self) -> HomingResult:
+        run = self.homing
+        assert run is not None
+        self.homing = None
+        self._homing_return = {}
+        found = [m for m in run.motors if m in self._homing_zeros]
+        return HomingResult(run.success, run.reason(), found, [self._homing_zeros[m] for m in found],
+                            [run.motors[m].travel_rad for m in found],
+                            [run.motors[m].stall_current_ma for m in found])
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
         """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a
@@ -127,16 +304,62 @@ class MotorDriverCore:
                 return TickResult(None)
         try:
             states = self.bus.read_state(now_ns)
+            stopped = self._servo_safety(states)
         except BusError as exc:
             return self._lost(exc, now_ns)
         self._last_states = states
+        if stopped:
+            result = self.runner.abort(stopped)
+            homing = None
+            if self.homing is not None:
+                self.homing.fail_all(stopped)
+                homing = self._end_homing()
+            return TickResult(states, None, result, homing_result=homing)
+        if self.homing is not None:
+            return self._step_homing(states, now_ns)
+        if self.homing_wanted and not self.runner.active:
+            self.homing_wanted = False
+            preempted, done = self.start_homing([], now_ns)
+            self._homing_at_start = done is None
+            return TickResult(states, None, preempted, homing_result=done)
         feedback, result = self.runner.tick(states, now_ns)
         return TickResult(states, feedback, result)
+
+    def _servo_safety(self, states: dict[str, MotorState]) -> str | None:
+        """Servos that stopped themselves (Bus Watchdog) or powered up again: made safe again (cleared,
+        re-armed; a reset one prepared as at open and no longer homed). Returns the reason that ends the
+        running goal, else None."""
+        reasons = []
+        fired = [n for n, s in states.items() if s.watchdog_fired]
+        if fired:
+            self.watchdog_firings += len(fired)
+            self.bus.rearm_watchdog(fired)
+            whose = "its bus watchdog" if len(fired) == 1 else "their bus watchdogs"
+            reasons.append(f"motor_fault: {self._named(fired)} stopped by {whose}: no instruction for more than "
+                           f"{self.config.bus_watchdog * 1e3:.0f} ms (the driver or the bus was held up); re-armed, "
+                           f"still until the next goal")
+        reset = [n for n, s in states.items() if s.servo_reset and not s.watchdog_fired]
+        if reset:
+            self.servo_resets += len(reset)
+            for name in reset:
+                self.known_zeros.pop(name, None)
+                self.bus.torque_on(name)  # as at open: limits, watchdog; its LED, off, says not homed
+                self.bus.homed[name] = False
+            reasons.append(f"motor_fault: {self._named(reset)} powered up again (its RAM lost: torque off, bus "
+                           f"watchdog 0) and lost its turn count: home it again")
+        return "; ".join(reasons) or None
 
     def _lost(self, exc: BusError, now_ns: int) -> TickResult:
         self.last_error = str(exc)
         self._note_error(self.last_error)
         result = self.runner.communication_failure(exc)
+        homing = None
+        if self.homing is not None:
+            # the servos may power up again with the bus: a homing asked for at start is tried again
+            # once it reopens (one that found no end stop is not)
+            self.homing_wanted = self.homing_wanted or self._homing_at_start
+            self.homing.fail_all(f"motor bus lost: {exc}")
+            homing = self._end_homing()
         self.connected = False
         self.reconnects += 1
         try:
@@ -144,7 +367,7 @@ class MotorDriverCore:
         except BusError:
             pass  # the bus is already unreachable; torque off failed with it
         self._next_attempt_ns = now_ns + int(self._backoff_s * 1e9)
-        return TickResult(None, None, result)
+        return TickResult(None, None, result, homing_result=homing)
 
     def close(self) -> None:
         if self.connected:
@@ -162,7 +385,9 @@ class MotorDriverCore:
             level, message = WARN, f"{stats.retries} retries, {stats.comm_failures} failed transactions"
         else:
             level, message = OK, "ok"
-        values = {"backend": self.config.backend, "reads": stats.reads, "writes": stats.writes,
+        values = {"backend": self.config.backend, "baud": self.config.baud, "reads": stats.reads,
+                  "writes": stats.writes, "watchdog_firings": self.watchdog_firings,
+                  "servo_resets": self.servo_resets, "homing": bool(self.homing),
                   "retries": stats.retries, "dropped_status": stats.dropped_status,
                   "corrupt_status": stats.corrupt_status, "comm_failures": stats.comm_failures,
                   "hardware_errors": stats.hardware_errors, "mode_changes": stats.mode_changes,
@@ -174,12 +399,19 @@ class MotorDriverCore:
         for name, c in self.bus.motors.items():
             s = self._last_states.get(name)
             error = self.runner.faults.get(name, 0)
-            m_level = ERROR if error else OK
-            m_message = ("hardware error " + ", ".join(decode_hardware_error(error))) if error else "ok"
-            vals: dict[str, object] = {"id": c.servo_id}
+            homed = self.bus.homed.get(name, False)
+            m_level = ERROR if error else OK if homed or not self.connected else WARN
+            m_message = ("hardware error " + ", ".join(decode_hardware_error(error)) if error
+                         else "ok" if homed or not self.connected else "not homed since the servo powered up")
+            vals: dict[str, object] = {"id": c.servo_id, "homed": homed, "hardware_error": error,
+                                       "zero_ticks": c.zero_ticks}
+            info = self.bus.servo_info.get(name)
+            if info is not None:
+                vals.update(model=info.model, firmware=info.firmware, operating_mode=info.operating_mode,
+                            watchdog_ms=f"{info.watchdog_ms:g}", current_limit_ma=f"{info.current_limit_ma:.0f}")
             if s is not None:
                 vals.update(position_rad=f"{s.position_rad:.4f}", velocity_rpm=f"{s.velocity_rpm:.2f}",
-                            current_ma=f"{s.current_ma:.1f}", torque_on=s.torque_on)
+                            current_ma=f"{s.current_ma:.1f}", torque_on=s.torque_on, watchdog_fired=s.watchdog_fired)
             out.append(DiagnosticStatusData(f"motor_driver: {name}", m_level, m_message, f"{hw}#{c.servo_id}",
                                             {k: str(v) for k, v in vals.items()}))
         return out

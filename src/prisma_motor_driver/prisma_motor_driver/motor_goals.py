@@ -22,6 +22,14 @@ Goal semantics (MoveMotors.action):
 - cancel stops the motors ("canceled"); a new goal preempts the running one ("preempted"); a hardware
   error on ANY motor turns that motor's torque off and aborts the running goal with a reason naming
   the motor, its ID and the error bit; a bus failure aborts it with "motor_fault: communication ...".
+- `controller` (who sends the goal: the client node's fully qualified name; "" = an anonymous client
+  such as `ros2 action send_goal`, which counts as one more controller named ""): one controller at a
+  time holds the motors. Its lease runs while its goal runs and, for a velocity goal with a timeout
+  that ended early at its joint limit, until that timeout (its controller is still renewing it); a
+  cancel, a failure or the timeout itself ends it at once. A goal of another controller meanwhile
+  is refused `busy` (`busy_reason`), and the running goal goes on: two controllers that each preempt
+  the other's goals every 0.1 s would otherwise drive the motors by turns. Anonymous clients cannot
+  be told apart: one may preempt another's goal, as before controllers were named.
 """
 from __future__ import annotations
 
@@ -51,6 +59,7 @@ class MoveGoal:
     position_limits: list[float] = field(default_factory=list)
     timeout_s: float = 0.0
     stamp_ns: int = 0  # when the client sent it (0: not given)
+    controller: str = ""  # who sent it: the client node's fully qualified name ("": anonymous)
 
 
 @dataclass
@@ -115,6 +124,11 @@ def goal_fault(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[str,
     return "; ".join(fault_reason(m, motors[m].servo_id, faults[m]) for m in goal.motors if faults.get(m)) or None
 
 
+def controller_label(controller: str) -> str:
+    """A controller as the logs and refusals name it."""
+    return controller or "an anonymous client (empty controller)"
+
+
 def stop_window(goal: MoveGoal, index: int, config: MotorConfig) -> tuple[float, float]:
     """[lo, hi] a velocity-mode motor may travel in: configured limits narrowed by the goal."""
     lo, hi = config.min_position_rad, config.max_position_rad
@@ -142,6 +156,9 @@ class MoveGoalRunner:
         self.fault_log: list[str] = []
         self._stopped: set[str] = set()
         self._last_states: dict[str, MotorState] = {}
+        # the controller of the goal that ended last and until when its lease holds the motors (0: not)
+        self._ended_controller = ""
+        self._ended_lease_ns = 0
 
     @property
     def active(self) -> bool:
@@ -149,6 +166,34 @@ class MoveGoalRunner:
 
     def validate(self, goal: MoveGoal) -> str | None:
         return validate_goal(goal, self.bus.motors, self.faults)
+
+    def lease_holder(self, now_ns: int | None = None) -> str | None:
+        """The controller that holds the motors at `now_ns` ("" = anonymous), else None: the running
+        goal's, or, after a velocity goal ended early at its joint limit, its controller's until the
+        goal's timeout (without `now_ns`: the running goal's only)."""
+        if self.goal is not None:
+            # past its timeout it is over, whether or not the tick that ends it has come yet
+            expired = now_ns is not None and self.goal.timeout_s > 0 and now_ns >= self.deadline_ns
+            return None if expired else self.goal.controller
+        if now_ns is not None and now_ns < self._ended_lease_ns:
+            return self._ended_controller
+        return None
+
+    def busy_reason(self, goal: MoveGoal, now_ns: int | None = None) -> str | None:
+        """Why `goal` must wait (another controller holds the motors), else None."""
+        holder = self.lease_holder(now_ns)
+        if holder is None or holder == goal.controller:
+            return None
+        lease_end_ns = self.deadline_ns if self.goal is not None else self._ended_lease_ns
+        if self.goal is not None and self.goal.timeout_s <= 0:
+            until = "until it ends (no timeout)"
+        elif now_ns is None:
+            until = "until its timeout"
+        else:
+            until = f"for {max(0.0, (lease_end_ns - now_ns) / 1e6):.0f} ms more unless renewed"
+        return (f"MoveMotors held by {controller_label(holder)}: its goal holds the motors {until}; "
+                f"wait for its end, cancel it, or stop that controller (this goal's controller: "
+                f"{controller_label(goal.controller)})")
 
     def fault_of(self, goal: MoveGoal) -> str | None:
         """The fault reason of the goal's motors that have an active hardware error, else None."""
@@ -190,6 +235,7 @@ class MoveGoalRunner:
                 self.fault_log.append(f"stop failed: {stop_exc}")
             raise GoalStartError(exc, preempted) from exc
         self.goal, self.start_ns, self._stopped = goal, stamp_ns, stopped
+        self._ended_lease_ns = 0
         start = min(stamp_ns, goal.stamp_ns) if goal.stamp_ns > 0 else stamp_ns
         self.deadline_ns = start + round(goal.timeout_s * 1e9)
         return preempted
@@ -204,6 +250,13 @@ class MoveGoalRunner:
         if self.goal is None:
             return None
         return self._finish(False, "canceled")
+
+    def abort(self, reason: str) -> MoveResult | None:
+        """End the running goal unsuccessfully with `reason`, its motors stopped (None: no goal)."""
+        self.fault_log.append(reason)
+        if self.goal is None:
+            return None
+        return self._finish(False, reason)
 
     def communication_failure(self, error: BusError) -> MoveResult | None:
         self.fault_log.append(str(error))
@@ -277,4 +330,8 @@ class MoveGoalRunner:
                 self.fault_log.append(f"stop failed: {exc}")
         final = [self._last_states[m].position_rad if m in self._last_states else float("nan") for m in goal.motors]
         self.goal = None
+        # a velocity goal that reached its joint limit before its timeout is still its controller's
+        # lease (it renews it); every other end gives the motors free at once
+        early = success and reason != "timeout" and goal.timeout_s > 0
+        self._ended_controller, self._ended_lease_ns = goal.controller, (self.deadline_ns if early else 0)
         return MoveResult(success, final, reason)

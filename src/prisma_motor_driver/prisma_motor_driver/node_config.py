@@ -14,6 +14,8 @@ from prisma_common.hand import MOTOR_NAMES
 from prisma_common.parameters import ParameterError, Params, parameter
 
 from .backend import (
+    CURRENT_LIMIT_MAX_MA,
+    DEFAULT_CURRENT_LIMITS_MA,
     DEFAULT_IDS,
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MAX_VELOCITIES_RPM,
@@ -21,7 +23,7 @@ from .backend import (
     MotorConfig,
     MotorMap,
 )
-from .control_table import VELOCITY_LIMIT_MAX_RPM
+from .control_table import VELOCITY_LIMIT_MAX_RPM, WATCHDOG_MAX_UNITS, WATCHDOG_UNIT_S
 
 BACKENDS = ("sim", "dynamixel")
 PER_MOTOR = "one entry per motor, in the order of motor_names"
@@ -48,6 +50,26 @@ class MotorDriverConfig(Params):
                                  rules=PER_MOTOR)
     zero_ticks: list = parameter([0, 0, 0], "Present Position (ticks) that means 0 rad (hand open, thumb centred)",
                                  rules=PER_MOTOR)
+    current_limits_ma: list = parameter(list(DEFAULT_CURRENT_LIMITS_MA),
+                                        "Current Limit written to each servo at start: the hardest any command "
+                                        "pulls its tendon", unit="mA", rules=f"{PER_MOTOR}; 0 < limit <= "
+                                        f"{CURRENT_LIMIT_MAX_MA:.0f}")
+    # 10 driver cycles at 100 Hz: a busy host's pauses (10-25 ms garbage collections) never trip it,
+    # and a dead or frozen driver leaves the motors turning 0.1 s at most (0.7 rad at 70 rpm)
+    bus_watchdog: float = parameter(0.1, "Bus Watchdog of every servo: it stops itself when no instruction "
+                                    "reaches it for this long (a driver that died or froze, a cut bus); "
+                                    "rounded up to 20 ms steps", unit="s",
+                                    bounds=(WATCHDOG_UNIT_S, WATCHDOG_MAX_UNITS * WATCHDOG_UNIT_S))
+    homing_rpm: float = parameter(15.0, "speed of the motors toward their open end stops while homing", unit="rpm",
+                                  bounds=(0.0, 60.0), open_low=True)
+    homing_current_ma: float = parameter(150.0, "the most a motor pulls while homing (Goal Current): enough to "
+                                         "turn the open hand, far below a tendon's load", unit="mA",
+                                         bounds=(0.0, CURRENT_LIMIT_MAX_MA), open_low=True)
+    homing_timeout: float = parameter(20.0, "a motor that finds no end stop within this long fails homing",
+                                      unit="s", bounds=(0.0, 300.0), open_low=True)
+    home_at_start: bool = parameter(False, "home the motors as soon as the bus is open (launch: home:=true)")
+    hand_config: str = parameter("", "this hand's directory (launch: hand_config:=): the zeros homing finds are "
+                                 "saved there and loaded at start; '' = none (home after every start)")
     rate_hz: float = parameter(100.0, "/joint_states and goal supervision rate", unit="Hz", bounds=(0.0, 1000.0),
                                open_low=True)
     position_profile_rpm: float = parameter(30.0, "speed of position-mode MoveMotors goals (from the next goal)",
@@ -70,17 +92,22 @@ class MotorDriverConfig(Params):
                 raise ParameterError("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")
         n = len(self.motor_names)
         for name in ("motor_ids", "min_positions", "max_positions", "max_velocities_rpm", "directions",
-                     "zero_ticks", "sim_initial_positions"):
+                     "zero_ticks", "current_limits_ma", "sim_initial_positions"):
             if len(getattr(self, name)) != n:
                 raise ParameterError(name, getattr(self, name), f"needs one entry per motor ({n})")
+        if self.homing_current_ma > min(float(v) for v in self.current_limits_ma):
+            raise ParameterError("homing_current_ma", self.homing_current_ma,
+                                 f"above a motor's current limit (current_limits_ma {self.current_limits_ma})")
         try:
             self.motors()
         except ValueError as exc:
             raise ParameterError("motor map", {"motor_ids": self.motor_ids, "min_positions": self.min_positions,
                                      "max_positions": self.max_positions}, str(exc)) from exc
 
-    def motors(self) -> dict[str, MotorConfig]:
+    def motors(self, zeros: dict[str, int] | None = None) -> dict[str, MotorConfig]:
+        """The motor map; `zeros` (from the hand's directory) replace zero_ticks where given."""
+        zero_ticks = [int((zeros or {}).get(name, z)) for name, z in zip(self.motor_names, self.zero_ticks)]
         return MotorMap.from_lists(list(self.motor_names), [int(i) for i in self.motor_ids],
                                    [float(v) for v in self.min_positions], [float(v) for v in self.max_positions],
                                    [float(v) for v in self.max_velocities_rpm], [int(d) for d in self.directions],
-                                   [int(z) for z in self.zero_ticks]).motors
+                                   zero_ticks, [float(v) for v in self.current_limits_ma]).motors

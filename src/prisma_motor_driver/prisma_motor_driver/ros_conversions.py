@@ -1,5 +1,5 @@
-"""Core data <-> ROS messages for the motor driver: /joint_states and the MoveMotors goal, feedback
-and result.
+"""Core data <-> ROS messages for the motor driver: /joint_states, the MoveMotors goal, feedback
+and result, and the HomeMotors feedback and result.
 
 Every function takes a message-class lookup `types(name)` (on the robot
 `prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
@@ -20,6 +20,7 @@ from prisma_common.messages import Types, make_header, ns_from_stamp, sequence_f
 
 from .backend import MotorState
 from .control_table import rpm_to_rad_s
+from .motor_driver_core import HomingFeedback, HomingResult
 from .motor_goals import MoveFeedback, MoveGoal, MoveResult
 
 
@@ -42,7 +43,7 @@ def move_goal_to_msg(types: Types, goal: MoveGoal) -> Any:
         motors=list(goal.motors), mode=goal.mode,
         targets=sequence_field(cls, goal.targets, np.float64),
         position_limits=sequence_field(cls, goal.position_limits, np.float64),
-        timeout=float(goal.timeout_s), stamp=stamp_from_ns(types, goal.stamp_ns),
+        timeout=float(goal.timeout_s), stamp=stamp_from_ns(types, goal.stamp_ns), controller=goal.controller,
     )
 
 
@@ -50,13 +51,16 @@ def move_goal_from_msg(msg: Any) -> MoveGoal:
     # `timeout` is a float32: 0.3 arrives as 0.30000001192..., which would end a 0.3 s goal one
     # 10 ms tick late; microseconds are far below a tick and far above float32's error
     return MoveGoal(list(msg.motors), str(msg.mode), [float(t) for t in msg.targets],
-                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6), ns_from_stamp(msg.stamp))
+                    [float(p) for p in msg.position_limits], round(float(msg.timeout), 6), ns_from_stamp(msg.stamp),
+                    str(msg.controller))
 
 
-def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float, stamp_ns: int = 0) -> MoveGoal:
-    """A velocity goal; `stamp_ns` (the sending instant) makes its timeout count from then."""
+def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float, stamp_ns: int = 0,
+                  controller: str = "") -> MoveGoal:
+    """A velocity goal; `stamp_ns` (the sending instant) makes its timeout count from then, `controller`
+    (the sender's fully qualified node name) names whose lease it is."""
     return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s,
-                    stamp_ns)
+                    stamp_ns, controller)
 
 
 def move_feedback_to_msg(types: Types, fb: MoveFeedback) -> Any:
@@ -78,3 +82,25 @@ def move_result_to_msg(types: Types, result: MoveResult) -> Any:
 
 def move_result_from_msg(msg: Any) -> MoveResult:
     return MoveResult(bool(msg.success), [float(p) for p in msg.final_positions], str(msg.reason))
+
+
+def homing_feedback_to_msg(types: Types, feedback: HomingFeedback) -> Any:
+    cls = types("prisma_msgs/action/HomeMotors_Feedback")
+    return cls(
+        motors=list(feedback.motors),
+        positions=sequence_field(cls, feedback.positions, np.float64),
+        currents=sequence_field(cls, feedback.currents, np.float64),
+        homed=sequence_field(cls, feedback.homed, np.bool_),
+    )
+
+
+def homing_result_to_msg(types: Types, result: HomingResult) -> Any:
+    cls = types("prisma_msgs/action/HomeMotors_Result")
+    return cls(
+        success=result.success,
+        reason=result.reason,
+        motors=list(result.motors),
+        zero_ticks=sequence_field(cls, result.zero_ticks, np.int32),
+        travel_rad=sequence_field(cls, result.travel_rad, np.float64),
+        stall_current_ma=sequence_field(cls, result.stall_current_ma, np.float64),
+    )

@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from .backend import BusStats, MotorConfig, MotorState, check_velocity
+from .backend import BusError, BusStats, MotorConfig, MotorState, ServoInfo, check_velocity
 from .control_table import rad_s_to_rpm, rpm_to_rad_s
 
 
@@ -51,6 +51,10 @@ class SimMotorBus:
         self.motors = dict(motors)
         self.params = params or SimMotorParams()
         self.stats = BusStats()
+        # the model's zero is where it starts counting: it cannot lose it, so there is nothing to home
+        self.needs_homing = False
+        self.homed = {name: True for name in self.motors}
+        self.servo_info: dict[str, ServoInfo] = {}
         self._m = {name: _Motor(c) for name, c in self.motors.items()}
         for name, position in (initial_positions or {}).items():
             self._m[name].position_rad = self.motors[name].clamp(position)
@@ -178,6 +182,18 @@ class SimMotorBus:
     def torque_on(self, name: str) -> None:
         m = self._motor(name)
         m.torque_on, m.mode, m.command_rad_s = True, "velocity", 0.0
+
+    def rearm_watchdog(self, names: list[str]) -> None:
+        pass  # the model has no bus to fall silent
+
+    def start_homing(self, names: list[str], rpm: float, current_ma: float) -> None:
+        raise BusError("the sim motors have no end stops to home on: they start at their zero")
+
+    def finish_homing(self, name: str) -> int:
+        raise BusError("the sim motors have no end stops to home on: they start at their zero")
+
+    def abort_homing(self, names: list[str]) -> None:
+        self.stop(names)
 
     def _motor(self, name: str) -> _Motor:
         try:

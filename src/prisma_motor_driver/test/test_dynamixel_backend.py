@@ -50,7 +50,9 @@ def rig(monkeypatch):
     monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 200)
     clock = ManualClock()
     with DynamixelEmulator(list(IDS.values()), clock=clock) as emu:
-        bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=2)
+        # the manual clock jumps past the driver's 0.1 s bus watchdog between reads: these tests are about
+        # motion, so the servos get the longest watchdog (the watchdog's own tests arm the default)
+        bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=2, watchdog_s=2.54)
         bus.open()
         yield emu, bus, clock
         bus.close()
@@ -278,6 +280,8 @@ def test_dropped_write_status_is_retried(rig):
 
 def test_close_turns_torque_off_everywhere():
     with DynamixelEmulator([1, 2, 3], clock=ManualClock()) as emu:
+        for servo_id in (1, 2, 3):
+            emu.set_baud(servo_id, 57_600)  # servos answer only at their own rate
         bus = DynamixelBus(emu.port_name, 57_600, motor_map())
         bus.open()
         assert all(s.torque_on for s in emu.servos.values())

@@ -19,6 +19,8 @@ class FlakyBus:
 
         self.motors, self.stats, self.failures = default_motors(), BusStats(), failures
         self.attempts, self.down = [], False
+        # motors that know their zero (as the sim's): homing is not what these tests are about
+        self.homed, self.needs_homing, self.servo_info = {n: True for n in self.motors}, False, {}
 
     def open(self):
         self.attempts.append(self.now)
@@ -151,3 +153,19 @@ def test_position_goal_settings_change_at_run_time():
     result = core.tick(20 * MS).result
     assert result is not None and (result.success, result.reason) == (True, "reached")
     assert (core.runner.profile_rpm, core.runner.position_tolerance_rad) == (60.0, 1.0)
+
+
+def test_a_second_controllers_goal_is_refused_busy_and_the_holders_goal_goes_on():
+    core = MotorDriverCore(MotorDriverConfig(backend="sim"))
+    core.connect(0)
+    held = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, stamp_ns=0, controller="/manipulation")
+    assert core.validate(held, 0) is None and core.start(held, 0) == StartOutcome()
+    intruder = MoveGoal(["fingers"], "velocity", [-10.0], timeout_s=0.3, controller="/left/manipulation")
+    refusal = core.validate(intruder, 50 * MS)
+    assert refusal.code == "busy" and str(refusal).startswith(
+        "busy: MoveMotors held by /manipulation: its goal holds the motors for 250 ms more unless renewed")
+    # an invalid goal is told what is wrong with it first, whoever holds the motors
+    assert core.validate(MoveGoal(["fingers"], "velocity", [90.0], controller="/x"), 50 * MS).code == "invalid"
+    assert core.runner.goal is held
+    assert core.tick(60 * MS).states["fingers"].velocity_rpm == pytest.approx(10.0, abs=0.1)  # still driven
+    assert core.validate(intruder, 300 * MS) is None  # the lease ran out: the motors are free again

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from prisma_motor_driver.backend import default_motors
+from prisma_motor_driver.backend import BusError, default_motors
 from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner, goal_expired
 from prisma_motor_driver.sim_backend import SimMotorBus
 
@@ -122,3 +122,62 @@ def test_sim_hardware_error_aborts_naming_motor_and_bit():
     assert not result.success
     assert result.reason == "motor_fault: thumb_flexion (id 2) hardware error bit 2 overheating"
     assert not bus.read_state(200 * MS)["thumb_flexion"].torque_on
+
+
+MANIP, OTHER = "/manipulation", "/second/manipulation"
+
+
+def test_one_controller_holds_the_motors_while_its_goal_runs_and_renews_it():
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    assert runner.lease_holder(0) is None and runner.busy_reason(MoveGoal(["fingers"], "velocity", [5.0]), 0) is None
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, controller=MANIP), 0)
+    assert runner.lease_holder(100 * MS) == MANIP
+    other = MoveGoal(["thumb_flexion"], "velocity", [5.0], timeout_s=0.3, controller=OTHER)
+    assert runner.busy_reason(other, 100 * MS) == (
+        "MoveMotors held by /manipulation: its goal holds the motors for 200 ms more unless renewed; wait for its "
+        "end, cancel it, or stop that controller (this goal's controller: /second/manipulation)")
+    anonymous = MoveGoal(["fingers"], "velocity", [5.0])
+    assert "(this goal's controller: an anonymous client (empty controller))" in runner.busy_reason(anonymous, 0)
+    # the holder renews its lease: its next goal preempts its own, as before controllers were named
+    renewal = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, controller=MANIP)
+    assert runner.busy_reason(renewal, 100 * MS) is None
+    assert runner.start(renewal, 100 * MS).reason == "preempted"
+    assert "for 300 ms more" in runner.busy_reason(other, 100 * MS)
+    # its lease ends with its timeout: the next controller's goal is served
+    t, _, result = _run(runner, bus, 1000 * MS, start_ns=100 * MS)
+    assert result.reason == "timeout" and t == 400 * MS
+    assert runner.lease_holder(t) is None and runner.busy_reason(other, t) is None
+    runner.start(other, t)
+    assert runner.lease_holder(t) == OTHER
+
+
+def test_a_goal_without_timeout_holds_the_motors_until_it_ends_and_a_cancel_frees_them():
+    bus = SimMotorBus(default_motors())
+    runner = MoveGoalRunner(bus)
+    runner.start(MoveGoal(["thumb_flexion"], "position", [1.0]), 0)  # anonymous: ros2 action send_goal
+    reason = runner.busy_reason(MoveGoal(["fingers"], "velocity", [5.0], controller=MANIP), 5000 * MS)
+    assert reason.startswith("MoveMotors held by an anonymous client (empty controller): its goal holds the "
+                             "motors until it ends (no timeout)")
+    # anonymous clients cannot be told apart: one preempts another's goal
+    assert runner.busy_reason(MoveGoal(["fingers"], "velocity", [5.0]), 0) is None
+    assert runner.cancel().reason == "canceled"
+    assert runner.lease_holder(10 * MS) is None
+
+
+def test_a_velocity_goal_ended_at_its_joint_limit_keeps_its_lease_until_its_timeout():
+    """Its controller is still renewing it: another's goal in between would take over the motors
+    for one renewal period."""
+    bus = SimMotorBus(default_motors(), initial_positions={"thumb_rotation": 0.98})
+    runner = MoveGoalRunner(bus)
+    runner.start(MoveGoal(["thumb_rotation"], "velocity", [30.0], [1.0], timeout_s=0.3, controller=MANIP), 0)
+    t, _, result = _run(runner, bus, 1000 * MS)
+    assert result.reason == "joint_limit" and t < 300 * MS and not runner.active
+    other = MoveGoal(["fingers"], "velocity", [5.0], controller=OTHER)
+    assert runner.lease_holder(t) == MANIP
+    assert f"for {300 - t // MS} ms more unless renewed" in runner.busy_reason(other, t)
+    assert runner.busy_reason(other, 300 * MS) is None
+    # a failure (or a cancel) frees them at once
+    runner.start(MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, controller=MANIP), 400 * MS)
+    assert runner.communication_failure(BusError("port gone")).reason.startswith("motor_fault")
+    assert runner.lease_holder(410 * MS) is None
