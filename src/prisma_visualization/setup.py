@@ -15,11 +15,13 @@ setup(
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",
-    description="RViz views of the hand: the fingertip taxels, contact and force drawn on the model.",
+    description="RViz views of the hand: the fingertip taxels, contact and force drawn on the model, the fingers "
+                "drawn where the tendons let them under load.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
             "tactile_markers = prisma_visualization.tactile_markers_node:main",
+            "tendon_stretch = prisma_visualization.tendon_stretch_node:main",
         ],
     },
 )

@@ -7,9 +7,14 @@
   description.
 - Two trees, no clash: every frame of /tf and /tf_static has one parent, the left hand's frames all
   start with left/, the two bases are not connected, and each hand has its own /robot_description.
-- During a pinch Grasp the thumb pad moves as the coupling says: its transform at each /joint_states
-  stamp is the description's forward kinematics at those motor positions, and where the pinch
-  closes it travels the simulator's 8 mm per rad of thumb flexion.
+- During a pinch Grasp the thumb pad moves as the coupling says: its transform at each joint state
+  stamp is the description's forward kinematics at the full joint state tendon_stretch gives
+  robot_state_publisher (prisma/model_joint_states), and before it touches the ball it travels the
+  simulator's 8 mm per rad of thumb flexion. /joint_states stays the three motors.
+- The fingers rest on the ball: once the pinch ends force_reached the thumb and index pad frames are
+  one ball diameter apart (the sim world's, within 5 mm: the pads press into the foam), not through
+  it (1.8 mm apart with the rigid coupling); each hand's tactile_driver draws the ball
+  (prisma/sim/object) in its own base frame, between the pads.
 
 Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
@@ -38,7 +43,9 @@ from std_msgs.msg import String  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 from tf2_ros import Buffer, TransformListener  # noqa: E402
 from urdf_parser_py.urdf import URDF  # noqa: E402
+from visualization_msgs.msg import Marker  # noqa: E402
 
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
 from urdf_kinematics import link_poses  # noqa: E402
 
@@ -156,9 +163,10 @@ class TestHandTf(unittest.TestCase):
         robot = self.description("")
         client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
         joints = ros.collect(JointState, "/joint_states")
+        model = ros.collect(JointState, "/prisma/model_joint_states")
         tf = ros.collect(TFMessage, "/tf")
-        # both readers matched before the goal: on a busy machine discovery takes longer than a pinch
-        self.assertTrue(ros.spin_until(lambda: joints and tf, 30.0), "no /joint_states or /tf")
+        # the readers matched before the goal: on a busy machine discovery takes longer than a pinch
+        self.assertTrue(ros.spin_until(lambda: joints and model and tf, 30.0), "no /joint_states, model or /tf")
         result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
         # everything published up to the result, however late this process receives it: the
         # /joint_states of that instant, and the /tf robot_state_publisher computed from one at most
@@ -166,24 +174,29 @@ class TestHandTf(unittest.TestCase):
         ended_ns = stamp_ns(ros.message_at(joints, 0.0))
         self.assertTrue(ros.spin_until(lambda: any(stamp_ns(t) >= ended_ns - 100_000_000
                                                    for m in tf[-3:] for t in m.transforms), 30.0))
-        ros.stop_collecting(joints, tf)
+        ros.stop_collecting(joints, model, tf)
         self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual({name for m in joints for name in m.name}, set(MOTOR_NAMES))  # the motors, unchanged
         samples = [(m.header.stamp, dict(zip(m.name, m.position))) for m in joints]
         flexing = [(stamp, motors) for stamp, motors in samples if motors["thumb_flexion"] > 0.05]
         self.assertGreater(len(flexing), 20)
         # robot_state_publisher sends the moving frames at most 20 times a second (publish_frequency),
-        # each stamped with the /joint_states it computed them from: at those stamps the transform is
-        # the description's kinematics at that sample's motor positions
+        # each stamped with the joint state it computed them from (tendon_stretch's, one per
+        # /joint_states message with its stamp): at those stamps the transform is the description's
+        # kinematics at that full joint state
         published = {stamp_ns(t) for m in tf for t in m.transforms if t.child_frame_id == "prisma_thumb_distal"}
-        compared = [(stamp, motors) for stamp, motors in flexing if stamp_ns_of(stamp) in published]
+        states = {stamp_ns(m): dict(zip(m.name, m.position)) for m in model}
+        compared = [(stamp, states[stamp_ns_of(stamp)]) for stamp, motors in flexing
+                    if stamp_ns_of(stamp) in published and stamp_ns_of(stamp) in states]
         self.assertGreater(len(compared), 5)
-        for stamp, motors in compared:
+        for stamp, positions in compared:
             measured = translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(stamp)))
-            expected = link_poses(robot, motors)["prisma_thumb_pad"][:3, 3]
+            expected = link_poses(robot, positions)["prisma_thumb_pad"][:3, 3]
             np.testing.assert_allclose(measured, expected, atol=1e-6)
-        # where the pinch closes on the ball, the pad travels the simulator's mm per motor rad
+        # closing toward the ball, before it touches, the pad travels the simulator's mm per motor rad
         contact_rad = OBJECTS["pinch_ball"].thumb_contact_rad
-        near = [(stamp, motors) for stamp, motors in flexing if abs(motors["thumb_flexion"] - contact_rad) < 0.3]
+        near = [(stamp, motors) for stamp, motors in flexing
+                if contact_rad - 0.4 < motors["thumb_flexion"] < contact_rad]
         self.assertGreaterEqual(len(near), 2, "no /joint_states sample near the thumb's contact angle")
         (first_stamp, first), (last_stamp, last) = near[0], near[-1]
         moved_mm = 1e3 * np.linalg.norm(
@@ -193,6 +206,23 @@ class TestHandTf(unittest.TestCase):
         self.assertGreater(turned_rad, 0.2)
         self.assertAlmostEqual(moved_mm / turned_rad, HandWorldParams().thumb_travel_mm_per_rad,
                                delta=0.05 * HandWorldParams().thumb_travel_mm_per_rad)
+
+    def test_4_after_the_pinch_the_pads_rest_on_the_ball_drawn_between_them(self):
+        """Runs on the pinch test_3 ended with (force_reached, the hand holding the ball)."""
+        ball_mm = OBJECTS["pinch_ball"].size_mm[2]
+        pads = {f: translation(self.lookup("prisma_hand_base", f"prisma_{f}_pad")) for f in ("thumb", "index")}
+        apart_mm = 1e3 * np.linalg.norm(pads["thumb"] - pads["index"])
+        self.assertAlmostEqual(apart_mm, ball_mm, delta=5.0)
+        for namespace, prefix in HANDS.items():
+            markers = self.first_messages(Marker, f"{namespace}/prisma/sim/object", count=1)
+            self.assertEqual((markers[0].header.frame_id, markers[0].type),
+                             (f"{prefix}prisma_hand_base", Marker.SPHERE))
+            self.assertAlmostEqual(markers[0].scale.x * 1e3, ball_mm)
+        # the root hand's ball: its centre between the two pads (within a few mm: the world's
+        # object position is its own, the pads are drawn from the estimated forces)
+        p = self.first_messages(Marker, "/prisma/sim/object", count=1)[0].pose.position
+        centre = np.array([p.x, p.y, p.z])
+        self.assertLess(1e3 * np.linalg.norm(centre - (pads["thumb"] + pads["index"]) / 2), 3.0)
 
 
 @launch_testing.post_shutdown_test()

@@ -24,10 +24,11 @@ def axis_rotation(axis: Any, angle: float) -> np.ndarray:
 
 def joint_positions(robot: Any, motors: dict[str, float]) -> dict[str, float]:
     """Every moving joint's position from the independent ones: a mimic joint is at
-    multiplier * its joint + offset."""
+    multiplier * its joint + offset, unless `motors` names it (robot_state_publisher's rule: a
+    joint given in the message wins)."""
     positions = dict(motors)
     for joint in robot.joints:
-        if joint.mimic is not None:
+        if joint.mimic is not None and joint.name not in motors:
             positions[joint.name] = joint.mimic.multiplier * motors[joint.mimic.joint] + (joint.mimic.offset or 0.0)
     return positions
 

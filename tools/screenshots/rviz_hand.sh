@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # RViz on the sim graph with the hand holding the ball after a pinch Grasp: the model moving with
-# /joint_states, the taxels coloured by the contact monitor's decision, the contact points and the
-# normal-force arrows (config/hand.rviz), taken on a virtual X server:
+# /joint_states, the fingers resting on the ball (tendon_stretch), the taxels coloured by the contact
+# monitor's decision, the contact points and the normal-force arrows (config/hand.rviz), taken on a
+# virtual X server:
 #
 #     PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh && source install/setup.bash
 #     tools/screenshots/rviz_hand.sh [OUT.png]        # default docs/img/rviz_hand_pinch.png
@@ -10,8 +11,7 @@
 # ImageMagick's convert (apt-get install -y xvfb x11-apps imagemagick) and rviz2 (in the ROS tree;
 # on a robot apt install ros-jazzy-rviz2); Mesa's software renderer draws it (LIBGL_ALWAYS_SOFTWARE=1).
 # The graph and RViz run on a ROS domain and a display of their own; all of it is stopped at the end.
-# The shipped configuration is used as it is but for the camera, brought close to the pinch, and the
-# model drawn half transparent so that the pads between thumb and index show.
+# The shipped configuration is used as it is: what the picture shows is what rviz:=true shows.
 set -euo pipefail
 
 out="${1:-docs/img/rviz_hand_pinch.png}"
@@ -60,21 +60,7 @@ for attempt in 1 2 3; do
   sleep 3
 done
 
-# the shipped view, closer: the pinch seen from the thumb's side, slightly from above
-python3 - "$config" "$work/hand.rviz" <<'EOF'
-import re
-import sys
-text = open(sys.argv[1]).read()
-text = re.sub(r"(?m)^      Distance: [0-9.]+", "      Distance: 0.14", text)
-text = re.sub(r"(?m)^      Pitch: [-0-9.]+", "      Pitch: 0.3", text)
-text = re.sub(r"(?m)^      Yaw: [-0-9.]+", "      Yaw: 0.5", text)
-text = re.sub(r"Focal Point:\n        X: [-0-9.]+\n        Y: [-0-9.]+\n        Z: [-0-9.]+",
-              "Focal Point:\n        X: 0.027\n        Y: 0.068\n        Z: 0.128", text)
-text = text.replace("    - Alpha: 1\n      Class: rviz_default_plugins/RobotModel",
-                    "    - Alpha: 0.45\n      Class: rviz_default_plugins/RobotModel")
-open(sys.argv[2], "w").write(text)
-EOF
-setsid rviz2 -d "$work/hand.rviz" >"$work/rviz.log" 2>&1 &
+setsid rviz2 -d "$config" >"$work/rviz.log" 2>&1 &
 groups+=($!)
 echo "rviz_hand.sh: rviz2 started; waiting for it to draw..."
 sleep 20  # start, description, TF and the first MarkerArrays under software rendering

@@ -39,6 +39,8 @@ from prisma_common.hand import FINGERS, MOTOR_NAMES, check_finger
 from .pad_model import PadContact, PadParams
 
 FINGER_PADS = FINGERS[1:]  # index, middle, ring, little (driven by the "fingers" motor)
+# the motor whose tendon closes each finger
+TENDON_MOTOR: dict[str, str] = {"thumb": "thumb_flexion", **dict.fromkeys(FINGER_PADS, "fingers")}
 
 
 @dataclass(frozen=True)
@@ -55,19 +57,24 @@ class ObjectParams:
     release_tau_s: float = 0.2  # fading with this time constant,
     residual_fixture_n_per_mm: float = 0.01  # down to this (keeps the balance well posed)
     released: bool = False  # start already released (object held by the hand alone)
+    # its shape for a display: "sphere" (size = its diameter three times) or "box" (size x, y along
+    # the thumb pad's x and y, z along the grasp axis); "" = no object
+    shape: str = "sphere"
+    size_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 OBJECTS: dict[str, ObjectParams] = {
     # 30 mm foam ball, thumb-index tip pinch; the experimenter lets go once the pinch holds it
-    "pinch_ball": ObjectParams("pinch_ball", {"index": 3.0}, 2.5, 0.4, release_force_n=0.6),
+    "pinch_ball": ObjectParams("pinch_ball", {"index": 3.0}, 2.5, 0.4, release_force_n=0.6, size_mm=(30.0,) * 3),
     # 70 mm foam ball touched by all four fingers
     "power_ball": ObjectParams("power_ball", {"index": 2.6, "middle": 2.5, "ring": 2.7, "little": 2.9},
-                               2.0, 0.4, fixture_n_per_mm=2.0),
+                               2.0, 0.4, fixture_n_per_mm=2.0, size_mm=(70.0,) * 3),
     # card pressed by the thumb pad against the side of the flexed index (no sensor there: the
-    # index side acts as a stiff support)
-    "lateral_card": ObjectParams("lateral_card", {}, 3.5, 2.0, fixture_n_per_mm=5.0),
+    # index side acts as a stiff support); an ID-1 card (ISO/IEC 7810), 85.60 x 53.98 x 0.76 mm
+    "lateral_card": ObjectParams("lateral_card", {}, 3.5, 2.0, fixture_n_per_mm=5.0, shape="box",
+                                 size_mm=(85.60, 53.98, 0.76)),
     # an empty hand: no pad ever touches anything (a gripper closing on nothing)
-    "none": ObjectParams("none", {}, None, 0.4),
+    "none": ObjectParams("none", {}, None, 0.4, shape=""),
 }
 
 
@@ -84,8 +91,25 @@ class HandWorldParams:
     load_nm_per_n: float = 0.05  # motor load torque per N of pad force (tendon lever x spool)
     rotation_load_fraction: float = 0.2  # thumb rotation carries this share of the thumb load
 
+    def pad_travel_mm_per_rad(self, finger: str) -> float:
+        """Free travel of `finger`'s pad per rad of its tendon motor (TENDON_MOTOR)."""
+        return self.thumb_travel_mm_per_rad if check_finger(finger) == "thumb" else self.finger_travel_mm_per_rad
+
     def series_stiffness(self, obj: ObjectParams) -> float:
         return 1.0 / (1.0 / self.tendon_stiffness_n_per_mm + 1.0 / obj.stiffness_n_per_mm)
+
+
+@dataclass(frozen=True)
+class ObjectPose:
+    """Where the object is and how it is squeezed, for a display. Coordinates in mm in the thumb
+    pad's frame where the object was presented (the thumb at the object's thumb_contact_rad,
+    thumb_rotation 0): origin the point the thumb pad first touches, z out of the pad along the
+    grasp axis (toward the fingers), x and y the pad's. `size_mm` is the object's, its z shortened
+    by how far the pads press into it."""
+
+    shape: str
+    centre_mm: tuple[float, float, float]
+    size_mm: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -243,6 +267,19 @@ class HandWorld:
         return {"fingers": fingers * p.load_nm_per_n, "thumb_flexion": thumb * p.load_nm_per_n,
                 "thumb_rotation": thumb * p.load_nm_per_n * p.rotation_load_fraction}
 
+    def object_pose(self) -> ObjectPose | None:
+        """The object as a display draws it; None for an empty hand (shape "")."""
+        o, s = self.obj, self.state
+        if not o.shape:
+            return None
+        sx, sy, sz = o.size_mm
+        # the thumb side of the object moves along z by -u (u is toward the thumb), each pad
+        # pressing into it by force / object stiffness
+        thumb_side = -s.object_z_mm + s.finger_forces["thumb"] / o.stiffness_n_per_mm
+        finger_side = sz - s.object_z_mm - max(s.finger_forces[f] for f in FINGER_PADS) / o.stiffness_n_per_mm
+        bx, by = s.object_xy_mm
+        return ObjectPose(o.shape, (bx, by, (thumb_side + finger_side) / 2.0), (sx, sy, finger_side - thumb_side))
+
     def grasp_pose(self, force_n: float) -> dict[str, float]:
         """Motor positions of a balanced pinch (thumb vs partner) at force_n, object centred."""
         p = self.params
@@ -274,8 +311,8 @@ class HandWorld:
 
     def _free_travel(self) -> tuple[dict[str, float], float]:
         p = self.params
-        s_f = {f: p.finger_travel_mm_per_rad * self.positions["fingers"] for f in FINGER_PADS}
-        return s_f, p.thumb_travel_mm_per_rad * self.positions["thumb_flexion"]
+        s_f = {f: p.pad_travel_mm_per_rad(f) * self.positions[TENDON_MOTOR[f]] for f in FINGER_PADS}
+        return s_f, p.pad_travel_mm_per_rad("thumb") * self.positions[TENDON_MOTOR["thumb"]]
 
     def _contact_travel(self) -> tuple[dict[str, float], float | None]:
         """Pad travel at which each pad touches the object in its presented pose (width change

@@ -5,7 +5,15 @@ from __future__ import annotations
 import pytest
 
 from prisma_hand_sim.contact_source import ContactSource
-from prisma_hand_sim.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource, released
+from prisma_hand_sim.hand_world import (
+    OBJECTS,
+    Disturbance,
+    HandWorld,
+    HandWorldContactSource,
+    HandWorldParams,
+    ObjectPose,
+    released,
+)
 
 MS = 1_000_000
 
@@ -87,3 +95,23 @@ def test_replace_object_puts_a_rolled_object_back_under_the_thumb_pad_middle():
     world.update_joints(pose, 3030 * MS)
     assert world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
     assert world.forces()["thumb"] == pytest.approx(1.0, rel=0.01)
+
+
+def test_object_pose_the_ball_between_the_pads_squeezed_by_their_forces():
+    world = HandWorld(obj="pinch_ball")
+    ball = OBJECTS["pinch_ball"]
+    assert world.object_pose() == ObjectPose("sphere", (0.0, 0.0, 15.0), (30.0, 30.0, 30.0))
+    world.set_positions(world.grasp_pose(1.0))
+    pose = world.object_pose()
+    f = world.state.finger_forces
+    travel = HandWorldParams().thumb_travel_mm_per_rad
+    thumb_pad = world.state.pad_positions_mm["thumb"] - travel * ball.thumb_contact_rad
+    # the thumb pad is where the object's thumb side is; the z size is the ball less both indentations
+    assert pose.centre_mm[2] - pose.size_mm[2] / 2 == pytest.approx(thumb_pad)
+    assert pose.size_mm[2] == pytest.approx(30.0 - (f["thumb"] + f["index"]) / ball.stiffness_n_per_mm)
+    assert pose.size_mm[2] == pytest.approx(25.0, abs=0.5)  # 1 N on each pad: 2.5 mm into the 0.4 N/mm foam each
+
+
+def test_object_pose_none_for_an_empty_hand_and_a_box_for_the_card():
+    assert HandWorld(obj="none").object_pose() is None
+    assert HandWorld(obj="lateral_card").object_pose().shape == "box"

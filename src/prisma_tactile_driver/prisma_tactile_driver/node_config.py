@@ -67,6 +67,8 @@ class TactileDriverConfig(Params):
     sim_object: str = parameter("pinch_ball", "hand_world: the object presented to the hand; none = an empty hand",
                                 choices=tuple(OBJECTS))
     sim_seed: int = parameter(0, "seed of the simulated pads' noise", bounds=(0, 2**31 - 1))
+    object_frame_id: str = parameter("prisma_hand_base", "hand_world: the frame of the object's marker "
+                                                         "(prisma/sim/object), the hand's base with its frame prefix")
 
     def check_rules(self) -> None:
         check_fingers(self.fingers)

@@ -2,7 +2,9 @@
 the same samples once per poll on /prisma/hand/taxels (for the nodes that take all five fingers),
 and /diagnostics at 1 Hz with the link counters. With the simulated hand (contact_source
 hand_world), ~/replace_object (std_srvs/Trigger) puts the object back between the open fingers for
-the next trial. Zeroing the fingertip forces is the force
+the next trial, and prisma/sim/object (visualization_msgs/Marker, 10 Hz while someone subscribes)
+draws the object where the simulated world has it, in object_frame_id (the hand's base), placed
+from the description on robot_description (none for sim_object none). Zeroing the fingertip forces is the force
 estimator's ~/bias: the taxel voltages stay raw (Algorithm 1 needs them).
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
@@ -13,14 +15,19 @@ from __future__ import annotations
 
 import functools
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.msg import HandTaxels, TaxelArray
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
 
 from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
 from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
@@ -29,8 +36,11 @@ from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription
 
 from .node_config import TactileDriverConfig, make_backend
-from .ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
+from .ros_conversions import hand_taxels_to_msg, object_marker_to_msg, taxel_frame_to_msg
 from .tactile_driver_core import TactileHub
+
+OBJECT_MARKER_HZ = 10.0  # a display's rate: the object moves with the grasp, at most a few mm/s
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class TactileDriverNode(Node):
@@ -41,10 +51,16 @@ class TactileDriverNode(Node):
         cfg = self.config = declare_config(self, TactileDriverConfig)
 
         source = None
+        self._object_anchor: np.ndarray | None = None  # where the object was presented, once the description came
         if cfg.backend == "sim" and cfg.contact_source == "hand_world":
             source = HandWorldContactSource(HandWorld(obj=cfg.sim_object))
             self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
             self._replace_service = self.create_service(Trigger, "~/replace_object", self._on_replace_object)
+            if source.world.object_pose() is not None:
+                self._object_pub = self.create_publisher(Marker, "prisma/sim/object", 10)
+                self._description_sub = self.create_subscription(String, "robot_description",
+                                                                 self._on_description, LATCHED)
+                self._object_timer = self.create_timer(1.0 / OBJECT_MARKER_HZ, self._on_object_marker)
         self._source = source
         self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
                               stale_timeout_ns=int(cfg.stale_timeout * 1e9),
@@ -97,6 +113,24 @@ class TactileDriverNode(Node):
         assert self._source is not None  # subscribed only with the hand_world contact source
         self._source.update_joints(list(msg.name), [float(p) for p in msg.position],
                                    ns_from_stamp(msg.header.stamp))
+
+    def _on_description(self, msg: String) -> None:
+        """Where the object is presented: the thumb pad's pose at the object's thumb contact angle
+        (the world's coordinates start there, hand_world.ObjectPose)."""
+        assert self._source is not None
+        obj = self._source.world.obj
+        try:
+            self._object_anchor = RobotModel.from_urdf(msg.data).link_pose(
+                "prisma_thumb_pad", {"thumb_flexion": obj.thumb_contact_rad or 0.0, "thumb_rotation": 0.0})
+        except DescriptionError as exc:
+            self.get_logger().error(f"robot_description: {exc}; the object is not drawn until a readable one")
+
+    def _on_object_marker(self) -> None:
+        assert self._source is not None
+        pose = self._source.world.object_pose()
+        if self._object_anchor is not None and pose is not None:
+            publish_if_subscribed(self._object_pub, object_marker_to_msg(
+                self.types, self.config.object_frame_id, self._object_anchor, pose))
 
     def _on_replace_object(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         assert self._source is not None  # offered only with the hand_world contact source

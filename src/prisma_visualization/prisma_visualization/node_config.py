@@ -1,4 +1,4 @@
-"""tactile_markers node parameters: defaults (= config/tactile_markers.yaml), their descriptions and
+"""tactile_markers and tendon_stretch node parameters: defaults (= config/<node>.yaml), their descriptions and
 ranges, and validation naming the bad parameter and value."""
 from __future__ import annotations
 
@@ -27,3 +27,10 @@ class TactileMarkersConfig(Params):
 
     def check_rules(self) -> None:
         check_fingers(self.fingers)
+
+
+@dataclass
+class TendonStretchConfig(Params):
+    force_timeout: float = parameter(0.2, "a pad's force estimate older than this (against the joint sample's "
+                                          "stamp) counts as none: the finger is drawn as its motor says",
+                                     unit="s", bounds=(0.0, 10.0), open_low=True, live=True)

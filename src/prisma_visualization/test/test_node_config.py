@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import pytest
-from prisma_visualization.node_config import TactileMarkersConfig
+from prisma_visualization.node_config import TactileMarkersConfig, TendonStretchConfig
 
 from prisma_common.parameters import ParameterError
 from repo_paths import CONFIG, node_parameters
@@ -22,3 +22,7 @@ def test_defaults_are_the_shipped_parameter_file():
 def test_invalid_values_are_named(name, value, message):
     with pytest.raises(ParameterError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
         TactileMarkersConfig.from_parameters({name: value})
+
+
+def test_tendon_stretch_defaults_are_the_shipped_parameter_file():
+    assert TendonStretchConfig().as_parameters() == node_parameters(CONFIG / "tendon_stretch.yaml", "tendon_stretch")
