@@ -41,6 +41,8 @@ setup(
             "prisma-sim = prisma_bringup.sim_cli:main",
             "prisma-hand-emulator = prisma_bringup.emulator_cli:emulator_main",
             "prisma-hand-fault = prisma_bringup.emulator_cli:fault_main",
+            "prisma-doctor = prisma_bringup.doctor:main",
+            "doctor = prisma_bringup.doctor:main",  # ros2 run prisma_bringup doctor
         ],
     },
 )
