@@ -37,17 +37,17 @@ from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
     diagnostic_values,
+    emulated_hand_launch,
     goal_outcome,
     hand_fault,
-    include_launch,
     require_ros,
     stamp_ns,
     stopped,
+    wait_until_homed,
 )
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
@@ -57,6 +57,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_bringup.hand_session import HAND_SCENARIOS  # noqa: E402
 from prisma_bringup.sim_runner import EXPECTED_REASONS  # noqa: E402
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
@@ -72,10 +73,7 @@ BUS_MISSES = ("dropped_status", "corrupt_status", "retries", "comm_failures")
 
 @pytest.mark.launch_test
 def generate_test_description():
-    EMULATOR_DIR.mkdir(exist_ok=True)
-    return launch.LaunchDescription([
-        include_launch("hand.launch.py", hardware="emulated", emulator_dir=str(EMULATOR_DIR)),
-        launch_testing.actions.ReadyToTest()])
+    return emulated_hand_launch(EMULATOR_DIR)
 
 
 def fault(*args: str) -> str:
@@ -133,6 +131,8 @@ class TestHandEmulated(unittest.TestCase):
 
     def test_1_drivers_on_the_emulated_devices(self):
         ros = self.ros
+        # home:=true: the servos came up with their turn count lost; goals wait for the homing at start
+        wait_until_homed(ros, self.diagnostics, MOTOR_NAMES)
         self.assertTrue(ros.spin_until(lambda: self.diagnostic("tactile_driver: hub") is not None
                                        and self.diagnostic("motor_driver: bus") is not None, 60.0),
                         "no /diagnostics from both drivers")

@@ -28,21 +28,23 @@ from ros_harness import (
     RosHarness,
     assert_clean_shutdown,
     diagnostic_values,
+    emulated_hand_launch,
     hand_fault,
-    include_launch,
     require_ros,
     run_hand_fault,
     stamp_ns,
+    wait_until_homed,
 )
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
+
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_i2c_{os.getpid()}"
@@ -52,10 +54,7 @@ HUB = "tactile_driver: hub"
 
 @pytest.mark.launch_test
 def generate_test_description():
-    EMULATOR_DIR.mkdir(exist_ok=True)
-    return launch.LaunchDescription([
-        include_launch("hand.launch.py", hardware="emulated", tactile_backend="i2c", emulator_dir=str(EMULATOR_DIR)),
-        launch_testing.actions.ReadyToTest()])
+    return emulated_hand_launch(EMULATOR_DIR, tactile_backend="i2c")
 
 
 class TestHandEmulatedI2C(unittest.TestCase):
@@ -83,6 +82,8 @@ class TestHandEmulatedI2C(unittest.TestCase):
         return diagnostic_values(self.diagnostics, HUB, since)
 
     def test_1_pinch_grasp_over_i2c(self):
+        # home:=true: the servos came up with their turn count lost; goals wait for the homing at start
+        wait_until_homed(self.ros, self.diagnostics, MOTOR_NAMES)
         ros = self.ros
         self.assertTrue(ros.spin_until(self.grasp.server_is_ready, 60.0), "no /prisma/grasp server")
         handle = ros.send_until_started(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)

@@ -19,6 +19,7 @@ import signal
 import subprocess
 import threading
 import time
+import unittest
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +110,11 @@ class RosHarness:
 
         self.rclpy = rclpy
         rclpy.init()
+        from prisma_node_wiring import single_instance
+
+        # this process's nodes share its DDS participant and see each other at once: the wait for
+        # other processes' nodes would only add 0.5 s to every node a test builds
+        single_instance.DISCOVERY_WAIT_S = 0.0
         self.executor = SingleThreadedExecutor()
         self.nodes: list = []
         self.sim_nodes: list = []
@@ -595,6 +601,45 @@ def include_launch(launch_file: str, package: str = "prisma_bringup", **argument
         launch_arguments=arguments.items())
 
 
+def emulated_hand_launch(emulator_dir: Path, **arguments: str):
+    """generate_test_description's LaunchDescription for `hand.launch.py hardware:=emulated home:=true`
+    with its devices in `emulator_dir` (created here): the servos come up as real ones do, without
+    their turn count, and are homed at start (`wait_until_homed`)."""
+    import launch
+    import launch_testing.actions
+
+    emulator_dir.mkdir(exist_ok=True)
+    return launch.LaunchDescription([
+        include_launch("hand.launch.py", hardware="emulated", home="true", emulator_dir=str(emulator_dir),
+                       **arguments),
+        launch_testing.actions.ReadyToTest()])
+
+
+class GraphTestCase(unittest.TestCase):
+    """A launch test's class on one RosHarness: made (logs captured) before its tests, shut down after
+    them (with every client and subscription it made). `subscribe(ros)` adds what the class collects."""
+
+    ros: RosHarness
+
+    @classmethod
+    def setUpClass(cls) -> None:
+        ros = cls.ros = RosHarness()
+        try:
+            ros.capture_logs()
+            cls.subscribe(ros)
+        except BaseException:
+            ros.shutdown()
+            raise
+
+    @classmethod
+    def subscribe(cls, ros: RosHarness) -> None:
+        """Collections and clients of the class, as class attributes."""
+
+    @classmethod
+    def tearDownClass(cls) -> None:
+        cls.ros.shutdown()
+
+
 def process_outputs(proc_output: Any) -> dict[str, str]:
     """A launch test's captured output, stdout and stderr together, per process name ('motor_driver-2')."""
     texts: dict[str, list[str]] = {}
@@ -635,6 +680,18 @@ def diagnostic_values(diagnostics: Sequence[Any], name_end: str, since_ns: int =
             if status.name.endswith(name_end):
                 return {v.key: v.value for v in status.values}
     return None
+
+
+def wait_until_homed(ros: RosHarness, diagnostics: Sequence[Any], motors: Sequence[str],
+                     timeout_sec: float = 60.0) -> None:
+    """Spin until the motor driver's newest /diagnostics say every one of `motors` is homed (a launch
+    with home:=true homes at start; goals before that are refused not_homed)."""
+    def homed() -> bool:
+        return all((diagnostic_values(diagnostics, f"motor_driver: {m}") or {}).get("homed") == "True" for m in motors)
+
+    if not ros.spin_until(homed, timeout_sec):
+        raise AssertionError(f"not homed within {timeout_sec} s: "
+                             f"{[diagnostic_values(diagnostics, f'motor_driver: {m}') for m in motors]}")
 
 
 # The fault CLI acts when the test says, not when a busy machine gets round to starting it: above

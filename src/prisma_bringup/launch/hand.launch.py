@@ -6,6 +6,7 @@
     ros2 launch prisma_bringup hand.launch.py model_bundle:=/path/to/bundle namespace:=left
     ros2 launch prisma_bringup hand.launch.py hardware:=emulated   # + tactile_backend:=i2c
     ros2 launch prisma_bringup hand.launch.py parts:=robot         # on the robot; parts:=workstation beside it
+    ros2 launch prisma_bringup hand.launch.py sim:=false hand_config:=~/hands/pad7   # this hand's directory
 
 sim:=true runs the drivers' sim backends: motor_driver simulates the motors and publishes
 /joint_states, tactile_driver computes the fingertip contacts from them (contact_source hand_world)
@@ -13,23 +14,34 @@ with the object sim_object presented to the hand (pinch_ball; none = an empty ha
 sim:=false runs them on the hardware selected by tactile_backend / motor_backend. Every parameter
 not given here comes from config/<node>.yaml.
 
+hand_config:= is the directory of this physical hand (prisma_common/hand_config.py): the motor zeros
+homing found, the fingertips' bias (~/bias) and per-finger model bundles, loaded at start by
+motor_driver and force_estimator and written there by the services that find them; anything it does
+not hold comes from config/. auto (the default): ~/.config/prisma_hand/<namespace or default>
+($XDG_CONFIG_HOME) with sim:=false, none with sim:=true or hardware:=emulated; none: the shipped
+config only.
+
 hardware:=emulated (whatever sim is) starts prisma-hand-emulator: the Dynamixel servos on a
 pseudo-terminal and the pads on the link tactile_backend names (serial: the fingertip hub on a
 second pseudo-terminal; i2c: the pads' I2C bus on a socket), in emulator_dir, driven by one
 hand/world model. The drivers run their hardware paths on them: motor_driver backend dynamixel
 through dynamixel-sdk, tactile_driver backend serial (or i2c) through pyserial (or smbus2).
 `prisma-hand-fault --dir <emulator_dir> ...` injects faults while it runs (those of the other
-tactile link are refused).
+tactile link are refused). Its servos come up as real ones do, their turn count lost: home:=true
+homes them at start (the motor driver refuses every goal `not_homed` until then).
 
 Beside them: robot_state_publisher (the hand's description from prisma_description, /tf and
 /tf_static for every frame the hand's messages name; under a namespace its frames get the prefix
-`<namespace>/`, and the drivers stamp their messages with it) and tactile_markers (the pads drawn in
-RViz, idle until a display subscribes). rviz:=true opens RViz with the hand, its taxels and forces.
+`<namespace>/`, and the drivers stamp their messages with it) drawing from prisma/model_joint_states,
+which tendon_stretch makes of /joint_states (the motors) and the pads' estimated forces: the fingers
+where the elastic tendons let them under load, at the object rather than through it; and
+tactile_markers (the pads drawn in RViz, idle until a display subscribes). rviz:=true opens RViz
+with the hand, its taxels and forces, and the simulated object.
 
 parts:= splits the hand between two computers on one ROS domain (docs/architecture.md, "Across
 machines"): parts:=robot starts what talks to the hardware (tactile_driver, motor_driver,
-robot_state_publisher; the emulator with hardware:=emulated), parts:=workstation the rest
-(force_estimator, manipulation, tactile_markers, RViz); parts:=all (the default) both. The nodes do
+robot_state_publisher and tendon_stretch; the emulator with hardware:=emulated), parts:=workstation
+the rest (force_estimator, manipulation, tactile_markers, RViz); parts:=all (the default) both. The nodes do
 not know where the others run: same topics, same actions.
 
 The control path (the four nodes, and the emulator with hardware:=emulated) runs with real-time
@@ -43,7 +55,7 @@ asks for niceness only.
 import tempfile
 from pathlib import Path
 
-from launch import LaunchDescription, Substitution
+from launch import LaunchContext, LaunchDescription, Substitution
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
 from launch.event_handlers import OnShutdown
@@ -51,6 +63,8 @@ from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitut
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
+
+from prisma_common.hand_config import launch_hand_config
 
 
 def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
@@ -68,6 +82,18 @@ def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitutio
         actions.append(RegisterEventHandler(OnShutdown(on_shutdown=lambda event, context: config.unlink())))
     return actions + [Node(package="rviz2", executable="rviz2", name="rviz2", namespace=namespace.perform(context),
                            output="screen", arguments=["-d", str(config)])]
+
+
+class HandConfigDir(Substitution):
+    """The nodes' hand_config parameter from hand_config:= (prisma_common.hand_config.launch_hand_config)."""
+
+    def __init__(self, given: Substitution, namespace: Substitution, simulated: Substitution) -> None:
+        super().__init__()
+        self.given, self.namespace, self.simulated = given, namespace, simulated
+
+    def perform(self, context: LaunchContext) -> str:
+        return launch_hand_config(self.given.perform(context), self.namespace.perform(context),
+                                  self.simulated.perform(context) == "True")
 
 
 def generate_launch_description():
@@ -117,6 +143,13 @@ def generate_launch_description():
                               description="Put in front of every frame of the hand: its TF frames and the "
                                           "frame_id of its messages; auto: '<namespace>/' under a namespace, "
                                           "none at the root"),
+        DeclareLaunchArgument("hand_config", default_value="auto",
+                              description="This hand's directory (motor zeros, fingertip bias, bundles): auto = "
+                                          "~/.config/prisma_hand/<namespace or default> with sim:=false, none "
+                                          "in sim; none; or a directory"),
+        DeclareLaunchArgument("home", default_value="false", choices=["true", "false"],
+                              description="Home the motors at start (each turns slowly to its open end stop): "
+                                          "needed after the servos powered up, before any goal moves them"),
         DeclareLaunchArgument("rviz", default_value="false", choices=["true", "false"],
                               description="Open RViz with the hand model, its taxels, contacts and forces"),
         DeclareLaunchArgument("parts", default_value="all", choices=["all", "robot", "workstation"],
@@ -138,13 +171,17 @@ def generate_launch_description():
     pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
     # read by each process at start, before its threads exist (prisma_common/scheduling.py)
     priority = {"PRISMA_RT_PRIORITY": LaunchConfiguration("rt_priority"), "PRISMA_NICE": LaunchConfiguration("nice")}
+    home = ParameterValue(LaunchConfiguration("home"), value_type=bool)
+    hand_dir = ParameterValue(HandConfigDir(LaunchConfiguration("hand_config"), namespace, PythonExpression(
+        ["'", hardware, "' == 'emulated' or '", sim, "' == 'true'"])), value_type=str)
 
     tactile_sim = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
         namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames,
-                     "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str)}],
+                     "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str),
+                     "object_frame_id": ParameterValue([frame_prefix, "prisma_hand_base"], value_type=str)}],
         condition=simulated,
     )
     tactile_hardware = Node(
@@ -159,14 +196,14 @@ def generate_launch_description():
     motors_sim = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
-        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim"}],
+        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim", "hand_config": hand_dir}],
         condition=simulated,
     )
     motors_hardware = Node(
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
-                    {"backend": LaunchConfiguration("motor_backend"),
+                    {"backend": LaunchConfiguration("motor_backend"), "hand_config": hand_dir, "home_at_start": home,
                      "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
         condition=on_robot,
     )
@@ -191,7 +228,7 @@ def generate_launch_description():
         package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
         namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
         parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
-                    {"backend": "dynamixel",
+                    {"backend": "dynamixel", "hand_config": hand_dir, "home_at_start": home,
                      "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}],
         condition=emulated,
     )
@@ -199,7 +236,8 @@ def generate_launch_description():
         package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
         namespace=namespace, output="screen", additional_env=priority, exec_name="force_estimator",
         parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
-                    {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str)}],
+                    {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str),
+                     "hand_config": hand_dir}],
         condition=on_workstation,
     )
     manipulation = Node(
@@ -215,6 +253,15 @@ def generate_launch_description():
         package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
         namespace=namespace, output="screen",
         parameters=[{"robot_description": description, "frame_prefix": frame_prefix}],
+        # the full joint state, fingers under load (tendon_stretch): one publisher for every joint it draws
+        remappings=[("joint_states", "prisma/model_joint_states")],
+        condition=IfCondition(PythonExpression(robot_side)),
+    )
+    # beside robot_state_publisher (robot side): with the workstation away the fingers follow the motors
+    tendon_stretch = Node(
+        package="prisma_visualization", executable="tendon_stretch", name="tendon_stretch",
+        namespace=namespace, output="screen",
+        parameters=[PathJoinSubstitution([config, "tendon_stretch.yaml"])],
         condition=IfCondition(PythonExpression(robot_side)),
     )
     tactile_markers = Node(
@@ -229,5 +276,5 @@ def generate_launch_description():
 
     nodes = [tactile_sim, tactile_hardware, motors_sim, motors_hardware,
              emulator, tactile_emulated, motors_emulated, force_estimator, manipulation,
-             robot_state_publisher, tactile_markers, rviz]
+             robot_state_publisher, tendon_stretch, tactile_markers, rviz]
     return LaunchDescription(declared_arguments + nodes)
