@@ -42,6 +42,7 @@ SCRIPTS = {
     "prisma-sim": "prisma_bringup.sim_cli:main",
     "prisma-hand-emulator": "prisma_bringup.emulator_cli:emulator_main",
     "prisma-hand-fault": "prisma_bringup.emulator_cli:fault_main",
+    "prisma-doctor": "prisma_bringup.doctor:main",
     "prisma-train-force": "prisma_force_estimator.cli:train_main",
     "prisma-eval-force": "prisma_force_estimator.cli:eval_main",
     "prisma-estimate-bag": "prisma_force_estimator.cli:estimate_bag_main",
@@ -53,8 +54,8 @@ SCRIPTS = {
     "stag-glove-correlation": "stag_glove.cli:correlation_main",
 }
 HEAVY = {"torch", "matplotlib", "scipy", "h5py", "rosbags", "sklearn"}
-# the one script that writes nothing (it talks to a running emulator)
-WRITES_NOTHING = {"prisma-hand-fault"}
+# the scripts that write nothing (they talk to a running emulator, a running hand)
+WRITES_NOTHING = {"prisma-hand-fault", "prisma-doctor"}
 # outputs that cannot be created: no directory can be made in /proc; a name over 255 bytes
 NOPE = "/proc/prisma-no-such-dir"
 LONG = "x" * 300
@@ -217,6 +218,10 @@ CASES = [
     C("prisma-hand-fault", ["--dir", "nobody", "hub-crc", "--frames", "0"], ("--frames", "'0'")),
     C("prisma-hand-fault", ["--dir", "nobody", "servo-error", "--motor", "fingers"], ("--bit", "required")),
     C("prisma-hand-fault", ["--dir", "nobody", "unplug-everything"], ("unplug-everything",)),
+    # prisma-doctor: checked before it looks at the graph
+    C("prisma-doctor", ["--namespace", "9 bad"], ("--namespace", "'9 bad'", "not a ROS namespace")),
+    C("prisma-doctor", ["--timeout", "0"], ("--timeout", "'0'")),
+    C("prisma-doctor", ["--timeout", "1"], ("--timeout 1", "at least 3 s")),
     # prisma-sim
     C("prisma-sim", ["--glove-objects", "0"], ("--glove-objects", "'0'")),
     C("prisma-sim", ["--scenarios", "juggling"], ("juggling",)),
