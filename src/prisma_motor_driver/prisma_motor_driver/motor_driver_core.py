@@ -312,6 +312,8 @@ class MotorDriverCore:
             result = self.runner.abort(stopped)
             homing = None
             if self.homing is not None:
+                # a homing asked for at start goes again (the servos are made safe again above)
+                self.homing_wanted = self.homing_wanted or self._homing_at_start
                 self.homing.fail_all(stopped)
                 homing = self._end_homing()
             return TickResult(states, None, result, homing_result=homing)

@@ -189,3 +189,22 @@ def test_homing_with_no_end_stop_fails_naming_the_motor_and_leaves_it_stopped(ha
     run(core, emu, clock, 0.3)
     assert emu.present()[2].mechanical_ticks == stopped_at
     assert core.validate(MoveGoal(["thumb_flexion"], "velocity", [10.0])).code == "not_homed"
+
+
+def test_a_homing_at_start_that_the_watchdog_interrupted_goes_again(hand):
+    emu, clock = hand
+    emu.place(1, ct.rad_to_ticks(2.0))
+    emu.power_cycle()
+    bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=1)
+    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", home_at_start=True), bus=bus)
+    assert core.connect(0) is None
+    run(core, emu, clock, 0.5)  # homing: the fingers on their way to the open stop
+    assert core.homing is not None
+    clock.advance(0.5)  # the driver held up past its watchdog mid-homing
+    tick = core.tick(round(clock.now_s * 1e9))
+    assert tick.homing_result is not None and not tick.homing_result.success
+    assert "stopped by their bus watchdogs" in tick.homing_result.reason
+    ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None)
+    assert ticks[-1].homing_result is not None and ticks[-1].homing_result.success
+    assert core.unhomed() == []
+    assert ct.ticks_to_rad(emu.present()[1].mechanical_ticks) == pytest.approx(0.0, abs=0.05)
