@@ -765,7 +765,7 @@ def test_live_parameters_reach_the_core_through_the_start_checks(ros, hand):
     assert [r.successful for r in results] == [True, True, True]
     assert core.watchdog.stale_ns == 250_000_000 and core.monitor.min_mean_voltage == 0.3
     assert core.config.grasp_speed_rpm == 40.0 and h.manipulation.config.grasp_speed_rpm == 40.0
-    assert core.resolve_grasp(GraspRequest("pinch"))[0].speed_rpm == 40.0  # the default of the next goal
+    assert core.resolve(GraspRequest("pinch"))[0].speed_rpm == 40.0  # the default of the next goal
     (refused,) = ros.set_parameters(f"{NS}/manipulation", horizontal_speed_rpm=80.0)
     assert (refused.successful, refused.reason) == (
         False, "invalid parameter 'horizontal_speed_rpm' = 80.0: above max_speed_rpm 70.0")

@@ -98,9 +98,10 @@ def f32(value: float) -> float:
 
 def feedback_values(feedback, grasp: bool) -> tuple:
     """What the action's feedback carries: Grasp the forces, Manipulate feasible and v_t."""
+    values = getattr(feedback, "status", feedback)  # the core's Feedback: its kind's status; a message: itself
     if grasp:
-        return feedback.phase, f32(feedback.finger_force), f32(feedback.thumb_force)
-    return feedback.phase, bool(feedback.feasible), f32(feedback.threshold)
+        return feedback.phase, f32(values.finger_force), f32(values.thumb_force)
+    return feedback.phase, bool(values.feasible), f32(values.threshold)
 
 
 def contact_values(msg) -> tuple:

@@ -20,7 +20,7 @@ from prisma_common.messages import is_rosidl_class, robot_types, sequence_field
 from prisma_common.typestore import get_typestore
 from prisma_common.typestore import types as typestore_types
 from prisma_manipulation.contact_monitor import ContactMonitor
-from prisma_manipulation.manipulation_core import Feedback, Finished, GripperRequest
+from prisma_manipulation.manipulation_core import Feedback, Finished, GripperRequest, GripperStatus
 from prisma_manipulation.ros_conversions import (
     contact_state_from_msg,
     contact_state_to_msg,
@@ -165,10 +165,11 @@ def test_gripper_command_converters_on_the_robots_classes(rclpy_types):
     goal = GripperCommand.Goal()
     goal.command.position, goal.command.max_effort = 9.0, 1.0
     assert gripper_request_from_msg(round_trip(goal)) == GripperRequest(9.0, 1.0)
-    feedback = round_trip(gripper_feedback_to_msg(rclpy_types, Feedback("gripper", "close", 0.9, 1.0, False, 0.0,
-                                                                        position=4.2, effort=1.02, stalled=True)))
+    status = GripperStatus(position=4.2, effort=1.02, stalled=True)
+    feedback = round_trip(gripper_feedback_to_msg(rclpy_types, Feedback("gripper", "close", status)))
     assert (feedback.position, feedback.effort, feedback.stalled, feedback.reached_goal) == (4.2, 1.02, True, False)
-    done = Finished("gripper", True, "reached", 1.43, 0.0, 0.0, position=8.92, effort=float("inf"), reached_goal=True)
+    done = Finished("gripper", True, "reached", 1.43,
+                    GripperStatus(position=8.92, effort=float("inf"), reached_goal=True))
     result = round_trip(gripper_result_to_msg(rclpy_types, done))
     assert (result.position, result.stalled, result.reached_goal) == (8.92, False, True)
     assert np.isnan(result.effort)  # non-finite values are sent as NaN, as in every converter here

@@ -171,8 +171,8 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
     if done is None:
         result = None
     elif spec.action == "grasp":
-        result = {"success": done.success, "reason": done.reason, "finger_force": done.finger_force,
-                  "thumb_force": done.thumb_force}
+        result = {"success": done.success, "reason": done.reason, "finger_force": done.status.finger_force,
+                  "thumb_force": done.status.thumb_force}
     else:
         result = {"success": done.success, "stop_reason": done.reason, "stop_time": done.stop_time_s}
     first_ns, last_ns = recording.first_ns or 0, recording.last_ns or 0

@@ -198,21 +198,11 @@ class ClosedLoop:
         """Send the goal at the scan's stamp as a client would: refused (RuntimeError naming why)
         where the manipulation node would refuse it."""
         core, t = self.core, scan.stamp_ns
-        if isinstance(request, GraspRequest):
-            refusal = core.accept_grasp(request, True, t)
-        elif isinstance(request, ManipulateRequest):
-            refusal = core.accept_manipulate(request, True, t)
-        else:
-            refusal = core.accept_gripper(request, True, t)
+        refusal = core.accept(request, True, t)
         if refusal is not None:
             raise RuntimeError(f"the manipulation node would refuse the goal at {t * 1e-9:.2f} s: {refusal}")
         scan.goal_started = True
-        if isinstance(request, GraspRequest):
-            actions = core.start_grasp(request, t)
-        elif isinstance(request, ManipulateRequest):
-            actions = core.start_manipulate(request, t)
-        else:
-            actions = core.start_gripper(request, t)
+        actions = core.start(request, t)
         self.controller = core.controller
         self._carry_out(actions, scan)
 

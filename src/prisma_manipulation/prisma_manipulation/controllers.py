@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from prisma_common.hand import MOTOR_NAMES
 from prisma_motor_driver.backend import MotorConfig
@@ -47,6 +48,7 @@ class ControlInput:
     contacts: Mapping[str, ContactEvaluation]
     forces: Mapping[str, float]  # normal force per finger, N (pressing into the pad is positive)
     joints: JointSample
+    inputs: Mapping[str, Any] = field(default_factory=dict)  # a goal kind's extra inputs (goal_kinds.py)
 
 
 @dataclass(frozen=True)

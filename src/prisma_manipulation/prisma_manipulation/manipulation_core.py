@@ -1,23 +1,26 @@
-"""What the manipulation node decides, without ROS: goal validation, one controller at a time,
+"""What the manipulation node decides, without ROS: goal admission, one controller at a time,
 stepping it once per sensor scan, the watchdog, and the motor commands that result.
 
-The node feeds it messages (taxels, wrenches, joint states, MoveMotors results, cancel requests,
-watchdog ticks) as plain data and carries out the returned actions:
+The node feeds it messages (taxels, wrenches, joint states, a goal kind's extra inputs, MoveMotors
+results, cancel requests, watchdog ticks) as plain data and carries out the returned actions:
 - SendMove: send a MoveMotors velocity goal (it preempts the previous one on the motor driver);
 - StopMotors: cancel the running MoveMotors goal (cancel = stop);
-- Feedback / Finished: the Grasp, Manipulate or GripperCommand goal's feedback and end;
+- Feedback / Finished: the running goal's feedback and end, with its kind's status (goal_kinds.py);
 - Ignored: an input set aside (a /joint_states message without the hand's joints), for the log.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
-Goals are admitted in two steps. `accept_grasp` / `accept_manipulate` / `accept_gripper` answer a
-`Refusal` (prisma_common.goal_refusal: `invalid`, `busy`, `not_ready`, `no_contact` and why) or
-None: the request within the limits (invalid), no other goal running or just accepted (busy: so
-goals sent together have one outcome, the first runs, the others are refused), every stream the
-goal needs flowing (not_ready: its fingers' taxels and, where it steers by force, wrenches,
-/joint_states, and the MoveMotors action server), and for a manipulation a contact on the pad it
-steers by (no_contact). An admitted goal holds the core until `start_grasp` / `start_manipulate` /
-`start_gripper` runs it. The node accepts every goal and aborts a refused one at once with the
-refusal as its result's reason.
+What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py,
+gripper_goal.py: a `GoalKind` each, listed in GOAL_KINDS): its request's validation and defaults,
+the streams it needs, its controller, its status. The core finds a request's kind by its type.
+
+Goals are admitted in two steps. `accept` answers a `Refusal` (prisma_common.goal_refusal:
+`invalid`, `busy`, `not_ready`, `no_contact` and why) or None: the request within the limits
+(invalid), no other goal running or just accepted (busy: so goals sent together have one outcome,
+the first runs, the others are refused), every stream the goal needs flowing (not_ready: its
+fingers' taxels and, where it steers by force, wrenches, /joint_states, and the MoveMotors action
+server), and where the kind asks for it a contact on the pad it steers by (no_contact: a
+manipulation). An admitted goal holds the core until `start` runs it. The node accepts every goal
+and aborts a refused one at once with the refusal as its result's reason.
 
 Motors stop when this node is lost: every MoveMotors goal carries a short timeout (`MOVE_LEASE_S`)
 and, while the controller keeps the same velocity command, the goal is re-sent every
@@ -26,7 +29,6 @@ times out and the driver stops the motors.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -49,47 +51,26 @@ from .controllers import (
     Controller,
     JointSample,
 )
-from .grasp_controller import GRASP_PRESETS, GraspController
-from .gripper_controller import GripperController
-from .motion_controllers import ForceKeeper, HoldController, HorizontalController, VerticalController
+from .goal_kinds import Feedback, Finished, GoalContext, GoalKind, Streams
+from .grasp_goal import GRASP_GOAL, GraspRequest, GraspStatus
+from .gripper_goal import GRIPPER_GOAL, GripperRequest, GripperStatus
+from .manipulate_goal import MANIPULATE_GOAL, MOTIONS, ManipulateRequest, ManipulateStatus
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
 from .watchdog import SensorWatchdog
 
-GRASP = "grasp"
-MANIPULATE = "manipulate"
-GRIPPER = "gripper"
-MOTIONS = ("horizontal", "vertical", "hold")
+# The goal kinds the node serves, one action server each: a new kind is its module and one entry here.
+GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL)
+GRASP, MANIPULATE, GRIPPER = GRASP_GOAL.name, MANIPULATE_GOAL.name, GRIPPER_GOAL.name
+
+__all__ = ["GOAL_KINDS", "MOTIONS", "Feedback", "Finished", "GraspRequest", "GraspStatus", "GripperRequest",
+           "GripperStatus", "ManipulateRequest", "ManipulateStatus"]  # the kinds' data, for the core's users
 
 # MoveMotors goals last this long on the motor driver unless re-sent: the motors stop within it (+ one
 # driver tick) when this node dies. Re-sent every MOVE_REFRESH_S, so two refreshes may be late (a busy
 # executor) before the motors stop under a live controller.
 MOVE_LEASE_S = 0.3
 MOVE_REFRESH_S = 0.1
-
-
-@dataclass(frozen=True)
-class GraspRequest:
-    grasp: str
-    finger_force: float = 0.0  # 0 = configured default
-    thumb_force: float = 0.0
-    speed_rpm: float = 0.0
-    timeout_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class ManipulateRequest:
-    motion: str
-    speed_rpm: float = 0.0
-    k: float = 0.0  # 0 = the node's k parameter
-    use_force: bool = False
-    timeout_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class GripperRequest:
-    position: float  # fingers motor target, rad: 0 = open (gripper_controller.py)
-    max_effort: float = 0.0  # N on the estimated pad forces; 0 = configured default
 
 
 @dataclass(frozen=True)
@@ -111,46 +92,12 @@ class Ignored:
     reason: str
 
 
-@dataclass(frozen=True)
-class Feedback:
-    kind: str
-    phase: str
-    finger_force: float
-    thumb_force: float
-    feasible: bool
-    threshold: float
-    # a gripper goal's: fingers position (rad), highest pad force (N), and how it stands
-    position: float = 0.0
-    effort: float = 0.0
-    stalled: bool = False
-    reached_goal: bool = False
-
-
-@dataclass(frozen=True)
-class Finished:
-    kind: str
-    success: bool
-    reason: str
-    stop_time_s: float  # from goal start to the stop (0 when it never stopped on its own)
-    finger_force: float
-    thumb_force: float
-    detail: str = ""
-    position: float = 0.0  # a gripper goal's, as in Feedback
-    effort: float = 0.0
-    stalled: bool = False
-    reached_goal: bool = False
-
-
 class GoalRefused(ValueError):
     """A goal that may not start, with the refusal its result carries."""
 
     def __init__(self, refusal: Refusal) -> None:
         super().__init__(str(refusal))
         self.refusal = refusal
-
-
-def _finite(x: float) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 class MoveLease:
@@ -194,7 +141,7 @@ class MoveLease:
 
 
 class ManipulationCore:
-    def __init__(self, config: ManipulationConfig) -> None:
+    def __init__(self, config: ManipulationConfig, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> None:
         self.config = config
         self.monitor = ContactMonitor(config.k, config.min_mean_voltage)
         self.k_parameter = config.k
@@ -202,11 +149,13 @@ class ManipulationCore:
         self.watchdog = SensorWatchdog(int(round(config.stale_timeout * 1e9)))
         self.aligner = SampleAligner()
         self.lease = MoveLease()
+        self.kinds = {k.request_type: k for k in kinds}
         self.controller: Controller | None = None
-        self.kind: str | None = None
+        self.goal: GoalKind | None = None  # the running goal's kind
         self.joints: JointSample | None = None
         self.forces: dict[str, float] = {}
-        self._force_fingers: tuple[str, ...] = ()
+        self.inputs: dict[str, Any] = {}  # the goal kinds' extra inputs, latest value each
+        self._streams = Streams((), ())  # the running goal's
         self._required: frozenset = frozenset()
         self._accepted: str | None = None  # kind of a goal admitted and not started yet
         self.evaluations: dict[str, ContactEvaluation] = {}  # each finger's latest
@@ -233,94 +182,29 @@ class ManipulationCore:
     def busy(self) -> bool:
         return self.controller is not None
 
+    @property
+    def kind(self) -> str | None:
+        """The running goal's kind name ("grasp"), None when idle."""
+        return self.goal.name if self.goal is not None else None
+
+    def context(self) -> GoalContext:
+        return GoalContext(self.config, self.limits, self.k_parameter, self.forces, self.joints, self.inputs)
+
     # ---- goal validation -------------------------------------------------------------------
-    def resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, Refusal | None]:
+    def kind_of(self, req: Any) -> GoalKind:
+        """The goal kind a request belongs to (by its type)."""
+        if type(req) not in self.kinds:
+            raise TypeError(f"{type(req).__name__} is none of the goal requests {[t.__name__ for t in self.kinds]}")
+        return self.kinds[type(req)]
+
+    def resolve(self, req: Any) -> tuple[Any, Refusal | None]:
         """The request with defaults filled in, or why it is invalid (beyond the limits)."""
-        r, why = self._resolve_grasp(req)
+        r, why = self.kind_of(req).resolve(req, self.context())
         return r, (Refusal(INVALID, why) if why else None)
 
-    def _resolve_grasp(self, req: GraspRequest) -> tuple[GraspRequest | None, str | None]:
-        c = self.config
-        if req.grasp not in GRASP_PRESETS:
-            return None, f"grasp {req.grasp!r} is not one of {sorted(GRASP_PRESETS)}"
-        r = GraspRequest(req.grasp, req.finger_force or c.grasp_finger_force, req.thumb_force or c.grasp_thumb_force,
-                         req.speed_rpm or c.grasp_speed_rpm, req.timeout_s or c.grasp_timeout)
-        for name, value, limit in (("finger_force", r.finger_force, c.max_force_n),
-                                   ("thumb_force", r.thumb_force, c.max_force_n),
-                                   ("speed_rpm", r.speed_rpm, c.max_speed_rpm)):
-            if not _finite(value) or value <= 0:
-                return None, f"{name} {value} must be > 0"
-            if value > limit:
-                return None, f"{name} {value} above the configured limit {limit}"
-        if not _finite(r.timeout_s) or r.timeout_s < 0:
-            return None, f"timeout {r.timeout_s} must be >= 0"
-        return r, self._fingers_configured(f"grasp {r.grasp}", self.grasp_streams(r)[0])
-
-    def resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, Refusal | None]:
-        """The request with defaults filled in, or why it is invalid (beyond the limits)."""
-        r, why = self._resolve_manipulate(req)
-        return r, (Refusal(INVALID, why) if why else None)
-
-    def _resolve_manipulate(self, req: ManipulateRequest) -> tuple[ManipulateRequest | None, str | None]:
-        c = self.config
-        if req.motion not in MOTIONS:
-            return None, f"motion {req.motion!r} is not one of {list(MOTIONS)}"
-        default_speed = {"horizontal": c.horizontal_speed_rpm, "vertical": c.vertical_speed_rpm,
-                         "hold": c.hold_speed_rpm}[req.motion]
-        r = ManipulateRequest(req.motion, req.speed_rpm or default_speed, req.k or self.k_parameter,
-                              bool(req.use_force), req.timeout_s or c.manipulate_timeout)
-        if not _finite(r.speed_rpm) or r.speed_rpm <= 0:
-            return None, f"speed_rpm {r.speed_rpm} must be > 0"
-        if r.speed_rpm > c.max_speed_rpm:
-            return None, f"speed_rpm {r.speed_rpm} above the configured limit {c.max_speed_rpm}"
-        try:
-            check_k(r.k)
-        except ValueError as exc:
-            return None, str(exc)
-        if r.motion == "hold" and r.k <= c.hold_min_k:
-            return None, f"k {r.k} too low for hold: needs k > {c.hold_min_k}"
-        if not _finite(r.timeout_s) or r.timeout_s < 0:
-            return None, f"timeout {r.timeout_s} must be >= 0"
-        return r, self._fingers_configured(f"motion {r.motion}", self.manipulate_streams(r)[0])
-
-    def resolve_gripper(self, req: GripperRequest) -> tuple[GripperRequest | None, Refusal | None]:
-        """The request with max_effort 0 replaced by the configured default, or why it is invalid."""
-        c = self.config
-        fingers = self.limits.motors["fingers"]
-        lo, hi = fingers.min_position_rad, fingers.max_position_rad
-        why = None
-        if not _finite(req.position) or not lo <= req.position <= hi:
-            why = f"position {req.position} rad outside the fingers motor's range [{lo}, {hi}] (0 = open)"
-        elif not _finite(req.max_effort) or req.max_effort < 0:
-            why = f"max_effort {req.max_effort} must be >= 0 N (0 = gripper_max_effort {c.gripper_max_effort} N)"
-        elif req.max_effort > c.max_force_n:
-            why = f"max_effort {req.max_effort} above the configured limit {c.max_force_n}"
-        if why:
-            return None, Refusal(INVALID, why)
-        return GripperRequest(req.position, req.max_effort or c.gripper_max_effort), None
-
-    def grasp_streams(self, r: GraspRequest) -> tuple[tuple[str, ...], tuple[str, ...]]:
-        """(fingers whose taxels, fingers whose wrenches) a grasp steps on: the thumb and the preset's pads."""
-        fingers = ("thumb",) + GRASP_PRESETS[r.grasp].force_fingers
-        return fingers, fingers
-
-    def manipulate_streams(self, r: ManipulateRequest) -> tuple[tuple[str, ...], tuple[str, ...]]:
-        """(taxel fingers, wrench fingers) of a manipulation: the monitored pad (+ thumb), the
-        thumb's force with use_force."""
-        finger = self.config.monitored_finger
-        taxels = (finger,) if finger == "thumb" else (finger, "thumb")
-        return taxels, ("thumb",) if r.use_force else ()
-
-    def _fingers_configured(self, what: str, fingers: tuple[str, ...]) -> str | None:
-        missing = [f for f in fingers if f not in self.config.fingers]
-        if missing:
-            return f"{what} needs the {', '.join(missing)} pad(s), not in parameter fingers {self.config.fingers}"
-        return None
-
-    def gripper_streams(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
-        """(taxel fingers, wrench fingers) of a gripper goal: every configured pad carries its force."""
-        pads = tuple(self.config.fingers)
-        return pads, pads
+    def streams(self, req: Any) -> Streams:
+        """What a (resolved) request's goal needs flowing."""
+        return self.kind_of(req).streams(req, self.context())
 
     def _busy_reason(self) -> Refusal | None:
         if self.controller is not None:
@@ -329,14 +213,12 @@ class ManipulationCore:
             return Refusal(BUSY, f"a {self._accepted} goal was accepted and is starting")
         return None
 
-    def readiness(self, taxel_fingers: tuple[str, ...], wrench_fingers: tuple[str, ...],
-                  move_server_ready: bool, now_ns: int) -> Refusal | None:
+    def readiness(self, streams: Streams, move_server_ready: bool, now_ns: int) -> Refusal | None:
         """None when a goal needing these streams can run now, else what is missing (not_ready)."""
         if not move_server_ready:
             return Refusal(NOT_READY, f"MoveMotors action server {self.config.move_action} not available "
                                       "(motor_driver not running?)")
-        streams = [f"taxels/{f}" for f in taxel_fingers] + [f"wrench/{f}" for f in wrench_fingers]
-        missing = self.watchdog.fresh(streams, now_ns)
+        missing = self.watchdog.fresh(streams.watched(), now_ns)
         return Refusal(NOT_READY, missing) if missing else None
 
     def contact_refusal(self, finger: str) -> Refusal | None:
@@ -350,99 +232,52 @@ class ManipulationCore:
                                    f"below min_mean_voltage {floor} V): a manipulation starts from a held "
                                    "object, grasp first")
 
-    def accept_grasp(self, req: GraspRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
+    def accept(self, req: Any, move_server_ready: bool, now_ns: int) -> Refusal | None:
         """None = admitted (the core is held for it until it starts), else why it is refused."""
-        r, refusal = self.resolve_grasp(req)
+        r, refusal = self.resolve(req)
         if r is None or refusal:
             return refusal
-        return self._admit(GRASP, self.grasp_streams(r), move_server_ready, now_ns)
-
-    def accept_manipulate(self, req: ManipulateRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
-        r, refusal = self.resolve_manipulate(req)
-        if r is None or refusal:
-            return refusal
-        return self._admit(MANIPULATE, self.manipulate_streams(r), move_server_ready, now_ns,
-                           self.config.monitored_finger)
-
-    def accept_gripper(self, req: GripperRequest, move_server_ready: bool, now_ns: int) -> Refusal | None:
-        r, refusal = self.resolve_gripper(req)
-        if r is None or refusal:
-            return refusal
-        return self._admit(GRIPPER, self.gripper_streams(), move_server_ready, now_ns)
-
-    def _admit(self, kind: str, streams: tuple[tuple[str, ...], tuple[str, ...]], move_server_ready: bool,
-               now_ns: int, contact_finger: str | None = None) -> Refusal | None:
-        refusal = self._busy_reason() or self.readiness(*streams, move_server_ready, now_ns)
-        if refusal is None and contact_finger is not None:
-            refusal = self.contact_refusal(contact_finger)
+        streams = self.streams(r)
+        refusal = self._busy_reason() or self.readiness(streams, move_server_ready, now_ns)
+        if refusal is None and streams.contact is not None:
+            refusal = self.contact_refusal(streams.contact)
         if refusal is None:
-            self._accepted = kind
+            self._accepted = self.kind_of(req).name
         return refusal
 
     # ---- goal start / end ------------------------------------------------------------------
     def refused(self, kind: str, refusal: Refusal) -> Finished:
-        """The end of a goal refused before it started: the refusal as its reason, and where the
-        hand stands (the fingers position and the highest pad force, for a gripper's result)."""
-        position = self.joints.positions.get("fingers", 0.0) if self.joints is not None else 0.0
-        effort = max((self.forces.get(f, 0.0) for f in self.config.fingers), default=0.0)
-        return Finished(kind, False, str(refusal), 0.0, 0.0, 0.0, position=position, effort=effort)
+        """The end of a goal refused before it started: the refusal as its reason, and the kind's
+        status of where the hand stands (a gripper's: the fingers position and highest pad force)."""
+        goal = next(k for k in self.kinds.values() if k.name == kind)
+        return Finished(kind, False, str(refusal), 0.0, goal.idle_status(self.context()))
 
-    def _startable(self, kind: str, resolved: tuple[Any, Refusal | None]) -> Any:
-        """The resolved request of a goal that may start now; GoalRefused naming why it may not."""
-        if self._accepted == kind:
+    def start(self, req: Any, now_ns: int) -> list:
+        """Run the admitted goal: its first actions. GoalRefused naming why it may not start."""
+        goal = self.kind_of(req)
+        if self._accepted == goal.name:
             self._accepted = None  # the admitted goal starts now (or fails to)
-        request, refusal = resolved
+        r, refusal = self.resolve(req)
         refusal = refusal or self._busy_reason()
         if refusal is None and self.joints is None:
             refusal = Refusal(NOT_READY, "no /joint_states received yet")
-        if refusal is not None or request is None:
+        if refusal is not None or r is None:
             raise GoalRefused(refusal or Refusal(INVALID, "no request"))
-        return request
-
-    def start_grasp(self, req: GraspRequest, now_ns: int) -> list:
-        r: GraspRequest = self._startable(GRASP, self.resolve_grasp(req))
-        c = self.config
-        controller = GraspController(self.limits, r.grasp, r.finger_force, r.thumb_force, r.speed_rpm,
-                                     r.timeout_s, c.contact_force_n, c.lateral_closure)
-        return self._start(GRASP, controller, self.grasp_streams(r)[1], now_ns)
-
-    def start_manipulate(self, req: ManipulateRequest, now_ns: int) -> list:
-        r: ManipulateRequest = self._startable(MANIPULATE, self.resolve_manipulate(req))
-        c = self.config
-        keeper = ForceKeeper(c.force_target_n, c.force_band_n, c.force_speed_rpm) if r.use_force else None
-        finger = c.monitored_finger
-        controller: Controller
-        contact = c.min_mean_voltage
-        if r.motion == "horizontal":
-            controller = HorizontalController(self.limits, r.speed_rpm, finger, timeout_s=r.timeout_s,
-                                              force_keeper=keeper, contact_voltage=contact)
-        elif r.motion == "vertical":
-            controller = VerticalController(self.limits, r.speed_rpm, finger, r.timeout_s, keeper, contact)
-        else:
-            controller = HoldController(self.limits, r.speed_rpm, finger, r.timeout_s, force_keeper=keeper,
-                                        contact_voltage=contact)
-        self.monitor.set_k(r.k)
-        return self._start(MANIPULATE, controller, self.manipulate_streams(r)[1], now_ns)
-
-    def start_gripper(self, req: GripperRequest, now_ns: int) -> list:
-        r: GripperRequest = self._startable(GRIPPER, self.resolve_gripper(req))
-        c = self.config
-        pads, force_pads = self.gripper_streams()
-        controller = GripperController(self.limits, r.position, r.max_effort, pads, c.gripper_speed_rpm,
-                                       c.gripper_thumb_ratio, c.gripper_timeout)
-        return self._start(GRIPPER, controller, force_pads, now_ns)
-
-    def _start(self, kind: str, controller: Controller, force_fingers: tuple[str, ...], now_ns: int) -> list:
-        self.controller, self.kind, self._force_fingers = controller, kind, force_fingers
-        self._required = frozenset({("taxels", f) for f in controller.fingers} |
-                                   {("wrench", f) for f in force_fingers})
+        ctx = self.context()
+        built = goal.build(r, ctx)
+        streams = goal.streams(r, ctx)
+        self.controller, self.goal, self._streams = built.controller, goal, streams
+        self._required = frozenset({("taxels", f) for f in built.controller.fingers} |
+                                   {("wrench", f) for f in streams.wrenches} | {("input", s) for s in streams.inputs})
+        if built.k is not None:
+            self.monitor.set_k(built.k)
         self.aligner.reset()
         self.watchdog.arm(now_ns)
-        assert self.joints is not None  # _startable refused the goal without them
-        return self._actions(controller.start(self.joints), now_ns)
+        assert self.joints is not None  # refused above without them
+        return self._actions(built.controller.start(self.joints), now_ns)
 
     def _end(self) -> None:
-        self.controller, self.kind = None, None
+        self.controller, self.goal = None, None
         self.watchdog.disarm()
         self.lease.release()
         self.monitor.set_k(self.k_parameter)
@@ -466,6 +301,16 @@ class ManipulationCore:
         self.aligner.add(("wrench", finger), stamp_ns, normal_force_n)
         return self._try_step(receipt_ns)
 
+    def on_input(self, stream: str, stamp_ns: int, value: Any, receipt_ns: int) -> list:
+        """A goal kind's extra input (`InputStream`): watched like the sensors; a goal whose kind
+        declares it steps only on scans that carry it."""
+        self.inputs[stream] = value
+        self.watchdog.sample(stream, stamp_ns, receipt_ns)
+        if self.controller is None or stream not in self._streams.inputs:
+            return []
+        self.aligner.add(("input", stream), stamp_ns, value)
+        return self._try_step(receipt_ns)
+
     def on_joints(self, sample: JointSample, receipt_ns: int) -> list:
         """A /joint_states message. One without a position for every hand motor (another driver's
         joints, empty arrays) is ignored: it moves no time base and changes no decision."""
@@ -482,22 +327,22 @@ class ManipulationCore:
         return self.check(receipt_ns)
 
     def check(self, now_ns: int) -> list:
-        """Watchdog tick: stale data aborts the goal with sensor_stale and stops the motors; a
-        running motor command is re-sent when due (MoveLease)."""
+        """Watchdog tick: stale data aborts the goal with sensor_stale (or its kind's reason for its
+        own input) and stops the motors; a running motor command is re-sent when due (MoveLease)."""
         if self.controller is None:
             return []
-        streams = [f"taxels/{f}" for f in self.controller.fingers] + [f"wrench/{f}" for f in self._force_fingers]
-        stale = self.watchdog.check(streams, now_ns)
+        controller, goal = self._running()
+        streams = [f"taxels/{f}" for f in controller.fingers] + [f"wrench/{f}" for f in self._streams.wrenches]
+        stale = self.watchdog.check(streams + list(self._streams.inputs), now_ns)
         if stale is not None:
             self.stale_reason = stale
-            return self._abort(now_ns, SENSOR_STALE, stale)
+            silent = next((s for s in self._streams.inputs if stale.startswith(f"{s} ")), None)
+            return self._abort(now_ns, goal.stale_reason(silent) if silent else SENSOR_STALE, stale)
         refresh = self.lease.refresh(now_ns)
         return [refresh] if refresh is not None else []
 
     def cancel(self, now_ns: int) -> list:
-        if self.controller is None:
-            return []
-        return self._abort(now_ns, CANCELED)
+        return [] if self.controller is None else self._abort(now_ns, CANCELED)
 
     def on_move_result(self, reason: str, now_ns: int) -> list:
         """Result of our current MoveMotors goal: a motor fault, or the driver refusing the goal
@@ -516,11 +361,11 @@ class ManipulationCore:
         return []
 
     # ---- internals -------------------------------------------------------------------------
-    def _running(self) -> tuple[Controller, str]:
+    def _running(self) -> tuple[Controller, GoalKind]:
         """The running goal's controller and kind (callers check that one runs)."""
-        if self.controller is None or self.kind is None:
+        if self.controller is None or self.goal is None:
             raise RuntimeError("no goal is running")
-        return self.controller, self.kind
+        return self.controller, self.goal
 
     def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:
         return self._actions(self._running()[0].abort(now_ns, reason), now_ns, detail)
@@ -533,33 +378,21 @@ class ManipulationCore:
         stamp, entries = ready
         contacts = {f: entries[("taxels", f)] for f in controller.fingers}
         forces = dict(self.forces)
-        forces.update({f: entries[("wrench", f)] for f in self._force_fingers})
-        return self._actions(controller.step(ControlInput(stamp, contacts, forces, self.joints)), now_ns)
-
-    def _forces(self) -> tuple[float, float]:
-        c = self.controller
-        if isinstance(c, GraspController):
-            return c.finger_force, c.thumb_force
-        return self.forces.get("index", 0.0), self.forces.get("thumb", 0.0)
+        forces.update({f: entries[("wrench", f)] for f in self._streams.wrenches})
+        inputs = {s: entries[("input", s)] for s in self._streams.inputs}
+        return self._actions(controller.step(ControlInput(stamp, contacts, forces, self.joints, inputs)), now_ns)
 
     def _actions(self, out: ControlOutput, now_ns: int, detail: str = "") -> list:
-        c, kind = self._running()
+        c, goal = self._running()
         actions: list = []
         if out.command is not None:
             actions.append(self.lease.command(out.command.velocities_rpm, now_ns))
-        finger_force, thumb_force = self._forces()
-        feasible = getattr(c, "feasible", False)
-        threshold = getattr(c, "threshold", 0.0)
-        gripper: dict[str, Any] = {}
-        if isinstance(c, GripperController):
-            gripper = {"position": c.position, "effort": c.effort, "stalled": c.stalled,
-                       "reached_goal": c.reached_goal}
-        actions.append(Feedback(kind, out.phase, finger_force, thumb_force, feasible, threshold, **gripper))
+        status = goal.status(c, self.context())
+        actions.append(Feedback(goal.name, out.phase, status))
         if out.done:
             stop_time = 0.0
             if c.stop_ns is not None and c.start_ns is not None:
                 stop_time = (c.stop_ns - c.start_ns) * 1e-9
-            actions.append(Finished(kind, out.success, out.reason or "", stop_time, finger_force, thumb_force, detail,
-                                    **gripper))
+            actions.append(Finished(goal.name, out.success, out.reason or "", stop_time, status, detail))
             self._end()
         return actions

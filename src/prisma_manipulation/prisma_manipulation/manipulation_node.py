@@ -1,7 +1,7 @@
 """manipulation: Algorithm 1 on every fingertip sample (/prisma/<finger>/contact, also when idle),
-the Grasp (/prisma/grasp), Manipulate (/prisma/manipulate) and control_msgs GripperCommand
-(/prisma/gripper_cmd) action servers, one goal at a time across the three, a client of
-/prisma/motors/move, and the 100 ms sensor watchdog.
+one action server per goal kind (manipulation_core.GOAL_KINDS: Grasp on /prisma/grasp, Manipulate
+on /prisma/manipulate, control_msgs GripperCommand on /prisma/gripper_cmd), one goal at a time
+across them, a client of /prisma/motors/move, and the 100 ms sensor watchdog.
 
     ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
 
@@ -20,13 +20,11 @@ this node dies (docs/manipulation.md, "Safety").
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from control_msgs.action import GripperCommand
 from geometry_msgs.msg import WrenchStamped
-from prisma_msgs.action import Grasp, Manipulate, MoveMotors
+from prisma_msgs.action import MoveMotors
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray
 from rclpy.action import ActionClient, ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -44,10 +42,9 @@ from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publish
 from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
+from .goal_kinds import GoalKind, InputStream
 from .manipulation_core import (
-    GRASP,
-    GRIPPER,
-    MANIPULATE,
+    GOAL_KINDS,
     Feedback,
     Finished,
     GoalRefused,
@@ -59,36 +56,13 @@ from .manipulation_core import (
 from .node_config import ManipulationConfig
 from .ros_conversions import (
     contact_state_to_msg,
-    grasp_feedback_to_msg,
-    grasp_request_from_msg,
-    grasp_result_to_msg,
-    gripper_feedback_to_msg,
-    gripper_request_from_msg,
-    gripper_result_to_msg,
     hand_contact_to_msg,
     hand_wrench_samples,
     joint_sample_from_msg,
-    manipulate_feedback_to_msg,
-    manipulate_request_from_msg,
-    manipulate_result_to_msg,
     normal_force_from_wrench,
 )
 
-GRASP_ACTION, MANIPULATE_ACTION, GRIPPER_ACTION = "prisma/grasp", "prisma/manipulate", "prisma/gripper_cmd"
-GOAL_ACTIONS = (GRASP_ACTION, MANIPULATE_ACTION, GRIPPER_ACTION)
-
-
-@dataclass(frozen=True)
-class GoalKind:
-    """How one action server's goals reach the core and its decisions come back as messages."""
-
-    action: str  # the action's name in the log
-    kind: str  # the core's name for it
-    request_from_msg: Callable[[Any], Any]
-    accept: Callable[[Any, bool, int], Any]
-    start: Callable[[Any, int], list]
-    feedback_to_msg: Callable[[Any, Feedback], Any]
-    result_to_msg: Callable[[Any, Finished], Any]
+GOAL_ACTIONS = tuple(kind.action for kind in GOAL_KINDS)
 
 
 class ManipulationNode(Node):
@@ -102,7 +76,7 @@ class ManipulationNode(Node):
         self.types = robot_types(get_message, get_action)
         accept_live_changes(self, ManipulationConfig, self._reconfigure)
 
-        self._goal = None  # ServerGoalHandle of the running Grasp/Manipulate goal
+        self._goal = None  # ServerGoalHandle of the running goal (any kind)
         self._goal_done: Future | None = None
         self._move_handle = None  # ClientGoalHandle of our current MoveMotors goal
         self._move_seq = 0  # increments with every MoveMotors goal we send or stop
@@ -119,23 +93,16 @@ class ManipulationNode(Node):
                                             hand_wrench_samples, self._on_wrench, callback_group=group)
         stream_subscription(self, JointState, "joint_states", self._on_joints, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
-        core = self.core
-        self._kinds = {
-            Grasp.Goal: GoalKind("Grasp", GRASP, grasp_request_from_msg, core.accept_grasp, core.start_grasp,
-                                 grasp_feedback_to_msg, grasp_result_to_msg),
-            Manipulate.Goal: GoalKind("Manipulate", MANIPULATE, manipulate_request_from_msg, core.accept_manipulate,
-                                      core.start_manipulate, manipulate_feedback_to_msg, manipulate_result_to_msg),
-            GripperCommand.Goal: GoalKind("GripperCommand", GRIPPER, gripper_request_from_msg, core.accept_gripper,
-                                          core.start_gripper, gripper_feedback_to_msg, gripper_result_to_msg),
-        }
-        self._by_core_kind = {k.kind: k for k in self._kinds.values()}
-        # every goal is accepted (rclpy's default goal callback): _execute aborts a refused one at once
-        self._grasp_server = ActionServer(self, Grasp, GRASP_ACTION, self._execute,
-                                          cancel_callback=self._on_cancel, callback_group=group)
-        self._manipulate_server = ActionServer(self, Manipulate, MANIPULATE_ACTION, self._execute,
-                                               cancel_callback=self._on_cancel, callback_group=group)
-        self._gripper_server = ActionServer(self, GripperCommand, GRIPPER_ACTION, self._execute,
-                                            cancel_callback=self._on_cancel, callback_group=group)
+        self._kinds = {kind.name: kind for kind in GOAL_KINDS}
+        # a kind's extra inputs (none for grasp, manipulate, gripper): fed to the core like the sensors
+        for kind in GOAL_KINDS:
+            for spec in kind.inputs:
+                stream_subscription(self, get_message(spec.msg_type), spec.topic, self._input_callback(spec),
+                                    callback_group=group)
+        # one server per kind, each on the generic path; every goal is accepted (rclpy's default goal
+        # callback): _execute aborts a refused one at once
+        self._servers = [ActionServer(self, get_action(kind.action_type), kind.action, self._executor(kind),
+                                      cancel_callback=self._on_cancel, callback_group=group) for kind in GOAL_KINDS]
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
                                f"stale after {self.config.stale_timeout * 1e3:.0f} ms")
@@ -176,6 +143,12 @@ class ManipulationNode(Node):
         stamp_ns, fz = normal_force_from_wrench(msg)
         self._apply(self.core.on_wrench(finger, stamp_ns, fz, self._now_ns()))
 
+    def _input_callback(self, spec: InputStream) -> Callable[[Any], None]:
+        def on_input(msg: Any) -> None:
+            stamp_ns, value = spec.from_msg(msg)
+            self._apply(self.core.on_input(spec.stream, stamp_ns, value, self._now_ns()))
+        return on_input
+
     def _on_joints(self, msg: JointState) -> None:
         self._apply(self.core.on_joints(joint_sample_from_msg(msg), self._now_ns()))
 
@@ -189,22 +162,27 @@ class ManipulationNode(Node):
     def _on_cancel(self, goal_handle) -> CancelResponse:
         return CancelResponse.ACCEPT
 
-    async def _execute(self, goal_handle):
-        kind = self._kinds[type(goal_handle.request)]
+    def _executor(self, kind: GoalKind):
+        """The execute callback of `kind`'s action server."""
+        async def execute(goal_handle):
+            return await self._execute(kind, goal_handle)
+        return execute
+
+    async def _execute(self, kind: GoalKind, goal_handle):
         request = kind.request_from_msg(goal_handle.request)
         now = self._now_ns()
-        refusal = kind.accept(request, self._move_client.server_is_ready(), now)
+        refusal = self.core.accept(request, self._move_client.server_is_ready(), now)
         if refusal is None:
             try:
-                actions = kind.start(request, now)
+                actions = self.core.start(request, now)
             except GoalRefused as exc:
                 refusal = exc.refusal
         if refusal is not None:
-            self.get_logger().warning(f"{kind.action} goal refused: {refusal}")
+            self.get_logger().warning(f"{kind.label} goal refused: {refusal}")
             goal_handle.abort()
-            return kind.result_to_msg(self.types, self.core.refused(kind.kind, refusal))
+            return kind.result_to_msg(self.types, self.core.refused(kind.name, refusal))
         # with "goal ended" below, the log shows which goals overlapped and which came one after another
-        self.get_logger().info(f"{kind.kind} goal started: {request}")
+        self.get_logger().info(f"{kind.name} goal started: {request}")
         done = self._goal_done = Future()
         self._goal = goal_handle
         self._apply(actions)  # may end it at once (a gripper already at its position)
@@ -219,7 +197,7 @@ class ManipulationNode(Node):
                 self._stop_motors()
             elif isinstance(action, Feedback):
                 if self._goal is not None:
-                    self._goal.publish_feedback(self._by_core_kind[action.kind].feedback_to_msg(self.types, action))
+                    self._goal.publish_feedback(self._kinds[action.kind].feedback_to_msg(self.types, action))
             elif isinstance(action, Finished):
                 self._finish(action)
             elif isinstance(action, Ignored):
@@ -283,12 +261,12 @@ class ManipulationNode(Node):
             self.get_logger().info(message)
         else:
             self.get_logger().warning(message)
-        future.set_result(self._by_core_kind[done.kind].result_to_msg(self.types, done))
+        future.set_result(self._kinds[done.kind].result_to_msg(self.types, done))
 
     def destroy_node(self) -> None:
         # Node.destroy_node leaves action servers and clients (and so the node) in the graph
-        for name in ("_grasp_server", "_manipulate_server", "_gripper_server", "_move_client"):
-            action = getattr(self, name, None)  # absent when the parameters were rejected at start
+        # absent when the parameters were rejected at start
+        for action in [*getattr(self, "_servers", []), getattr(self, "_move_client", None)]:
             if action is not None:
                 action.destroy()
         super().destroy_node()

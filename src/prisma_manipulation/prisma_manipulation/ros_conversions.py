@@ -1,5 +1,6 @@
-"""Core data <-> ROS messages for prisma_manipulation: ContactState, Grasp / Manipulate /
-GripperCommand (control_msgs) goals, feedback and results, JointState -> JointSample.
+"""Core data <-> ROS messages for prisma_manipulation: ContactState, JointState -> JointSample,
+and (defined in each goal kind's module, re-exported here) the Grasp / Manipulate / GripperCommand
+(control_msgs) goals, feedback and results.
 
 Every function takes a message-class lookup `types(name)` (on the robot
 `prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
@@ -12,7 +13,6 @@ current in A.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -23,7 +23,15 @@ from prisma_motor_driver.control_table import rad_s_to_rpm
 
 from .contact_monitor import EDGE_NAMES, ContactEvaluation
 from .controllers import JointSample
-from .manipulation_core import Feedback, Finished, GraspRequest, GripperRequest, ManipulateRequest
+from .grasp_goal import grasp_feedback_to_msg, grasp_request_from_msg, grasp_result_to_msg
+from .gripper_goal import gripper_feedback_to_msg, gripper_request_from_msg, gripper_result_to_msg
+from .manipulate_goal import manipulate_feedback_to_msg, manipulate_request_from_msg, manipulate_result_to_msg
+
+__all__ = ["contact_state_from_msg", "contact_state_to_msg", "grasp_feedback_to_msg", "grasp_request_from_msg",
+           "grasp_result_to_msg", "gripper_feedback_to_msg", "gripper_request_from_msg", "gripper_result_to_msg",
+           "hand_contact_samples", "hand_contact_to_msg", "hand_wrench_samples", "joint_sample_from_msg",
+           "manipulate_feedback_to_msg", "manipulate_request_from_msg", "manipulate_result_to_msg",
+           "normal_force_from_wrench"]
 
 Types = Callable[[str], Any]
 
@@ -79,61 +87,9 @@ def normal_force_from_wrench(msg: Any) -> tuple[int, float]:
     return ns_from_stamp(msg.header.stamp), float(msg.wrench.force.z)
 
 
-# ---- Grasp / Manipulate -------------------------------------------------------------------------
-def grasp_request_from_msg(msg: Any) -> GraspRequest:
-    return GraspRequest(str(msg.grasp), float(msg.finger_force), float(msg.thumb_force), float(msg.speed_rpm),
-                        float(msg.timeout))
-
-
-def manipulate_request_from_msg(msg: Any) -> ManipulateRequest:
-    return ManipulateRequest(str(msg.motion), float(msg.speed_rpm), float(msg.k), bool(msg.use_force),
-                             float(msg.timeout))
-
-
-def _f32(x: float) -> float:
-    return float(x) if math.isfinite(x) else float("nan")
-
-
-def grasp_feedback_to_msg(types: Types, fb: Feedback) -> Any:
-    return types("prisma_msgs/action/Grasp_Feedback")(phase=fb.phase, finger_force=_f32(fb.finger_force),
-                                                      thumb_force=_f32(fb.thumb_force))
-
-
-def grasp_result_to_msg(types: Types, done: Finished) -> Any:
-    return types("prisma_msgs/action/Grasp_Result")(success=bool(done.success), reason=done.reason,
-                                                    finger_force=_f32(done.finger_force),
-                                                    thumb_force=_f32(done.thumb_force))
-
-
-def manipulate_feedback_to_msg(types: Types, fb: Feedback) -> Any:
-    return types("prisma_msgs/action/Manipulate_Feedback")(phase=fb.phase, feasible=bool(fb.feasible),
-                                                           threshold=_f32(fb.threshold))
-
-
-def manipulate_result_to_msg(types: Types, done: Finished) -> Any:
-    return types("prisma_msgs/action/Manipulate_Result")(success=bool(done.success), stop_reason=done.reason,
-                                                         stop_time=_f32(done.stop_time_s))
-
-
 def hand_contact_samples(msg: Any) -> list[tuple[str, Any]]:
     """(finger, ContactState) pairs of a prisma_msgs/HandContact."""
     return [(str(contact.finger), contact) for contact in msg.contacts]
-def gripper_request_from_msg(msg: Any) -> GripperRequest:
-    """control_msgs/GripperCommand goal: command.position = fingers motor rad, command.max_effort N."""
-    return GripperRequest(float(msg.command.position), float(msg.command.max_effort))
-
-
-def gripper_feedback_to_msg(types: Types, fb: Feedback) -> Any:
-    return types("control_msgs/action/GripperCommand_Feedback")(
-        position=_f32(fb.position), effort=_f32(fb.effort), stalled=bool(fb.stalled),
-        reached_goal=bool(fb.reached_goal))
-
-
-def gripper_result_to_msg(types: Types, done: Finished) -> Any:
-    """position = the fingers motor angle (rad), effort = the highest estimated pad force (N)."""
-    return types("control_msgs/action/GripperCommand_Result")(
-        position=_f32(done.position), effort=_f32(done.effort), stalled=bool(done.stalled),
-        reached_goal=bool(done.reached_goal))
 
 
 def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:

@@ -162,7 +162,7 @@ def plot(sc: Scenario, trace: Trace, path: Path) -> None:
 
 @command("prisma-manip-scenarios", "prisma_force_estimator.bundle:BundleError")
 def main(argv: list[str] | None = None) -> int:
-    parser = ArgumentParser(prog="prisma-manip-scenarios", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="prisma-manip-scenarios", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=output_dir, default=Path("manipulation_scenarios"),
                         help="directory for <scenario>.png and summary.json")
     parser.add_argument("--only", action="append", choices=SCENARIO_NAMES)

@@ -17,6 +17,7 @@ from prisma_manipulation.manipulation_core import (
     GoalRefused,
     GraspRequest,
     GripperRequest,
+    GripperStatus,
     Ignored,
     ManipulateRequest,
     ManipulationCore,
@@ -52,34 +53,34 @@ def _volts(right_lost=False):
 
 def test_core_validates_goals_with_defaults_and_limits():
     core = _core()
-    resolved, refusal = core.resolve_grasp(GraspRequest("pinch"))
+    resolved, refusal = core.resolve(GraspRequest("pinch"))
     assert refusal is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
-    assert (core.resolve_grasp(GraspRequest("pinch", speed_rpm=71.0))[1]
+    assert (core.resolve(GraspRequest("pinch", speed_rpm=71.0))[1]
             == Refusal(INVALID, "speed_rpm 71.0 above the configured limit 70.0"))
-    assert (str(core.resolve_grasp(GraspRequest("pinch", thumb_force=3.5))[1])
+    assert (str(core.resolve(GraspRequest("pinch", thumb_force=3.5))[1])
             == "invalid: thumb_force 3.5 above the configured limit 3.0")
-    assert (str(core.resolve_grasp(GraspRequest("pinch", finger_force=-1.0))[1])
+    assert (str(core.resolve(GraspRequest("pinch", finger_force=-1.0))[1])
             == "invalid: finger_force -1.0 must be > 0")
-    assert "k 0.55 too low for hold" in str(core.resolve_manipulate(ManipulateRequest("hold", k=0.55))[1])
-    assert "invalid: motion 'roll'" in str(core.resolve_manipulate(ManipulateRequest("roll"))[1])
-    resolved, _ = core.resolve_manipulate(ManipulateRequest("vertical"))
+    assert "k 0.55 too low for hold" in str(core.resolve(ManipulateRequest("hold", k=0.55))[1])
+    assert "invalid: motion 'roll'" in str(core.resolve(ManipulateRequest("roll"))[1])
+    resolved, _ = core.resolve(ManipulateRequest("vertical"))
     assert resolved.speed_rpm == 10.0 and resolved.k == 0.8
     # a goal beyond the limits is refused for that, whatever else is missing
-    assert str(core.accept_grasp(GraspRequest("pinch", speed_rpm=71.0), False, 0)) == \
+    assert str(core.accept(GraspRequest("pinch", speed_rpm=71.0), False, 0)) == \
         "invalid: speed_rpm 71.0 above the configured limit 70.0"
     thumb_only = ManipulationCore(ManipulationConfig(fingers=["thumb", "middle"]))
-    assert str(thumb_only.resolve_grasp(GraspRequest("pinch"))[1]) == \
+    assert str(thumb_only.resolve(GraspRequest("pinch"))[1]) == \
         "invalid: grasp pinch needs the index pad(s), not in parameter fingers ['thumb', 'middle']"
     # GripperCommand: position is the fingers motor angle within its range; max_effort 0 = the default
-    assert core.resolve_gripper(GripperRequest(4.5)) == (GripperRequest(4.5, 1.0), None)
-    assert core.resolve_gripper(GripperRequest(0.0, 2.0)) == (GripperRequest(0.0, 2.0), None)
-    assert str(core.resolve_gripper(GripperRequest(9.5))[1]) == \
+    assert core.resolve(GripperRequest(4.5)) == (GripperRequest(4.5, 1.0), None)
+    assert core.resolve(GripperRequest(0.0, 2.0)) == (GripperRequest(0.0, 2.0), None)
+    assert str(core.resolve(GripperRequest(9.5))[1]) == \
         "invalid: position 9.5 rad outside the fingers motor's range [0.0, 9.0] (0 = open)"
-    assert str(core.resolve_gripper(GripperRequest(3.0, -1.0))[1]) == \
+    assert str(core.resolve(GripperRequest(3.0, -1.0))[1]) == \
         "invalid: max_effort -1.0 must be >= 0 N (0 = gripper_max_effort 1.0 N)"
-    assert str(core.resolve_gripper(GripperRequest(3.0, 50.0))[1]) == \
+    assert str(core.resolve(GripperRequest(3.0, 50.0))[1]) == \
         "invalid: max_effort 50.0 above the configured limit 3.0"
-    assert core.resolve_gripper(GripperRequest(float("nan")))[1].code == INVALID
+    assert core.resolve(GripperRequest(float("nan")))[1].code == INVALID
 
 
 def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), joints=True, age_ms=0):
@@ -96,24 +97,24 @@ def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), jo
 def test_goals_are_refused_not_ready_until_every_stream_they_need_flows():
     core = ManipulationCore(ManipulationConfig())
     pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
-    assert core.accept_grasp(pinch, False, 0) == Refusal(
+    assert core.accept(pinch, False, 0) == Refusal(
         NOT_READY, "MoveMotors action server prisma/motors/move not available (motor_driver not running?)")
-    assert str(core.accept_grasp(pinch, True, 0)) == "not_ready: no /joint_states received yet"
+    assert str(core.accept(pinch, True, 0)) == "not_ready: no /joint_states received yet"
     _feed(core, 0, taxels=("thumb",), wrenches=())
-    assert str(core.accept_grasp(pinch, True, 0)) == "not_ready: no taxels/index received yet"
+    assert str(core.accept(pinch, True, 0)) == "not_ready: no taxels/index received yet"
     # a horizontal manipulation steps on the thumb's taxels alone: it could run now
-    assert core.readiness(*core.manipulate_streams(horizontal), True, 0) is None
+    assert core.readiness(core.streams(horizontal), True, 0) is None
     _feed(core, 10, wrenches=("thumb",))  # the force estimator is still warming up for the index
-    assert str(core.accept_grasp(pinch, True, 10 * MS)) == "not_ready: no wrench/index received yet"
+    assert str(core.accept(pinch, True, 10 * MS)) == "not_ready: no wrench/index received yet"
     use_force = ManipulateRequest("hold", use_force=True)
-    assert core.readiness(*core.manipulate_streams(use_force), True, 10 * MS) is None
+    assert core.readiness(core.streams(use_force), True, 10 * MS) is None
     _feed(core, 20, wrenches=("thumb",))
     _feed(core, 130, taxels=(), wrenches=())  # joint states on; the hub went quiet at 20 ms
-    assert str(core.accept_grasp(pinch, True, 130 * MS)) == "not_ready: taxels/thumb silent for 110 ms"
+    assert str(core.accept(pinch, True, 130 * MS)) == "not_ready: taxels/thumb silent for 110 ms"
     _feed(core, 140, age_ms=120)  # every stream back, but 120 ms old
-    assert str(core.accept_grasp(pinch, True, 140 * MS)) == "not_ready: taxels/thumb 120 ms older than /joint_states"
+    assert str(core.accept(pinch, True, 140 * MS)) == "not_ready: taxels/thumb 120 ms older than /joint_states"
     _feed(core, 150)
-    assert core.accept_grasp(pinch, True, 150 * MS) is None
+    assert core.accept(pinch, True, 150 * MS) is None
     assert not core.busy  # accepted: held for this goal until it starts
 
 
@@ -121,19 +122,19 @@ def test_one_goal_at_a_time_from_acceptance_to_the_end():
     core = ManipulationCore(ManipulationConfig())
     _feed(core, 0)
     pinch, horizontal = GraspRequest("pinch"), ManipulateRequest("horizontal")
-    assert core.accept_grasp(pinch, True, 0) is None
+    assert core.accept(pinch, True, 0) is None
     # a Manipulate goal sent together with the Grasp: its goal callback runs before the Grasp starts
-    assert str(core.accept_manipulate(horizontal, True, 0)) == "busy: a grasp goal was accepted and is starting"
-    assert str(core.accept_gripper(GripperRequest(0.0), True, 0)) == "busy: a grasp goal was accepted and is starting"
+    assert str(core.accept(horizontal, True, 0)) == "busy: a grasp goal was accepted and is starting"
+    assert str(core.accept(GripperRequest(0.0), True, 0)) == "busy: a grasp goal was accepted and is starting"
     with pytest.raises(GoalRefused, match="busy: a grasp goal was accepted"):
-        core.start_manipulate(horizontal, 0)  # only the admitted goal may start
-    core.start_grasp(pinch, 0)
-    assert core.accept_manipulate(horizontal, True, 0) == Refusal(BUSY, "a grasp goal is running")
-    assert str(core.accept_gripper(GripperRequest(0.0), True, 0)) == "busy: a grasp goal is running"
+        core.start(horizontal, 0)  # only the admitted goal may start
+    core.start(pinch, 0)
+    assert core.accept(horizontal, True, 0) == Refusal(BUSY, "a grasp goal is running")
+    assert str(core.accept(GripperRequest(0.0), True, 0)) == "busy: a grasp goal is running"
     actions = core.cancel(10 * MS)
     assert actions[-1].reason == "canceled" and not core.busy
-    assert core.accept_manipulate(horizontal, True, 0) is None  # serving again
-    core.start_manipulate(horizontal, 0)
+    assert core.accept(horizontal, True, 0) is None  # serving again
+    core.start(horizontal, 0)
     assert core.busy and core.kind == "manipulate"
 
 
@@ -172,8 +173,8 @@ def test_foreign_joint_states_change_no_decision():
                     ignored = core.on_joints(sample, t + MS)
                     assert len(ignored) == 1 and isinstance(ignored[0], Ignored)
             if t_ms == 20:
-                log.append(core.accept_manipulate(ManipulateRequest("horizontal"), True, t))
-                log.append(core.start_manipulate(ManipulateRequest("horizontal"), t))
+                log.append(core.accept(ManipulateRequest("horizontal"), True, t))
+                log.append(core.start(ManipulateRequest("horizontal"), t))
             log.append(core.on_taxels("thumb", t, _volts(right_lost=t_ms >= 200), t + 2 * MS)[1])
             log.append(core.check(t + 5 * MS))
         return log, core
@@ -190,7 +191,7 @@ def test_foreign_joint_states_change_no_decision():
 
 def test_core_steps_on_each_complete_scan_and_stops_on_edge_lost():
     core = _core()
-    actions = core.start_manipulate(ManipulateRequest("horizontal", k=0.9), 0)
+    actions = core.start(ManipulateRequest("horizontal", k=0.9), 0)
     assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}, MOVE_LEASE_S)
     assert core.monitor.k == 0.9  # the goal's k for the goal's duration
     ev, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
@@ -209,7 +210,7 @@ def test_core_steps_on_each_complete_scan_and_stops_on_edge_lost():
 
 def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
     core = _core()
-    core.start_grasp(GraspRequest("pinch"), 0)
+    core.start(GraspRequest("pinch"), 0)
     _, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
     assert actions == []
     _, actions = core.on_taxels("index", 10 * MS, _volts(), 10 * MS)
@@ -221,7 +222,7 @@ def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
 def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
     for trigger, reason in (("stale", "sensor_stale"), ("cancel", "canceled"), ("fault", "motor_fault")):
         core = _core()
-        core.start_grasp(GraspRequest("pinch"), 0)
+        core.start(GraspRequest("pinch"), 0)
         if trigger == "stale":
             for t in range(20, 100, 20):  # the watchdog's ticks: nothing arrives
                 core.check(t * MS)
@@ -243,14 +244,14 @@ def test_live_parameters_apply_when_they_should():
     from dataclasses import replace
 
     core = _core()
-    core.start_grasp(GraspRequest("pinch"), 0)
+    core.start(GraspRequest("pinch"), 0)
     core.reconfigure(replace(core.config, stale_timeout=0.2, grasp_speed_rpm=40.0, min_mean_voltage=2.0))
     assert core.busy and not any(isinstance(a, Finished) for a in core.check(150 * MS))  # stale after 200 ms now
     ev, _ = core.on_taxels("thumb", 160 * MS, _volts(), 160 * MS)
     assert ev.mean_voltage < 2.0 and not ev.feasible  # below the new min_mean_voltage
-    assert core.resolve_grasp(GraspRequest("pinch"))[0].speed_rpm == 40.0
+    assert core.resolve(GraspRequest("pinch"))[0].speed_rpm == 40.0
     assert core.check(361 * MS)[-1].reason == "sensor_stale"  # /joint_states silent for 361 ms
-    core.start_manipulate(ManipulateRequest("horizontal", k=0.9), 400 * MS)
+    core.start(ManipulateRequest("horizontal", k=0.9), 400 * MS)
     core.reconfigure(replace(core.config, grasp_timeout=5.0))
     assert core.monitor.k == 0.9  # another parameter changed: the goal keeps its k
     core.reconfigure(replace(core.config, k=0.7))
@@ -271,7 +272,7 @@ def test_motor_commands_are_leased_and_refreshed_while_they_hold():
         sent += core.on_taxels("thumb", t, _volts(right_lost), t)[1]
         return [a for a in sent if not isinstance(a, Feedback)]
 
-    assert core.start_manipulate(ManipulateRequest("horizontal"), 0)[0] == SendMove(rotate, 0.3)
+    assert core.start(ManipulateRequest("horizontal"), 0)[0] == SendMove(rotate, 0.3)
     assert [scan(t) for t in range(10, 100, 10)] == [[]] * 9  # same command: nothing sent
     assert scan(100) == [SendMove(rotate, 0.3)]  # the refresh
     assert core.check(150 * MS) == [] and scan(190) == [] and scan(200) == [SendMove(rotate, 0.3)]
@@ -307,26 +308,29 @@ def test_a_manipulation_is_refused_no_contact_on_an_untouched_pad():
     _feed(core, 0, taxels=("thumb",), wrenches=())
     rest = np.array(PadParams().rest_volts, dtype=np.float32)  # mean 0.436 V: nothing on the pad
     core.on_taxels("thumb", 10 * MS, rest, 10 * MS)
-    refusal = core.accept_manipulate(ManipulateRequest("horizontal"), True, 10 * MS)
+    refusal = core.accept(ManipulateRequest("horizontal"), True, 10 * MS)
     assert str(refusal) == ("no_contact: the thumb pad is not in contact (mean 0.44 V, below min_mean_voltage "
                             "0.55 V): a manipulation starts from a held object, grasp first")
     # the refused goal holds nothing: the next one is refused for its own reason, not busy
-    assert str(core.accept_grasp(GraspRequest("pinch"), True, 10 * MS)) == "not_ready: no taxels/index received yet"
+    assert str(core.accept(GraspRequest("pinch"), True, 10 * MS)) == "not_ready: no taxels/index received yet"
     core.on_taxels("thumb", 20 * MS, _volts(), 20 * MS)  # mean 1.03 V: held
-    assert core.accept_manipulate(ManipulateRequest("horizontal"), True, 20 * MS) is None
+    assert core.accept(ManipulateRequest("horizontal"), True, 20 * MS) is None
 
 
 def test_a_manipulation_that_loses_its_contact_ends_no_contact():
     core = _core()
-    core.start_manipulate(ManipulateRequest("vertical"), 0)
+    core.start(ManipulateRequest("vertical"), 0)
     _, actions = core.on_taxels("thumb", 10 * MS, np.array(PadParams().rest_volts, dtype=np.float32), 10 * MS)
     assert isinstance(actions[0], StopMotors)
-    assert actions[-1] == Finished("manipulate", False, "no_contact", 0.01, 0.0, 0.0)
+    done = actions[-1]
+    assert (done.kind, done.success, done.reason, done.stop_time_s, done.detail) == \
+        ("manipulate", False, "no_contact", 0.01, "")
+    assert (done.status.finger_force, done.status.thumb_force) == (0.0, 0.0)
 
 
 def test_a_move_goal_the_driver_refuses_ends_the_goal_motor_fault():
     core = _core()
-    core.start_grasp(GraspRequest("pinch"), 0)
+    core.start(GraspRequest("pinch"), 0)
     actions = core.on_move_result("not_ready: motor bus not connected: [Errno 2] No such file", 5 * MS)
     assert isinstance(actions[0], StopMotors)
     assert (actions[-1].reason, actions[-1].detail) == ("motor_fault", "not_ready: motor bus not connected: "
@@ -340,16 +344,16 @@ def test_gripper_goal_through_the_core():
     core = ManipulationCore(ManipulationConfig())
     fingers = ("thumb", "index", "middle", "ring", "little")
     _feed(core, 0, taxels=fingers[:2], wrenches=fingers[:2])
-    assert str(core.accept_gripper(GripperRequest(9.0), True, 0)) == "not_ready: no taxels/middle received yet"
+    assert str(core.accept(GripperRequest(9.0), True, 0)) == "not_ready: no taxels/middle received yet"
     _feed(core, 10, taxels=fingers, wrenches=fingers)
     refused = core.refused("gripper", Refusal(BUSY, "a grasp goal is running"))
-    assert (refused.success, refused.reason, refused.position, refused.effort) == \
+    assert (refused.success, refused.reason, refused.status.position, refused.status.effort) == \
         (False, "busy: a grasp goal is running", 0.0, 0.0)
-    assert core.accept_gripper(GripperRequest(9.0), True, 10 * MS) is None
-    actions = core.start_gripper(GripperRequest(9.0), 10 * MS)
+    assert core.accept(GripperRequest(9.0), True, 10 * MS) is None
+    actions = core.start(GripperRequest(9.0), 10 * MS)
     assert actions[0] == SendMove({"fingers": 60.0, "thumb_flexion": 60.0 * 0.8333, "thumb_rotation": 0.0},
                                   MOVE_LEASE_S)
-    assert actions[1] == Feedback("gripper", "close", 0.0, 0.0, False, 0.0, position=0.0)
+    assert actions[1] == Feedback("gripper", "close", GripperStatus(position=0.0))
 
     def scan(t_ms, fingers_rad, forces):
         t = t_ms * MS
@@ -362,11 +366,11 @@ def test_gripper_goal_through_the_core():
             out += core.on_wrench(f, t, forces.get(f, 0.0), t)
         return out
 
-    assert scan(20, 0.1, {"index": 0.0}) == [Feedback("gripper", "close", 0.0, 0.0, False, 0.0, position=0.1)]
-    assert scan(30, 3.6, {"index": 0.7, "thumb": 0.6})[-1].effort == 0.7
+    assert scan(20, 0.1, {"index": 0.0}) == [Feedback("gripper", "close", GripperStatus(position=0.1))]
+    assert scan(30, 3.6, {"index": 0.7, "thumb": 0.6})[-1].status.effort == 0.7
     actions = scan(40, 3.7, {"index": 0.98, "thumb": 1.02})
     assert isinstance(actions[0], StopMotors)
     done = actions[-1]
     assert (done.kind, done.success, done.reason) == ("gripper", True, "force_reached")
-    assert (done.position, done.effort, done.stalled, done.reached_goal) == (3.7, 1.02, True, False)
+    assert done.status == GripperStatus(position=3.7, effort=1.02, stalled=True, reached_goal=False)
     assert not core.busy

@@ -13,6 +13,8 @@ from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.manipulation_core import (
     Feedback,
     Finished,
+    GraspStatus,
+    ManipulateStatus,
 )
 from prisma_manipulation.ros_conversions import (
     contact_state_from_msg,
@@ -89,12 +91,14 @@ def test_action_message_round_trips():
     assert move_result_from_msg(roundtrip(move_result_to_msg(types, result))) == result
     fb = roundtrip(move_feedback_to_msg(types, MoveFeedback([1.0], [2.0], [3.0])))
     assert list(fb.currents) == [3.0]
-    done = Finished("grasp", True, "force_reached", 1.25, 0.81, 1.02)
+    done = Finished("grasp", True, "force_reached", 1.25, GraspStatus(0.81, 1.02))
     r = roundtrip(grasp_result_to_msg(types, done))
     assert r.success and r.reason == "force_reached" and r.thumb_force == pytest.approx(1.02)
-    m = roundtrip(manipulate_result_to_msg(types, Finished("manipulate", True, "edge_lost", 0.42, 0, 0)))
+    ended = Finished("manipulate", True, "edge_lost", 0.42, ManipulateStatus(0, 0, False, 0.0))
+    m = roundtrip(manipulate_result_to_msg(types, ended))
     assert m.stop_reason == "edge_lost" and m.stop_time == pytest.approx(0.42)
-    f = roundtrip(manipulate_feedback_to_msg(types, Feedback("manipulate", "rotate", 0, 0, True, 0.9)))
+    f = roundtrip(manipulate_feedback_to_msg(types, Feedback("manipulate", "rotate",
+                                                             ManipulateStatus(0, 0, True, 0.9))))
     assert f.phase == "rotate" and f.feasible and f.threshold == pytest.approx(0.9)
 
 
