@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from prisma_common.hand import FINGERS
+from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_manipulation.contact_monitor import DEFAULT_K, ContactMonitor
 from prisma_manipulation.controllers import ControlInput, ControlLimits, JointSample
 from prisma_manipulation.motion_controllers import HoldController
@@ -37,10 +37,9 @@ def _recorded_inputs():
 def _measure_control_step(bench: Benchmark) -> float:
     volts, forces, positions, stamps = _recorded_inputs()
     monitor = ContactMonitor(DEFAULT_K)
-    names = ("fingers", "thumb_flexion", "thumb_rotation")
     samples = [
         (int(stamps[i]), [volts[i, f] for f in range(len(FINGERS))], dict(zip(FINGERS, forces[i].tolist())),
-         JointSample(int(stamps[i]), dict(zip(names, positions[i].tolist()))))
+         JointSample(int(stamps[i]), dict(zip(MOTOR_NAMES, positions[i].tolist()))))
         for i in range(len(stamps))
     ]
 

@@ -53,8 +53,10 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.hand import FINGERS
+from prisma_common.procfs import comm, launched_pids, node_named, stat_fields
+
 HERE = Path(__file__).resolve().parent
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_NODES = ("tactile_driver", "force_estimator", "manipulation", "motor_driver")
 GLOVE_NODES = ("glove_driver", "glove_perception")
 MARKER_TOPIC = "/prisma/tactile_markers"
@@ -162,62 +164,24 @@ def stop(procs: list[Proc], timeout_s: float = 15.0) -> None:
             pass
 
 
-def _stat_fields(path: str) -> list[str]:
-    text = Path(path).read_text()
-    return text[text.rfind(")") + 2:].split()  # comm may hold spaces and parentheses
-
-
-def _comm(path: str) -> str:
-    text = Path(path).read_text()
-    return text[text.find("(") + 1:text.rfind(")")]
-
-
-def descendants(pid: int) -> list[int]:
-    parent = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                parent[int(entry.name)] = int(_stat_fields(f"/proc/{entry.name}/stat")[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    found, frontier = [], [pid]
-    while frontier:
-        p = frontier.pop()
-        children = [c for c, pp in parent.items() if pp == p]
-        found += children
-        frontier += children
-    return found
-
-
 def node_pids(launch_pid: int, names: tuple[str, ...], timeout_s: float = 60.0) -> dict[str, int]:
     """The pid of each node launched under `launch_pid` (launch_ros passes `-r __node:=<name>`)."""
-    deadline = time.monotonic() + timeout_s
-    found: dict[str, int] = {}
-    while time.monotonic() < deadline:
-        for pid in descendants(launch_pid):
-            try:
-                argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-            except OSError:
-                continue
-            for name in names:
-                if f"__node:={name}".encode() in argv:
-                    found[name] = pid
-        if len(found) == len(names):
-            return found
-        time.sleep(0.2)
-    raise RuntimeError(f"launched nodes not found after {timeout_s:.0f} s: missing "
-                       f"{sorted(set(names) - set(found))}")
+    found = launched_pids([launch_pid], {name: node_named(name) for name in names}, timeout_s, poll_s=0.2)
+    if len(found) < len(names):
+        raise RuntimeError(f"launched nodes not found after {timeout_s:.0f} s: missing "
+                           f"{sorted(set(names) - set(found))}")
+    return found
 
 
 def cpu_ticks(pid: int) -> tuple[int, dict[str, int]]:
     """utime + stime of a process (all its threads) and per thread name, in clock ticks."""
-    f = _stat_fields(f"/proc/{pid}/stat")
+    f = stat_fields(f"/proc/{pid}/stat")
     total = int(f[11]) + int(f[12])
     threads: dict[str, int] = {}
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
-            tf = _stat_fields(f"{task}/stat")
-            name = _comm(f"{task}/stat")
+            tf = stat_fields(f"{task}/stat")
+            name = comm(f"{task}/stat")
         except OSError:
             continue  # thread ended
         threads[name] = threads.get(name, 0) + int(tf[11]) + int(tf[12])
@@ -972,21 +936,10 @@ def namespaced_node_pids(root_pids: list[int], nodes: list[tuple[str, str, str, 
                          timeout_s: float = 90.0) -> dict[str, int]:
     """The pid of each of `nodes` (BIMANUAL_NODES rows) launched under `root_pids` (launch_ros
     passes `-r __node:=<name>` and, under a namespace, `-r __ns:=<namespace>`)."""
-    deadline = time.monotonic() + timeout_s
-    found: dict[str, int] = {}
-    while time.monotonic() < deadline:
-        for pid in [d for root in root_pids for d in descendants(root)]:
-            try:
-                argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-            except OSError:
-                continue
-            ns = next((a[len(b"__ns:="):].decode() for a in argv if a.startswith(b"__ns:=")), "")
-            for label, node, namespace, _ in nodes:
-                if f"__node:={node}".encode() in argv and ns.rstrip("/") == namespace:
-                    found[label] = pid
-        if len(found) == len(nodes):
-            return found
-        time.sleep(0.5)
+    found = launched_pids(root_pids, {label: node_named(node, namespace) for label, node, namespace, _ in nodes},
+                          timeout_s)
+    if len(found) == len(nodes):
+        return found
     raise RuntimeError(f"launched nodes not found after {timeout_s:.0f} s: missing "
                        f"{sorted({n[0] for n in nodes} - set(found))}")
 

@@ -58,7 +58,8 @@ from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+from prisma_common.hand import FINGERS
+
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
 DEPTH = 10  # every publisher and subscription of the nodes uses a keep-last depth of 10
 

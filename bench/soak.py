@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY
+
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "test" / "support"))
 
@@ -66,8 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("soak_out"), help="where soak.json goes")
     parser.add_argument("--plot", type=Path, help="write the plot (PNG) here")
     parser.add_argument("--no-load", action="store_true", help="without the load harness")
-    parser.add_argument("--rt-priority", type=int, default=20,
-                        help="hand.launch.py rt_priority (default 20; 0: none, the nodes at its nice)")
+    parser.add_argument("--rt-priority", type=int, default=CONTROL_PATH_RT_PRIORITY,
+                        help=f"hand.launch.py rt_priority (default {CONTROL_PATH_RT_PRIORITY}; 0: none, the nodes "
+                             "at its nice)")
     args = parser.parse_args(argv)
     if args.minutes <= 0:
         parser.error(f"--minutes {args.minutes}: must be > 0")

@@ -29,17 +29,18 @@ if importlib.util.find_spec("PyQt5") is None:
         raise RuntimeError("PRISMA_ROS_GUI=1 but PyQt5 is missing: rqt_plot cannot start")
     pytest.skip("rqt_plot needs PyQt5: PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh", allow_module_level=True)
 
+from action_msgs.msg import GoalStatus  # noqa: E402
 from prisma_msgs.action import Grasp, MoveMotors  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+from prisma_common.hand import FINGERS  # noqa: E402
+
 # the README's `ros2 bag record` topic list
 BAG_TOPICS = ["/joint_states", "/diagnostics"] + [f"/prisma/{f}/{kind}" for f in FINGERS
                                                   for kind in ("taxels", "wrench", "contact")]
 PLOTTED = ["/prisma/thumb/contact/threshold", "/prisma/thumb/contact/voltages[3]"]
 GRASPS = 10
-SUCCEEDED = 4  # action_msgs/GoalStatus
 # Fingers and thumb to 0.5 N at 60 rpm: below the 0.6 N at which the sim world's support lets go of
 # the ball (after 0.5 s), so however long the hand holds it before it opens, the next grasp finds
 # the ball where the last one did. Between goals the hand opens at full speed, thumb first, each
@@ -80,7 +81,7 @@ def test_ten_pinch_grasps_with_rqt_plot_and_a_bag_recorder_beside_the_graph(ros,
         stop_process(hand)
 
     ended = ros.logs(name="manipulation", contains="goal ended")
-    assert outcomes == [(SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)
+    assert outcomes == [(GoalStatus.STATUS_SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)
     assert recorded[0].returncode == 0, recorded[0].output  # the recorder, stopped with Ctrl-C
     info = run_process(["ros2", "bag", "info", str(bag)])
     assert info.returncode == 0, info.output
@@ -131,4 +132,4 @@ def test_ten_pinch_grasps_with_rviz_and_the_tactile_markers_beside_the_graph(ros
         finally:
             stop_process(hand)
     ended = ros.logs(name="manipulation", contains="goal ended")
-    assert outcomes == [(SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)
+    assert outcomes == [(GoalStatus.STATUS_SUCCEEDED, "force_reached")] * GRASPS, (outcomes, ended)

@@ -21,6 +21,7 @@ require_ros()
 
 import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from builtin_interfaces.msg import Time  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
@@ -32,7 +33,6 @@ from sensor_msgs.msg import JointState  # noqa: E402
 
 MOTORS = ["fingers", "thumb_flexion", "thumb_rotation"]
 ARM_JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
-SUCCEEDED = 4  # action_msgs/GoalStatus
 
 
 @pytest.mark.launch_test
@@ -73,7 +73,7 @@ class TestForeignJointStates(unittest.TestCase):
 
         # the set-up grasp
         grasp = ros.result(ros.send_until_started(grasp_client, Grasp.Goal(grasp="pinch")))
-        self.assertEqual((grasp.status, grasp.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((grasp.status, grasp.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
 
         def horizontal(timeout_sec: float = 30.0):
             handle = ros.send_until_started(manipulate_client, Manipulate.Goal(motion="horizontal"), timeout_sec)
@@ -83,7 +83,7 @@ class TestForeignJointStates(unittest.TestCase):
             return [name for name in proc_info.process_names() if isinstance(proc_info[name], ProcessExited)]
 
         alone = horizontal()
-        self.assertEqual((alone.status, alone.result.stop_reason), (SUCCEEDED, "edge_lost"))
+        self.assertEqual((alone.status, alone.result.stop_reason), (GoalStatus.STATUS_SUCCEEDED, "edge_lost"))
 
         publisher = ros.publisher(JointState, "/joint_states", 10)
         kinds = foreign_messages()
@@ -120,7 +120,7 @@ class TestForeignJointStates(unittest.TestCase):
         largest_gap_ms = max((stamp_ns(b) - stamp_ns(a)) * 1e-6 for a, b in zip(hand, hand[1:]))
         self.assertEqual(
             (with_foreign.status, with_foreign.result.success, with_foreign.result.stop_reason),
-            (SUCCEEDED, True, "edge_lost"),
+            (GoalStatus.STATUS_SUCCEEDED, True, "edge_lost"),
             f"{ros.logs(name='manipulation', contains='goal ended')[-1:]}; motor driver /joint_states during "
             f"the goal: {len(hand)}, largest stamp gap {largest_gap_ms:.0f} ms")
         # the same motion: the right edge is lost at the same thumb rotation (100 Hz samples; the

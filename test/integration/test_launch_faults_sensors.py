@@ -15,7 +15,6 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import signal
@@ -34,6 +33,7 @@ require_ros()
 
 import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
@@ -46,6 +46,7 @@ from prisma_msgs.msg import TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import FINGERS  # noqa: E402
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, control_path_env, try_rt_priority  # noqa: E402
 from prisma_hand_sim.pad_model import PadParams  # noqa: E402
 from prisma_tactile_driver.protocol import encode_frame  # noqa: E402
 from prisma_tactile_driver.pty_hub import PtyHubPort  # noqa: E402
@@ -53,13 +54,12 @@ from prisma_tactile_driver.pty_hub import PtyHubPort  # noqa: E402
 # the same path in both imports of this module (launch_testing imports it twice)
 HUB_DIR = Path(tempfile.gettempdir()) / f"prisma_fault_hub_{os.getpid()}"
 HUB_LINK = HUB_DIR / "ttyHUB"
-ABORTED, CANCELED = 6, 5  # action_msgs/GoalStatus
 STALE_TIMEOUT_S = 0.1  # config/manipulation.yaml stale_timeout
 STOP_AFTER_STALE_S = 0.1  # the motors stop within 100 ms of the watchdog's stale limit
-# as hand.launch.py runs the control path (rt_priority:=20, nice:=-5; prisma_common/scheduling.py):
+# as hand.launch.py runs the control path (its rt_priority:= and nice:= defaults, prisma_common/scheduling.py):
 # at the default priority a machine busy with other work starves the force estimator, and its
 # wrenches trail the taxels by its whole subscription queue
-CONTROL_PATH_PRIORITY = {"PRISMA_RT_PRIORITY": "20", "PRISMA_NICE": "-5"}
+CONTROL_PATH_PRIORITY = control_path_env()
 REFUSED_NO_DRIVER = ("not_ready: MoveMotors action server prisma/motors/move not available "
                      "(motor_driver not running?)")
 
@@ -117,8 +117,7 @@ class HubOnPty:
     def _run(self) -> None:
         # the hub is hardware: its frames come on time however busy this machine is (this thread
         # only; hand.launch.py runs its emulators at the control path's priority the same way)
-        with contextlib.suppress(PermissionError):
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(CONTROL_PATH_PRIORITY["PRISMA_RT_PRIORITY"])))
+        try_rt_priority(CONTROL_PATH_RT_PRIORITY)
         sequence, due = 0, time.monotonic()
         while not self._stop.is_set():
             if self.port.pending() < 4096:  # nobody reading (driver not connected yet): frames are lost
@@ -169,7 +168,7 @@ class TestMissingParts(unittest.TestCase):
         start = time.monotonic()
         outcome = ros.result(ros.send_goal(self.grasp, goal), timeout_sec=10.0)
         answered_s = time.monotonic() - start
-        self.assertEqual((outcome.status, outcome.result.reason), (ABORTED, REFUSED_NO_DRIVER))
+        self.assertEqual((outcome.status, outcome.result.reason), (GoalStatus.STATUS_ABORTED, REFUSED_NO_DRIVER))
         print(f"Grasp without a motor driver: refused after {answered_s * 1e3:.0f} ms")
         self.assertLess(answered_s, 1.0)
         self.assertIn(f"Grasp goal refused: {REFUSED_NO_DRIVER}",
@@ -182,7 +181,7 @@ class TestMissingParts(unittest.TestCase):
         handle = ros.send_until_started(self.grasp, goal, timeout_sec=60.0)
         canceled = handle.cancel_goal_async()
         ros.spin_until(canceled, 10.0)
-        self.assertEqual(ros.result(handle).status, CANCELED)
+        self.assertEqual(ros.result(handle).status, GoalStatus.STATUS_CANCELED)
         self.assertTrue(ros.spin_until(lambda: self.joints and stopped(self.joints[-1], SIM_STOPPED_RAD_S), 5.0))
 
     def test_2_hub_unplugged_mid_grasp(self):
@@ -207,7 +206,8 @@ class TestMissingParts(unittest.TestCase):
         unplugged_ns = time.time_ns()
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on without its sensors")
         ros.spin_for(0.5)  # every /joint_states of the stop has arrived
-        self.assertEqual((result.result().status, result.result().result.reason), (ABORTED, "sensor_stale"))
+        self.assertEqual((result.result().status, result.result().result.reason),
+                         (GoalStatus.STATUS_ABORTED, "sensor_stale"))
         ended = ros.wait_for_log(name="manipulation", contains="grasp goal ended: sensor_stale")
         self.assertRegex(ended[-1], r"\((taxels|wrench)/(thumb|index) (silent for|\d+ ms older than /joint_states)")
 

@@ -47,6 +47,7 @@ require_ros()
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from prisma_msgs.msg import ContactState  # noqa: E402
@@ -54,8 +55,6 @@ from rcl_interfaces.srv import GetParameters  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
-SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
 # stopped(): every joint below one velocity unit of an X-series Dynamixel (0.229 rpm), which reads 0
 # there. The sim motors' velocity follows the command with a 10 ms time constant: from 10 rpm it is
 # below that 38 ms after the stop.
@@ -212,15 +211,15 @@ class TestHandActions(unittest.TestCase):
             # The pinch from a held ball ends at once: on a busy machine it can be over before the
             # other goal reaches the node, and then both rightly run, one after the other. Only goals
             # that met in the node count: the node's log says which (started/ended lines in order).
-            if all(r.status == SUCCEEDED for r in results.values()) and self.one_after_the_other():
+            if all(r.status == GoalStatus.STATUS_SUCCEEDED for r in results.values()) and self.one_after_the_other():
                 print(f"not together (one ended before the other started): {ended}")
                 continue
             break
-        ran = [kind for kind, r in results.items() if r.status == SUCCEEDED]
+        ran = [kind for kind, r in results.items() if r.status == GoalStatus.STATUS_SUCCEEDED]
         self.assertEqual(len(ran), 1, ended)
         (other,) = {"grasp", "manipulate"} - set(ran)
         self.assertEqual(ended[ran[0]], normal_end[ran[0]])
-        self.assertEqual(results[other].status, ABORTED)
+        self.assertEqual(results[other].status, GoalStatus.STATUS_ABORTED)
         # "... is running" or "... was accepted and is starting"
         self.assertTrue(ended[other][1].startswith(f"busy: a {ran[0]} goal"), ended[other])
         refused = ros.wait_for_log(name="manipulation",

@@ -39,6 +39,7 @@ from ros_harness import (
 require_ros()
 
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
@@ -48,7 +49,6 @@ from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_i2c_{os.getpid()}"
-SUCCEEDED = 4  # action_msgs/GoalStatus
 HUB = "tactile_driver: hub"
 
 
@@ -88,7 +88,7 @@ class TestHandEmulatedI2C(unittest.TestCase):
         self.assertTrue(ros.spin_until(self.grasp.server_is_ready, 60.0), "no /prisma/grasp server")
         handle = ros.send_until_started(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0)
         result = ros.result(handle, timeout_sec=30.0)
-        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((result.status, result.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
         self.assertEqual(self.fresh_hub_diagnostic()["bus"], str(EMULATOR_DIR / "i2c.sock"))
         status = json_status()
         self.assertGreater(status["i2c"]["transfers"], 1000)

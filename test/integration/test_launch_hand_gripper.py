@@ -39,14 +39,15 @@ require_ros()
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
-SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
+from prisma_common.hand import FINGERS  # noqa: E402
+
 BIAS_SAMPLES = 100  # config/force_estimator.yaml
 
 
@@ -83,7 +84,8 @@ class TestHandGripper(unittest.TestCase):
     def test_1_bias_zeroes_the_no_load_force(self):
         ros = self.ros
         self.assertTrue(ros.spin_until(lambda: all(len(w) > BIAS_SAMPLES for w in self.wrenches.values()), 90.0))
-        self.assertEqual(self.run_gripper(gripper_goal(0.0)).status, SUCCEEDED)  # open already: the graph is up
+        # open already: the graph is up
+        self.assertEqual(self.run_gripper(gripper_goal(0.0)).status, GoalStatus.STATUS_SUCCEEDED)
         response = self.bias()
         self.assertTrue(response.success, response.message)
         # the offsets are the mean of each finger's last 100 estimates: those just published (the
@@ -106,7 +108,7 @@ class TestHandGripper(unittest.TestCase):
         r = outcome.result
         print(f"close to 9 rad, max_effort 1 N: status {outcome.status}, position {r.position:.3f} rad, "
               f"effort {r.effort:.3f} N, stalled {r.stalled}, reached_goal {r.reached_goal}")
-        self.assertEqual((outcome.status, r.stalled, r.reached_goal), (SUCCEEDED, True, False))
+        self.assertEqual((outcome.status, r.stalled, r.reached_goal), (GoalStatus.STATUS_SUCCEEDED, True, False))
         self.assertGreaterEqual(r.effort, 1.0)
         self.assertLess(r.effort, 1.15)
         self.assertAlmostEqual(r.position, 4.9, delta=0.25)  # the index touches the ball at 3.0 rad
@@ -128,7 +130,7 @@ class TestHandGripper(unittest.TestCase):
     def test_4_position_0_opens_the_hand(self):
         outcome = self.run_gripper(gripper_goal(0.0))
         r = outcome.result
-        self.assertEqual((outcome.status, r.stalled, r.reached_goal), (SUCCEEDED, False, True))
+        self.assertEqual((outcome.status, r.stalled, r.reached_goal), (GoalStatus.STATUS_SUCCEEDED, False, True))
         self.assertAlmostEqual(r.position, 0.0, delta=0.1)
         last = self.ros.message_at(self.joints, 0.3)
         self.assertAlmostEqual(joint(last, "fingers"), 0.0, delta=0.1)

@@ -37,12 +37,12 @@ require_ros()
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from prisma_msgs.action import Manipulate  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
 CANCEL_STOP_S = 0.5
 
 
@@ -76,12 +76,13 @@ class TestEmptyHandGripper(unittest.TestCase):
 
     def test_1_manipulate_with_nothing_in_the_hand_is_refused_no_contact(self):
         ros = self.ros
-        self.assertEqual(self.run_gripper(gripper_goal(0.0)).status, SUCCEEDED)  # open already: the graph is up
+        # open already: the graph is up
+        self.assertEqual(self.run_gripper(gripper_goal(0.0)).status, GoalStatus.STATUS_SUCCEEDED)
         before = len(self.joints)
         handle = ros.send_until_started(self.manipulate, Manipulate.Goal(motion="horizontal"), timeout_sec=60.0)
         outcome = ros.result(handle, timeout_sec=10.0)
         print(f"Manipulate horizontal, empty hand: {outcome.result.stop_reason}")
-        self.assertEqual(outcome.status, ABORTED)
+        self.assertEqual(outcome.status, GoalStatus.STATUS_ABORTED)
         self.assertTrue(outcome.result.stop_reason.startswith("no_contact: the thumb pad is not in contact"),
                         outcome.result.stop_reason)
         ros.spin_for(0.3)
@@ -91,7 +92,7 @@ class TestEmptyHandGripper(unittest.TestCase):
         outcome = self.run_gripper(gripper_goal(9.0))
         r = outcome.result
         print(f"close to 9 rad: status {outcome.status}, position {r.position:.3f} rad, effort {r.effort:.3f} N")
-        self.assertEqual((outcome.status, r.reached_goal, r.stalled), (SUCCEEDED, True, False))
+        self.assertEqual((outcome.status, r.reached_goal, r.stalled), (GoalStatus.STATUS_SUCCEEDED, True, False))
         self.assertGreater(r.position, 8.85)
         self.assertLess(r.effort, 0.2)  # the estimator's reading of untouched pads
         last = self.ros.message_at(self.joints, 0.3)  # published 0.3 s on, however late it comes here
@@ -100,7 +101,7 @@ class TestEmptyHandGripper(unittest.TestCase):
 
     def test_3_position_0_opens(self):
         outcome = self.run_gripper(gripper_goal(0.0))
-        self.assertEqual((outcome.status, outcome.result.reached_goal), (SUCCEEDED, True))
+        self.assertEqual((outcome.status, outcome.result.reached_goal), (GoalStatus.STATUS_SUCCEEDED, True))
         self.assertAlmostEqual(joint(self.ros.message_at(self.joints, 0.3), "fingers"), 0.0, delta=0.1)
 
     def test_4_cancel_while_closing_stops_the_motors_within_half_a_second(self):
@@ -121,7 +122,7 @@ class TestEmptyHandGripper(unittest.TestCase):
         cancel_ns = time.time_ns()
         handle.cancel_goal_async()
         self.assertTrue(ros.spin_until(result, 10.0), "no result after the cancel")
-        self.assertEqual(result.result().status, CANCELED)
+        self.assertEqual(result.result().status, GoalStatus.STATUS_CANCELED)
         ros.spin_for(CANCEL_STOP_S + 0.3)
         after = self.joints[moving:]
         first_stop = next((m for m in after if stamp_ns(m) > cancel_ns and stopped(m)), None)

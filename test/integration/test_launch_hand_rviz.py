@@ -27,11 +27,12 @@ require_rviz()
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
-SUCCEEDED = 4
+from prisma_common.hand import FINGERS  # noqa: E402
+
 XVFB: list[subprocess.Popen] = []
 
 
@@ -76,7 +77,7 @@ class TestHandRviz(unittest.TestCase):
     def test_2_a_pinch_grasp_with_rviz_beside_the_graph(self):
         client = self.ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
         result = self.ros.result(self.ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
-        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((result.status, result.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
         self.ros.spin_for(5.0)  # RViz draws the hand holding the ball
 
 

@@ -34,6 +34,7 @@ from ros_harness import GraphTestCase, emulated_hand_launch, require_ros, wait_u
 require_ros()
 
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, HomeMotors, MoveMotors  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -42,7 +43,6 @@ from prisma_bringup.emulator_control import send  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_servo_safety_{os.getpid()}"
-SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
 STOP_LIMIT_S = 0.3  # the bound; the watchdog is armed at 0.1 s
 HOMING_CURRENT_MA = 150.0  # config/motor_driver.yaml homing_current_ma
 # the thumb turning slowly toward its 3 rad limit: seconds of motion for a fault to interrupt
@@ -135,16 +135,16 @@ class TestServoSafety(GraphTestCase):
         self.assertTrue(ros.spin_until(wait_diag, 10.0), "the driver did not see the power cycle")
         close = ros.result(ros.send_goal(self.move, self.move_goal(motors=["fingers"], mode="velocity",
                                                                     targets=[30.0], timeout=0.3)))
-        self.assertEqual(close.status, ABORTED)
+        self.assertEqual(close.status, GoalStatus.STATUS_ABORTED)
         self.assertTrue(close.result.reason.startswith("not_homed: fingers (id 1) not homed"), close.result.reason)
         grasp = ros.result(ros.send_goal(self.grasp, Grasp.Goal(grasp="pinch")))
         # manipulation's first MoveMotors was refused: the grasp ends motor_fault, its log says why
-        self.assertEqual((grasp.status, grasp.result.reason), (ABORTED, "motor_fault"))
+        self.assertEqual((grasp.status, grasp.result.reason), (GoalStatus.STATUS_ABORTED, "motor_fault"))
         self.assertTrue(ros.wait_for_log(name="manipulation", contains="grasp goal ended: motor_fault (not_homed: "))
         self.assertAlmostEqual(servos()["fingers"]["position_rad"], 7.0, delta=0.05)  # nothing moved
 
         homing = ros.result(ros.send_goal(self.home, HomeMotors.Goal()), timeout_sec=60.0)
-        self.assertEqual((homing.status, homing.result.reason), (SUCCEEDED, "homed"))
+        self.assertEqual((homing.status, homing.result.reason), (GoalStatus.STATUS_SUCCEEDED, "homed"))
         travel = dict(zip(homing.result.motors, homing.result.travel_rad))
         self.assertAlmostEqual(travel["fingers"], 7.0, delta=0.05)
         self.assertTrue(all(ma <= HOMING_CURRENT_MA for ma in homing.result.stall_current_ma))
@@ -153,7 +153,7 @@ class TestServoSafety(GraphTestCase):
         self.assertAlmostEqual(servos()["fingers"]["position_rad"], 0.0, delta=0.05)
         emulator("world", name="pinch_grasp")
         pinch = ros.result(ros.send_goal(self.grasp, Grasp.Goal(grasp="pinch")), timeout_sec=30.0)
-        self.assertEqual((pinch.status, pinch.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((pinch.status, pinch.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
         ros.result(ros.send_goal(self.move, self.move_goal(motors=list(MOTOR_NAMES), mode="position",
                                                            targets=[0.0, 0.0, 0.0])), timeout_sec=30.0)
 
@@ -187,7 +187,7 @@ class TestServoSafety(GraphTestCase):
         finally:
             os.kill(pid, signal.SIGCONT)
         self.assertTrue(self.ros.spin_until(rotation.done, 5.0))
-        self.assertEqual(rotation.result().status, ABORTED)
+        self.assertEqual(rotation.result().status, GoalStatus.STATUS_ABORTED)
         self.assertIn("bus watchdog", rotation.result().result.reason)
         self.assert_nothing_moves(1.0)  # after SIGCONT, no servo moves until a new goal
         self.assertEqual([s["bus_watchdog"] for s in servos().values()], [5, 5, 5])  # re-armed

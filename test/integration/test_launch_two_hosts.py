@@ -34,7 +34,6 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1) and where namespaces cann
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import time
@@ -46,6 +45,7 @@ from ros_harness import NodeProcess, require_ros, stop_process
 require_ros()
 
 from host_probe import HostProbe  # noqa: E402
+from prisma_common.scheduling import PROBE_RT_PRIORITY, try_rt_priority  # noqa: E402
 from two_hosts import HostsUnavailable, TwoHosts  # noqa: E402
 
 HANDS = ("left", "right")
@@ -62,7 +62,6 @@ SLOW_HORIZONTAL = {"motion": "horizontal", "speed_rpm": 2.0}  # about 2.5 s to t
 # a goal that should succeed and ends sensor_stale instead (the watchdog on a machine too busy to
 # deliver a sample within 100 ms) is sent again this often at most, as in test_launch_hand_actions
 STALE_RETRIES = 3
-PROBE_RT_PRIORITY = 30
 STALE_DETAIL = re.compile(r"goal ended: sensor_stale \((/joint_states|taxels/\w+|wrench/\w+) silent for \d+ ms\)")
 
 
@@ -204,8 +203,7 @@ def graph(hosts):
         # this process takes the link down and reads the clock when it did: held up behind the
         # graph, its `down` came late (after the motors had stopped); set once the launches started
         # (they would inherit it)
-        with contextlib.suppress(OSError):
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PROBE_RT_PRIORITY))
+        try_rt_priority(PROBE_RT_PRIORITY)
         for hand in HANDS:  # the estimators keep pace with the motors (warmed up)
             started.workstation.call("keeping_up", leader=f"/{hand}/joint_states",
                                      follower=f"/{hand}/prisma/hand/wrench", lag_s=0.05, checks=10, timeout_s=120.0)

@@ -27,8 +27,8 @@ from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 
 from prisma_common.bag import read_bag  # noqa: E402
 from prisma_common.bag import stamp_ns as bag_stamp_ns  # noqa: E402
+from prisma_common.hand import FINGERS  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 # The README's "Record and replay" topic list: the sensor streams and what the nodes computed.
 RECORD_TOPICS = ["/joint_states", "/diagnostics"] + [
     f"/prisma/{f}/{kind}" for f in FINGERS for kind in ("taxels", "wrench", "contact")]

@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
+from prisma_bringup.hand_session import goal_status
 from prisma_bringup.sim_cli import main
+from prisma_common.hand import FINGERS
 from prisma_common.typestore import get_typestore
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from repo_paths import CONFIG, ROOT
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 NS = 1_000_000_000
 PERIOD_NS = 10_000_000  # 100 Hz: tactile scan, motor ticks, controller steps
 
@@ -165,11 +166,13 @@ def test_hand_bag_topics_stamps_and_counts(run, name):
     for topic in (f"/prisma/{action}/_action/feedback", "/prisma/motors/move/_action/feedback"):
         for _, m in messages[topic]:
             feedback[bytes(m.goal_id.uuid)] += 1
-    goals = [g for g, s in status.items() if s[-1][1] == 4]
+    codes = goal_status()  # action_msgs/msg/GoalStatus
+    goals = [g for g, s in status.items() if s[-1][1] == codes.STATUS_SUCCEEDED]
     assert len(goals) == 1, "one Grasp/Manipulate goal, succeeded"
     for goal_id, changes in status.items():
         (start, executing), (end, final) = changes
-        assert executing == 2 and final in (4, 5, 6) and end >= start
+        assert executing == codes.STATUS_EXECUTING and end >= start
+        assert final in (codes.STATUS_SUCCEEDED, codes.STATUS_CANCELED, codes.STATUS_ABORTED)
         in_goal = sum(start < t <= end for t in joint_stamps)
         is_main = goal_id in goals
         assert feedback[goal_id] == in_goal + (1 if is_main else 0), goal_id  # main: feedback at start too

@@ -16,11 +16,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-SUCCEEDED, CANCELED, ABORTED = 4, 5, 6
-STATUS = {SUCCEEDED: "SUCCEEDED", CANCELED: "CANCELED", ABORTED: "ABORTED"}
+from prisma_common.procfs import executable_named, launched_pids, rss_mb
+
 CANCEL_AFTER_S = 0.3
 # each goal's paper outcome: (status, reason)
 EXPECTED = {"grasp pinch": ("SUCCEEDED", "force_reached"), "manipulate horizontal": ("SUCCEEDED", "edge_lost"),
@@ -75,50 +74,7 @@ class SoakReport:
 
 def node_pids(launch_pid: int, names: tuple[str, ...], timeout_sec: float = 60.0) -> dict[str, int]:
     """The pids of the nodes a launch started (its descendants whose executable is named so)."""
-    deadline = time.monotonic() + timeout_sec
-    while True:
-        found: dict[str, int] = {}
-        for proc in Path("/proc").iterdir():
-            if not proc.name.isdigit():
-                continue
-            try:
-                argv = (proc / "cmdline").read_bytes().split(b"\0")
-                ancestors = _ancestors(int(proc.name))
-            except OSError:
-                continue
-            name = next((n for n in names if any(Path(a.decode(errors="replace")).name == n for a in argv[:2])), None)
-            if name and launch_pid in ancestors:
-                found[name] = int(proc.name)
-        if len(found) == len(names) or time.monotonic() > deadline:
-            return found
-        time.sleep(0.5)
-
-
-def _ancestors(pid: int) -> set[int]:
-    seen = set()
-    while pid > 1 and pid not in seen:
-        seen.add(pid)
-        pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-    return seen
-
-
-def rss_mb(pid: int) -> float | None:
-    """Resident memory of a process in MiB (None once it is gone)."""
-    try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    except OSError:
-        return None
-    return None
-
-
-def _outcome(result: Any) -> tuple[str, str]:
-    r = result.result
-    reason = getattr(r, "reason", None) or getattr(r, "stop_reason", None)
-    if reason is None:  # GripperCommand: no text
-        reason = "reached_goal" if r.reached_goal else ("stalled" if r.stalled else "neither")
-    return STATUS.get(result.status, str(result.status)), reason
+    return launched_pids([launch_pid], {name: executable_named(name) for name in names}, timeout_sec)
 
 
 def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = "",
@@ -130,6 +86,8 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     from prisma_msgs.action import Grasp, Manipulate
     from std_srvs.srv import Trigger
 
+    from ros_harness import goal_outcome
+
     clients = {"grasp": ros.action_client(Grasp, f"{namespace}/prisma/grasp", wait_sec=90.0),
                "manipulate": ros.action_client(Manipulate, f"{namespace}/prisma/manipulate", wait_sec=90.0),
                "gripper": ros.action_client(GripperCommand, f"{namespace}/prisma/gripper_cmd", wait_sec=90.0)}
@@ -140,7 +98,7 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     ros.result(first, timeout_sec=60.0)
     deadline = time.monotonic() + 60.0
     opened = EXPECTED["gripper open"]
-    while _outcome(ros.result(ros.send_goal(clients["gripper"], open_hand), timeout_sec=60.0)) != opened:
+    while goal_outcome(ros.result(ros.send_goal(clients["gripper"], open_hand), timeout_sec=60.0)) != opened:
         assert time.monotonic() < deadline, "the hand did not open in 60 s"
         ros.spin_for(0.5)
     report = SoakReport(seconds=0.0)
@@ -165,7 +123,7 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
             if not result.done():
                 ros.spin_for(cancel_after_s)
                 handle.cancel_goal_async()
-        outcome = _outcome(ros.result(handle, timeout_sec=60.0))
+        outcome = goal_outcome(ros.result(handle, timeout_sec=60.0))
         record = GoalRecord(name, outcome, time.monotonic() - t0, t0 - start)
         report.goals.append(record)
         if not record.as_expected:

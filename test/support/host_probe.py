@@ -41,8 +41,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-GOAL_STATUS = {1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
-
 
 class HostProbe:
     """The test's end: starts the probe (through `run`, e.g. Host.run) and sends it requests."""
@@ -137,12 +135,14 @@ class _Probe:
     def goals(self, topic: str, since_ns: int = 0) -> dict:
         """The goals an action server's status topic (collected) listed as accepted after since_ns:
         [[accepted_ns, last status]], by acceptance."""
+        from ros_harness import goal_status_name
+
         goals: dict[bytes, list] = {}
         for msg in self.collected[topic]:
             for s in msg.status_list:
                 stamp = s.goal_info.stamp.sec * 1_000_000_000 + s.goal_info.stamp.nanosec
                 if stamp > since_ns:
-                    goals.setdefault(bytes(s.goal_info.goal_id.uuid), [stamp, 0])[1] = GOAL_STATUS.get(s.status)
+                    goals.setdefault(bytes(s.goal_info.goal_id.uuid), [stamp, 0])[1] = goal_status_name(s.status)
         return {"goals": sorted(goals.values())}
 
     def send_goal(self, action: str, type: str, goal: dict, retry_s: float = 60.0, wait_s: float = 60.0) -> dict:
@@ -167,11 +167,13 @@ class _Probe:
     def result(self, id: int, timeout_s: float = 60.0) -> dict:
         from rosidl_runtime_py.convert import message_to_ordereddict
 
+        from ros_harness import goal_status_name
+
         future = self.pending[id]
         if not self.ros.spin_until(future, timeout_s):
             return {"error": f"goal {id}: no result within {timeout_s} s"}
         response = future.result()
-        return {"status": GOAL_STATUS.get(response.status, str(response.status)),
+        return {"status": goal_status_name(response.status),
                 "result": dict(message_to_ordereddict(response.result)), "received_ns": time.time_ns()}
 
     def trigger(self, service: str, timeout_s: float = 10.0) -> dict:

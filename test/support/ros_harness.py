@@ -12,7 +12,7 @@ everything else runs on wall time and is awaited with `spin_until`.
 """
 from __future__ import annotations
 
-import contextlib
+import functools
 import math
 import os
 import signal
@@ -694,16 +694,13 @@ def wait_until_homed(ros: RosHarness, diagnostics: Sequence[Any], motors: Sequen
                              f"{[diagnostic_values(diagnostics, f'motor_driver: {m}') for m in motors]}")
 
 
-# The fault CLI acts when the test says, not when a busy machine gets round to starting it: above
-# every ordinary process (a CPU hog per core) and below the control path (rt_priority:=20), which
-# it must not hold up. On a loaded 2-core machine a default-priority start took 4-15 s, longer than
-# the slow goal a fault is meant to interrupt.
-FAULT_CLI_RT_PRIORITY = 10
-
-
 def _fault_cli_priority() -> None:
-    with contextlib.suppress(PermissionError):
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FAULT_CLI_RT_PRIORITY))
+    # the fault CLI acts when the test says, not when a busy machine gets round to starting it (the
+    # ladder in prisma_common/scheduling.py): a default-priority start took 4-15 s on a loaded 2-core
+    # machine, longer than the slow goal a fault is meant to interrupt
+    from prisma_common.scheduling import FAULT_CLI_RT_PRIORITY, try_rt_priority
+
+    try_rt_priority(FAULT_CLI_RT_PRIORITY)
 
 
 def console_script(name: str) -> str:
@@ -729,13 +726,31 @@ def hand_fault(emulator_dir: str | Path, *args: str) -> str:
     return result.stdout
 
 
-GOAL_STATUS = {4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}  # action_msgs/GoalStatus
+@functools.cache
+def goal_status_names() -> dict[int, str]:
+    """action_msgs/GoalStatus's numbers -> names (4: "SUCCEEDED"), read from the message's own
+    STATUS_* constants; imported here, not with the module, which tests without ROS import too."""
+    from action_msgs.msg import GoalStatus
+
+    return {getattr(GoalStatus, n): n.removeprefix("STATUS_") for n in dir(GoalStatus) if n.startswith("STATUS_")}
+
+
+def goal_status_name(status: int) -> str:
+    """The name of a GoalStatus number ("SUCCEEDED"); the number itself, as text, for one it lacks."""
+    return goal_status_names().get(status, str(status))
 
 
 def goal_outcome(result: Any) -> tuple[str, str]:
-    """(status name, reason) of a Grasp or Manipulate result."""
-    reason = result.result.reason if hasattr(result.result, "reason") else result.result.stop_reason
-    return GOAL_STATUS.get(result.status, str(result.status)), reason
+    """(status name, reason) of an action's result: Grasp's reason, Manipulate's stop_reason, or for
+    GripperCommand (no text) reached_goal, stalled or neither."""
+    r = result.result
+    if hasattr(r, "reason"):
+        reason = r.reason
+    elif hasattr(r, "stop_reason"):
+        reason = r.stop_reason
+    else:
+        reason = "reached_goal" if r.reached_goal else ("stalled" if r.stalled else "neither")
+    return goal_status_name(result.status), reason
 
 
 def gripper_goal(position: float, max_effort: float = 0.0) -> Any:
@@ -759,7 +774,7 @@ def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float
         outcome = ros.result(ros.send_goal(client, goal), timeout_sec=30.0)
         ros.spin_for(0.1)  # the node's log line about it
         why = ros.logs(name="manipulation", contains="GripperCommand goal refused: ")[refused:]
-        if outcome.status == 6 and why and ("not_ready: " in why[-1] or "busy: " in why[-1]):
+        if goal_status_name(outcome.status) == "ABORTED" and why and ("not_ready: " in why[-1] or "busy: " in why[-1]):
             if time.monotonic() > deadline:
                 raise AssertionError(f"GripperCommand still refused after {timeout_sec} s: {why[-1]}")
             ros.spin_for(0.2)

@@ -4,9 +4,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from prisma_common.hand import FINGERS
 from repo_paths import ROOT
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 SHARED_TOPICS = {"/diagnostics"}  # published by every driver
 
 

@@ -17,6 +17,8 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
+from prisma_common.hand import FINGERS
+
 
 def generate_launch_description():
     config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
@@ -24,7 +26,7 @@ def generate_launch_description():
 
     declared_arguments = [
         DeclareLaunchArgument("finger", default_value="thumb",
-                              choices=["thumb", "index", "middle", "ring", "little"],
+                              choices=list(FINGERS),
                               description="Fingertip pressed against the reference sensor"),
         DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c"],
                               description="Fingertip hub link"),

@@ -26,12 +26,20 @@ from prisma_common.cli_args import (
     non_negative_float,
     non_negative_int,
     positive_float,
-    positive_int,
 )
 from prisma_common.scheduling import apply_priority_from_env
 from prisma_motor_driver.dynamixel_emulator import stderr_log
 
-from .hand_emulator import DEFAULT_DIR, TACTILE_LINKS, WORLDS, EmulatedHand, EmulatorPaths, EmulatorSettings
+from .hand_emulator import (
+    DEFAULT_DIR,
+    FAULTS,
+    REQUIRED,
+    TACTILE_LINKS,
+    WORLDS,
+    EmulatedHand,
+    EmulatorPaths,
+    EmulatorSettings,
+)
 
 
 @command("prisma-hand-emulator")
@@ -110,66 +118,29 @@ def _devices_help() -> str:
             "serial) or i2c.sock (tactile_driver i2c_socket; --tactile-link i2c), control.sock (prisma-hand-fault)")
 
 
-# command -> its options: (flag, type, help, default or None when required)
-FAULTS: dict[str, tuple[str, list[tuple[str, Any, str, Any]]]] = {
-    "status": ("what the emulated hardware is doing (JSON)", []),
-    "hub-unplug": ("unplug the fingertip hub's USB cable (tactile link serial)", [
-        ("--seconds", non_negative_float, "plug it back after this long (0 = at hub-replug)", 0.0)]),
-    "hub-replug": ("plug the hub back in (a new pty behind the same link; tactile link serial)", []),
-    "hub-garbage": ("write garbage bytes on the hub link before the next frame (tactile link serial)", [
-        ("--bytes", positive_int, "how many", None)]),
-    "hub-crc": ("corrupt the CRC of the next hub frames (tactile link serial)", [
-        ("--frames", positive_int, "how many", None)]),
-    "i2c-nack": ("a finger's ADC stops acknowledging on the I2C bus (tactile link i2c)", [
-        ("--finger", str, "thumb, index, middle, ring or little", None),
-        ("--count", non_negative_int, "this many addressings, then it recovers (0 = until i2c-clear)", 0)]),
-    "i2c-glitch": ("a finger's next I2C reads return all-zero bytes (tactile link i2c)", [
-        ("--finger", str, "thumb, index, middle, ring or little", None), ("--count", positive_int, "how many", None)]),
-    "i2c-clear": ("every ADC answers again (tactile link i2c)", []),
-    "servo-error": ("set a Hardware Error Status bit on a servo", [
-        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
-        ("--bit", str, "0-7 or input_voltage, overheating, motor_encoder, electrical_shock, overload", None)]),
-    "servo-silent": ("a servo stops answering (off the bus)", [
-        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
-        ("--seconds", non_negative_float, "back after this long (0 = at servo-clear)", 0.0)]),
-    "servo-clear": ("hardware error bits cleared and servos answering again (no power cycle)", [
-        ("--motor", str, "one motor (default: all)", "")]),
-    "power-cycle": ("switch servos off and on: torque off, RAM (LED, bus watchdog, goals) reset, the position "
-                    "reported within one turn again; the hand keeps its pose", [
-        ("--motor", str, "one motor (default: all)", "")]),
-    "servo-baud": ("a servo configured at another baud rate (by another tool): silent at the driver's", [
-        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
-        ("--rate", positive_int, "its baud rate (1000000 restores it)", None)]),
-    "servo-place": ("turn a motor by hand to an angle (rad of its shaft, between its end stops)", [
-        ("--motor", str, "fingers, thumb_flexion or thumb_rotation", None),
-        ("--rad", float, "the angle (rad)", None)]),
-    "push": ("push the object across the pads / to a narrower section", [
-        ("--dx-mm", float, "slip toward the thumb pad's left side (mm)", 0.0),
-        ("--dy-mm", float, "slip toward the thumb pad's top row (mm)", 0.0),
-        ("--dwidth-mm", float, "change of the grip width (mm, negative = narrower)", 0.0),
-        ("--duration-s", non_negative_float, "over this long (s)", 0.3)]),
-    "world": ("place another object: the hand is posed as that world starts", [
-        ("name", str, ", ".join(WORLDS), None)]),
-}
-
-
-@command("prisma-hand-fault")
-def fault_main(argv: list[str] | None = None) -> int:
+def fault_parser() -> ArgumentParser:
+    """prisma-hand-fault's parser: a subcommand per entry of the emulator's FAULTS table."""
     parser = ArgumentParser(prog="prisma-hand-fault", description="Inject a fault into the running emulated hand")
     parser.add_argument("--dir", type=Path, default=DEFAULT_DIR,
                         help=f"the emulator's --dir (default {DEFAULT_DIR})")
     commands = parser.add_subparsers(dest="command", required=True, metavar="command",
                                      parser_class=ArgumentParser)
-    for name, (summary, options) in FAULTS.items():
-        sub = commands.add_parser(name, help=summary, description=summary)
-        for flag, kind, text, default in options:
-            if not flag.startswith("--"):
-                sub.add_argument(flag, help=text)
-            elif default is None:
-                sub.add_argument(flag, type=kind, required=True, help=text)
+    for name, fault in FAULTS.items():
+        sub = commands.add_parser(name, help=fault.help, description=fault.help)
+        for arg in fault.args:
+            if arg.positional:
+                sub.add_argument(arg.flag, help=arg.help)
+            elif arg.default is REQUIRED:
+                sub.add_argument(arg.flag, type=arg.type, required=True, help=arg.help)
             else:
-                sub.add_argument(flag, type=kind, default=default, help=f"{text} (default {default!r})")
-    args = parser.parse_args(argv)
+                sub.add_argument(arg.flag, type=arg.type, default=arg.default,
+                                 help=f"{arg.help} (default {arg.default!r})")
+    return parser
+
+
+@command("prisma-hand-fault")
+def fault_main(argv: list[str] | None = None) -> int:
+    args = fault_parser().parse_args(argv)
 
     from .emulator_control import send
 
@@ -179,6 +150,7 @@ def fault_main(argv: list[str] | None = None) -> int:
     except (ConnectionError, OSError) as exc:
         raise UserError(str(exc)) from None
     if not reply.get("ok"):
-        raise UserError(f"{args.command}: {reply.get('error', reply)}")
+        error = str(reply.get("error", reply))
+        raise UserError(error if error.startswith(f"{args.command}: ") else f"{args.command}: {error}")
     print(json.dumps(reply["status"], indent=2) if "status" in reply else reply["message"])
     return 0

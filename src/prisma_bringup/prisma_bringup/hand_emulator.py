@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.cli_args import non_negative_float, non_negative_int, positive_int
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldContactSource
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
@@ -66,13 +67,83 @@ MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
 FINGER_CHANNELS = dict(zip(FINGERS, range(5)))
 # the fingertip pads reach the host through the Arduino hub (serial) or its own I2C bus (i2c)
 TACTILE_LINKS = ("serial", "i2c")
-# the fault commands that only one tactile link can have
-LINK_FAULTS = {"serial": ("hub-unplug", "hub-replug", "hub-garbage", "hub-crc"),
-               "i2c": ("i2c-nack", "i2c-glitch", "i2c-clear")}
 # "hand": the world of the sim graph (a foam ball presented for a pinch, let go once held); the
 # others start as prisma-sim's scenarios do (prisma_manipulation.scenarios.scenario_world).
 WORLDS = ("hand",) + SCENARIO_NAMES
 DEFAULT_DIR = Path("/tmp/prisma_hand_emulator")
+
+
+REQUIRED: Any = None  # a FaultArg without a default: the command needs it
+
+
+@dataclass(frozen=True)
+class FaultArg:
+    """One argument of a fault command: the control request's key and prisma-hand-fault's option
+    (`dx_mm` -> `--dx-mm`; a positional one keeps its name)."""
+    name: str
+    type: Callable[[str], Any]  # the CLI's parser of the text; it also picks the emulator's check
+    help: str
+    default: Any = REQUIRED
+    positional: bool = False
+
+    @property
+    def flag(self) -> str:
+        return self.name if self.positional else "--" + self.name.replace("_", "-")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A command of the control socket: what it does, its arguments and the tactile link it needs
+    (None: any). EmulatedHand.apply dispatches on this table to `_fault_<name>`; prisma-hand-fault
+    builds its subcommands from it."""
+    help: str
+    args: tuple[FaultArg, ...] = ()
+    link: str | None = None
+
+
+def _one_of(names: tuple[str, ...]) -> str:
+    return ", ".join(names[:-1]) + " or " + names[-1]
+
+
+_FINGER = FaultArg("finger", str, _one_of(FINGERS))
+_MOTOR = FaultArg("motor", str, _one_of(MOTOR_NAMES))
+_ONE_MOTOR = FaultArg("motor", str, "one motor (default: all)", "")
+FAULTS: dict[str, Fault] = {
+    "status": Fault("what the emulated hardware is doing (JSON)"),
+    "hub-unplug": Fault("unplug the fingertip hub's USB cable (tactile link serial)", (
+        FaultArg("seconds", non_negative_float, "plug it back after this long (0 = at hub-replug)", 0.0),),
+        link="serial"),
+    "hub-replug": Fault("plug the hub back in (a new pty behind the same link; tactile link serial)", link="serial"),
+    "hub-garbage": Fault("write garbage bytes on the hub link before the next frame (tactile link serial)", (
+        FaultArg("bytes", positive_int, "how many"),), link="serial"),
+    "hub-crc": Fault("corrupt the CRC of the next hub frames (tactile link serial)", (
+        FaultArg("frames", positive_int, "how many"),), link="serial"),
+    "i2c-nack": Fault("a finger's ADC stops acknowledging on the I2C bus (tactile link i2c)", (
+        _FINGER,
+        FaultArg("count", non_negative_int, "this many addressings, then it recovers (0 = until i2c-clear)", 0)),
+        link="i2c"),
+    "i2c-glitch": Fault("a finger's next I2C reads return all-zero bytes (tactile link i2c)", (
+        _FINGER, FaultArg("count", positive_int, "how many")), link="i2c"),
+    "i2c-clear": Fault("every ADC answers again (tactile link i2c)", link="i2c"),
+    "servo-error": Fault("set a Hardware Error Status bit on a servo", (
+        _MOTOR, FaultArg("bit", str, "0-7 or " + ", ".join(ct.HARDWARE_ERROR_BITS.values())))),
+    "servo-silent": Fault("a servo stops answering (off the bus)", (
+        _MOTOR, FaultArg("seconds", non_negative_float, "back after this long (0 = at servo-clear)", 0.0))),
+    "servo-clear": Fault("hardware error bits cleared and servos answering again (no power cycle)", (_ONE_MOTOR,)),
+    "power-cycle": Fault("switch servos off and on: torque off, RAM (LED, bus watchdog, goals) reset, the position "
+                         "reported within one turn again; the hand keeps its pose", (_ONE_MOTOR,)),
+    "servo-baud": Fault("a servo configured at another baud rate (by another tool): silent at the driver's", (
+        _MOTOR, FaultArg("rate", positive_int, "its baud rate (1000000 restores it)"))),
+    "servo-place": Fault("turn a motor by hand to an angle (rad of its shaft, between its end stops)", (
+        _MOTOR, FaultArg("rad", float, "the angle (rad)"))),
+    "push": Fault("push the object across the pads / to a narrower section", (
+        FaultArg("dx_mm", float, "slip toward the thumb pad's left side (mm)", 0.0),
+        FaultArg("dy_mm", float, "slip toward the thumb pad's top row (mm)", 0.0),
+        FaultArg("dwidth_mm", float, "change of the grip width (mm, negative = narrower)", 0.0),
+        FaultArg("duration_s", non_negative_float, "over this long (s)", 0.3))),
+    "world": Fault("place another object: the hand is posed as that world starts", (
+        FaultArg("name", str, ", ".join(WORLDS), positional=True),)),
+}
 # Each motor's mechanical end stops (rad of the motor shaft from its zero): the open end is its
 # configured minimum, the far one this far past its configured maximum.
 END_STOP_MARGIN_RAD = 0.2
@@ -392,16 +463,22 @@ class EmulatedHand:
     def apply(self, command: str, **args: Any) -> str:
         """Carry out one fault command (`prisma-hand-fault --help`); returns what was done.
         FaultError for an unknown name or a value out of range, naming it."""
-        handler = getattr(self, "_fault_" + command.replace("-", "_"), None)
-        if handler is None:
+        fault = FAULTS.get(command)
+        handler = getattr(self, "_fault_" + command.replace("-", "_"), None) if fault else None
+        if fault is None or handler is None:  # `status` is a request, not a fault
             raise FaultError(f"unknown command {command!r}")
-        for link, commands in LINK_FAULTS.items():
-            if command in commands and link != self.tactile_link:
-                raise FaultError(f"{command}: the pads are on the {_LINK_NAMES[self.tactile_link]} here "
-                                 f"(tactile link {self.tactile_link}), which has no such fault; it needs the "
-                                 f"{_LINK_NAMES[link]} (prisma-hand-emulator --tactile-link {link}, "
-                                 f"hand.launch.py tactile_backend:={link})")
-        return handler(**args)
+        link = fault.link
+        if link is not None and link != self.tactile_link:
+            raise FaultError(f"{command}: the pads are on the {_LINK_NAMES[self.tactile_link]} here "
+                             f"(tactile link {self.tactile_link}), which has no such fault; it needs the "
+                             f"{_LINK_NAMES[link]} (prisma-hand-emulator --tactile-link {link}, "
+                             f"hand.launch.py tactile_backend:={link})")
+        values = {a.name: a.default for a in fault.args if a.default is not REQUIRED} | args
+        for arg in fault.args:  # the socket takes any JSON: the CLI's bounds checked again here
+            check = _VALUE_CHECKS.get(arg.type)
+            if check is not None and arg.name in values:
+                check(arg.name, values[arg.name])
+        return handler(**values)
 
     def request(self, name: str, args: dict[str, Any]) -> dict[str, Any]:
         """One control-socket request: `status`, or a fault command with its arguments."""
@@ -442,19 +519,16 @@ class EmulatedHand:
         return {"world": self.world_name, "tactile_link": self.tactile_link, "forces_n": forces,
                 "servos": servos, **link}
 
-    def _fault_hub_unplug(self, seconds: float = 0.0) -> str:
-        _check_non_negative("seconds", seconds)
+    def _fault_hub_unplug(self, seconds: float) -> str:
         return self.hub.unplug(seconds, self.clock_ns())
 
     def _fault_hub_replug(self) -> str:
         return self.hub.replug()
 
     def _fault_hub_garbage(self, bytes: int) -> str:  # noqa: A002 (the CLI's option name)
-        _check_positive("bytes", bytes)
         return self.hub.garbage(bytes)
 
     def _fault_hub_crc(self, frames: int) -> str:
-        _check_positive("frames", frames)
         return self.hub.corrupt(frames)
 
     def _adc(self, finger: str):
@@ -462,8 +536,7 @@ class EmulatedHand:
             raise FaultError(f"finger {finger!r}: choose one of {', '.join(FINGERS)}")
         return self.i2c_bus.adcs[FINGER_CHANNELS[finger]]
 
-    def _fault_i2c_nack(self, finger: str, count: int = 0) -> str:
-        _check_non_negative("count", count)
+    def _fault_i2c_nack(self, finger: str, count: int) -> str:
         adc = self._adc(finger)
         with self.lock:
             if count:
@@ -473,7 +546,6 @@ class EmulatedHand:
         return f"{finger} ADC does not acknowledge{f' {count} time(s)' if count else ' until i2c-clear'}"
 
     def _fault_i2c_glitch(self, finger: str, count: int) -> str:
-        _check_positive("count", count)
         with self.lock:
             self._adc(finger).glitch_next += int(count)
         return f"the next {count} read(s) of the {finger} ADC return all-zero bytes"
@@ -502,8 +574,7 @@ class EmulatedHand:
         self.servos.inject_hardware_error(servo_id, bit)
         return f"{motor} (ID {servo_id}): {ct.describe_hardware_error(1 << bit)}"
 
-    def _fault_servo_silent(self, motor: str, seconds: float = 0.0) -> str:
-        _check_non_negative("seconds", seconds)
+    def _fault_servo_silent(self, motor: str, seconds: float) -> str:
         servo_id = self._servo_id(motor)
         with self._servo_faults_lock:
             self.servos.set_silent(servo_id, True)
@@ -515,7 +586,7 @@ class EmulatedHand:
             self.servos.set_silent(MOTOR_IDS[motor], False)
             self._silent_until_ns.pop(motor, None)
 
-    def _fault_servo_clear(self, motor: str = "") -> str:
+    def _fault_servo_clear(self, motor: str) -> str:
         motors = [motor] if motor else list(MOTOR_NAMES)
         for name in motors:
             servo_id = self._servo_id(name)
@@ -523,7 +594,7 @@ class EmulatedHand:
             self._servo_back(name)
         return f"{', '.join(motors)}: hardware error cleared, answering"
 
-    def _fault_power_cycle(self, motor: str = "") -> str:
+    def _fault_power_cycle(self, motor: str) -> str:
         motors = [motor] if motor else list(MOTOR_NAMES)
         ids = [self._servo_id(name) for name in motors]
         for servo_id in ids:
@@ -547,9 +618,7 @@ class EmulatedHand:
         self.servos.place(servo_id, self._mechanical_ticks(motor, rad))
         return f"{motor} (ID {servo_id}) turned by hand to {rad:g} rad (power-cycle to lose its turn count)"
 
-    def _fault_push(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dwidth_mm: float = 0.0,
-                    duration_s: float = 0.3) -> str:
-        _check_non_negative("duration_s", duration_s)
+    def _fault_push(self, dx_mm: float, dy_mm: float, dwidth_mm: float, duration_s: float) -> str:
         values = (dx_mm, dy_mm, dwidth_mm)
         if not all(math.isfinite(v) for v in values):
             raise FaultError(f"push {values}: every displacement must be a finite number of mm")
@@ -592,5 +661,10 @@ def _check_positive(name: str, value: Any) -> None:
 def _check_non_negative(name: str, value: Any) -> None:
     if not isinstance(value, (int, float)) or isinstance(value, bool) or not value >= 0 or not math.isfinite(value):
         raise FaultError(f"{name} {value!r}: must be a number >= 0")
+
+
+# a FaultArg's CLI type -> the emulator's check of a value that came over the socket
+_VALUE_CHECKS: dict[Callable[[str], Any], Callable[[str, Any], None]] = {
+    positive_int: _check_positive, non_negative_int: _check_non_negative, non_negative_float: _check_non_negative}
 
 

@@ -20,6 +20,7 @@ Stamps are the loop's sample stamps (sim time from 0), so every topic is ordered
 """
 from __future__ import annotations
 
+import functools
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -51,8 +52,13 @@ from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
 NS = 1_000_000_000
 DIAGNOSTICS_PERIOD_NS = NS  # every driver's diagnostics_period default (1 s)
 
-# action_msgs/msg/GoalStatus
-STATUS_EXECUTING, STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED = 2, 4, 5, 6
+
+@functools.cache
+def goal_status() -> Any:
+    """action_msgs/msg/GoalStatus as the typestore reads it: its STATUS_* numbers are what the recorded
+    status messages carry (looked up at first use: `prisma-sim --list` builds no typestore)."""
+    return typestore_types("action_msgs/msg/GoalStatus")
+
 
 # default topic names (docs/architecture.md, Topic table)
 ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "move": MOVE_MOTORS}
@@ -139,7 +145,7 @@ class GoalRecord:
     action: str
     accepted_ns: int
     ended_ns: int | None = None
-    status: int = STATUS_EXECUTING
+    status: int = field(default_factory=lambda: goal_status().STATUS_EXECUTING)
     feedback: int = 0
 
 
@@ -206,7 +212,8 @@ class HandRecorder:
             self._write_feedback(self._move, move_feedback_to_msg(types, scan.move_feedback), t)
             self._move.record.feedback += 1
         if self._move is not None and scan.move_result is not None:  # ended on the driver (limit, timeout, fault)
-            self._end_move(STATUS_SUCCEEDED if scan.move_result.success else STATUS_ABORTED, t)
+            self._end_move(goal_status().STATUS_SUCCEEDED if scan.move_result.success
+                           else goal_status().STATUS_ABORTED, t)
         if scan.goal_started:
             self._goal = self._new_goal(self.action, _goal_uuid(self.scenario.name, self.action), t)
         for action in scan.actions:
@@ -221,14 +228,15 @@ class HandRecorder:
             self._send_move(t)
         elif isinstance(action, StopMotors):
             if self._move is not None:
-                self._end_move(STATUS_CANCELED, t)  # a stop cancels the running goal
+                self._end_move(goal_status().STATUS_CANCELED, t)  # a stop cancels the running goal
         elif isinstance(action, Feedback) and self._goal is not None:
             convert = grasp_feedback_to_msg if self.action == "grasp" else manipulate_feedback_to_msg
             self._write_feedback(self._goal, convert(self.types, action), t)
             self._goal.record.feedback += 1
         elif isinstance(action, Finished) and self._goal is not None:
-            status = STATUS_SUCCEEDED if action.success else \
-                STATUS_CANCELED if action.reason == "canceled" else STATUS_ABORTED
+            codes = goal_status()
+            status = codes.STATUS_SUCCEEDED if action.success else \
+                codes.STATUS_CANCELED if action.reason == "canceled" else codes.STATUS_ABORTED
             self._end(self._goal, status, t)
             self._goal = None
 
@@ -247,7 +255,7 @@ class HandRecorder:
     def _send_move(self, t: int) -> None:
         """A MoveMotors goal (a new command or its refresh): it preempts the running one."""
         if self._move is not None:
-            self._end_move(STATUS_ABORTED, t)  # preempted
+            self._end_move(goal_status().STATUS_ABORTED, t)  # preempted
         self._moves += 1
         self._move = self._new_goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
 
@@ -259,7 +267,7 @@ class HandRecorder:
     def _new_goal(self, action: str, goal_id: np.ndarray, t: int) -> _Goal:
         goal = _Goal(action, goal_id, t, GoalRecord(action, t))
         self.recording.goals.append(goal.record)
-        self._write_status(goal, STATUS_EXECUTING, t)
+        self._write_status(goal, goal_status().STATUS_EXECUTING, t)
         return goal
 
     def _end(self, goal: _Goal, status: int, t: int) -> None:
@@ -283,9 +291,9 @@ class HandRecorder:
     def finish(self) -> HandRecording:
         """Close open goals at the last sample (a run cut by its duration ends them aborted)."""
         t = self.recording.last_ns or 0
-        self._end_move(STATUS_ABORTED, t)
+        self._end_move(goal_status().STATUS_ABORTED, t)
         if self._goal is not None:
-            self._end(self._goal, STATUS_ABORTED, t)
+            self._end(self._goal, goal_status().STATUS_ABORTED, t)
             self._goal = None
         return self.recording
 

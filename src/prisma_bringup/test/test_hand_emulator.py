@@ -27,7 +27,16 @@ import dynamixel_sdk as sdk
 import numpy as np
 import pytest
 
-from prisma_bringup.hand_emulator import FINGER_CHANNELS, EmulatedHand, EmulatorPaths, EmulatorSettings, FaultError
+from prisma_bringup.emulator_cli import fault_parser
+from prisma_bringup.hand_emulator import (
+    FAULTS,
+    FINGER_CHANNELS,
+    REQUIRED,
+    EmulatedHand,
+    EmulatorPaths,
+    EmulatorSettings,
+    FaultError,
+)
 from prisma_common.hand import FINGERS
 from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.backend import BusError, MotorMap
@@ -437,6 +446,32 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     assert status["world"] == "pinch_grasp" and all(f == 0.0 for f in status["forces_n"].values())
 
 
+def test_one_fault_table_drives_the_emulator_and_the_cli():
+    """Each command of FAULTS has its `_fault_` handler (status: the request itself) and none is
+    handled that the table lacks; prisma-hand-fault parses each with the table's defaults."""
+    handlers = {name[len("_fault_"):].replace("_", "-") for name in dir(EmulatedHand) if name.startswith("_fault_")}
+    assert handlers == set(FAULTS) - {"status"}
+    parser = fault_parser()
+    assert fault_parser().parse_args(["status"]).command == "status"
+    for name, fault in FAULTS.items():
+        argv = [name]
+        for arg in fault.args:
+            if arg.default is REQUIRED:
+                value = {"finger": "index", "motor": "fingers", "bit": "overload", "name": "hand"}.get(arg.name, "2")
+                argv += [value] if arg.positional else [arg.flag, value]
+        parsed = vars(parser.parse_args(argv))
+        assert {k for k in parsed if k not in ("dir", "command")} == {a.name for a in fault.args}, name
+        for arg in fault.args:
+            if arg.default is not REQUIRED:
+                assert parsed[arg.name] == arg.default, (name, arg.name)
+
+
+def test_fault_defaults_come_from_the_table(rig):
+    r = rig("horizontal", "i2c")
+    assert r.hand.apply("i2c-nack", finger="index") == "index ADC does not acknowledge until i2c-clear"
+    assert r.hand.apply("push").startswith("push dx 0 mm, dy 0 mm, width +0 mm over 0.3 s")
+
+
 @pytest.mark.parametrize("command, args, named", [
     ("hub-crc", {"frames": 0}, "frames 0"),
     ("servo-error", {"motor": "wrist", "bit": 5}, "'wrist'"),
@@ -514,6 +549,7 @@ def test_cli_on_sigterm_removes_what_it_made_and_refuses_faults_of_the_other_lin
         lines = done.stderr.strip().splitlines()
         assert done.returncode == 2 and len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
         assert lines[0].startswith("prisma-hand-fault: error: hub-unplug: ") and "tactile link i2c" in lines[0]
+        assert lines[0].count("hub-unplug") == 1, lines[0]  # the command named once, not once per layer
         status = json.loads(run_cli("prisma-hand-fault", "--dir", str(d), "status").stdout)
         assert status["tactile_link"] == "i2c" and "hub" not in status and status["i2c"]["nacks"] == 0
         proc.send_signal(signal.SIGTERM)

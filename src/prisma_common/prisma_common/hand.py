@@ -11,6 +11,9 @@ import numpy as np
 
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "little")
 N_TAXELS = 9
+# centre-to-centre spacing of the 3x3 taxels on a pad: the description's taxel_pitch (dimensions.xacro,
+# tied by prisma_description's test_urdf), the pad model's and the tactile markers' default
+TAXEL_PITCH_M = 0.004
 ADC_BITS = 12
 ADC_LEVELS = 1 << ADC_BITS  # 4096: V = vref * counts / ADC_LEVELS
 ADC_MAX = ADC_LEVELS - 1

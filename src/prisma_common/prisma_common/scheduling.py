@@ -29,6 +29,33 @@ NICE_ENV = "PRISMA_NICE"  # niceness when real-time scheduling is not asked for 
 RT_PRIORITY_RANGE = (0, 99)
 NICE_RANGE = (-20, 19)
 
+# The priority ladder, top first (SCHED_FIFO: a higher priority runs first; niceness: a lower one).
+# A test probe that times the control path runs above it, or it would measure its own wait for a core
+# (test_launch_two_hosts: /joint_states seen up to 10 s late at the default priority).
+PROBE_RT_PRIORITY = 30
+# The control path (drivers, force estimator, manipulation, emulated hardware): hand.launch.py's
+# rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
+CONTROL_PATH_RT_PRIORITY = 20
+CONTROL_PATH_NICE = -5
+# The fault CLI a test runs acts when the test says: above every ordinary process, below the control
+# path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
+FAULT_CLI_RT_PRIORITY = 10
+
+
+def control_path_env() -> dict[str, str]:
+    """The environment that puts a process on the control path's rung, as hand.launch.py does."""
+    return {RT_PRIORITY_ENV: str(CONTROL_PATH_RT_PRIORITY), NICE_ENV: str(CONTROL_PATH_NICE)}
+
+
+def try_rt_priority(priority: int) -> bool:
+    """This thread at SCHED_FIFO `priority` where permitted (False where not: the caller runs on at
+    its priority). For a test's own process or a child's preexec_fn."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError:  # EPERM: no rtprio limit or CAP_SYS_NICE
+        return False
+    return True
+
 
 def _env_int(env: Mapping[str, str], name: str, low: int, high: int) -> int | None:
     text = env.get(name, "").strip()

@@ -7,7 +7,15 @@ import sys
 
 import pytest
 
-from prisma_common.scheduling import apply_priority, apply_priority_from_env
+from prisma_common.scheduling import (
+    CONTROL_PATH_NICE,
+    CONTROL_PATH_RT_PRIORITY,
+    FAULT_CLI_RT_PRIORITY,
+    PROBE_RT_PRIORITY,
+    apply_priority,
+    apply_priority_from_env,
+    control_path_env,
+)
 
 IS_ROOT = os.geteuid() == 0
 
@@ -70,3 +78,22 @@ def test_niceness_only_when_real_time_is_not_asked_for():
     assert apply_priority(0, None) == "default priority"
     current = os.getpriority(os.PRIO_PROCESS, 0)
     assert apply_priority(None, current) == f"nice {current}"  # the same value: changes nothing
+
+
+def test_the_ladder_runs_probes_above_the_control_path_above_the_fault_cli():
+    assert PROBE_RT_PRIORITY > CONTROL_PATH_RT_PRIORITY > FAULT_CLI_RT_PRIORITY > 0 and CONTROL_PATH_NICE < 0
+    lines = run_probe(control_path_env())
+    if IS_ROOT:
+        assert lines[0] == f"real-time scheduling (SCHED_FIFO {CONTROL_PATH_RT_PRIORITY})"
+        assert all(line.split()[1:3] == [str(os.SCHED_FIFO), str(CONTROL_PATH_RT_PRIORITY)] for line in lines[1:])
+    else:
+        assert lines[0].endswith(f"nice {CONTROL_PATH_NICE}") or "refused" in lines[0]
+
+
+@pytest.mark.skipif(not IS_ROOT, reason="SCHED_FIFO needs root or an rtprio limit")
+def test_try_rt_priority_sets_the_calling_process():
+    code = ("import os; from prisma_common.scheduling import FAULT_CLI_RT_PRIORITY, try_rt_priority; "
+            "print(try_rt_priority(FAULT_CLI_RT_PRIORITY), os.sched_getscheduler(0), "
+            "os.sched_getparam(0).sched_priority)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["True", str(os.SCHED_FIFO), str(FAULT_CLI_RT_PRIORITY)]

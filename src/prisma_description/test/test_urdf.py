@@ -18,7 +18,7 @@ require_ros()
 import xacro  # noqa: E402
 from urdf_parser_py.urdf import URDF  # noqa: E402
 
-from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+from prisma_common.hand import FINGERS, MOTOR_NAMES, TAXEL_PITCH_M  # noqa: E402
 from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
 from prisma_hand_sim.pad_model import PadParams  # noqa: E402
 from prisma_motor_driver.backend import DEFAULT_MAX_POSITIONS, DEFAULT_MIN_POSITIONS  # noqa: E402
@@ -92,7 +92,8 @@ def test_motor_joint_limits_are_the_motor_drivers(robot):
 
 def test_pads_carry_their_taxel_centres_as_the_messages_number_them(robot):
     poses = link_poses(robot, dict.fromkeys(MOTOR_NAMES, 0.0))
-    pitch_m = PadParams().pitch_mm * 1e-3
+    pitch_m = TAXEL_PITCH_M  # dimensions.xacro's taxel_pitch is this one fact
+    assert PadParams().pitch_mm * 1e-3 == pitch_m
     for finger in FINGERS:
         pad_pose = poses[f"prisma_{finger}_pad"]
         for i in range(9):

@@ -3,6 +3,7 @@ subtracted from then on; refused while too few samples or while a pad is in cont
 import numpy as np
 import pytest
 
+from prisma_common.hand import FINGERS
 from prisma_force_estimator.bias import WrenchBias
 from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline
 from prisma_force_estimator.inference import ForceEstimator
@@ -10,7 +11,6 @@ from prisma_hand_sim.pad_model import PadContact, PadModel, PadParams
 from repo_paths import CONFIG
 
 BUNDLE = CONFIG / "models" / "cnn2"
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 REST = np.array(PadParams().rest_volts, dtype=np.float32)  # an untouched pad: mean 0.436 V
 NAN3 = [np.nan] * 3
 

@@ -6,6 +6,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from prisma_common.bag import BagWriter, read_bag
+from prisma_common.hand import FINGERS
 from prisma_common.typestore import get_typestore, types
 from prisma_force_estimator.bundle import load_bundle, save_untrained_bundle
 from prisma_force_estimator.cli import estimate_bag_main, eval_main, train_main
@@ -15,7 +16,6 @@ from prisma_force_estimator.wrench import WrenchSample
 from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
 from prisma_tactile_driver.taxels import TaxelFrame
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 T0 = 1_700_000_000_000_000_000
 
 

@@ -2,11 +2,10 @@
 import numpy as np
 import pytest
 
+from prisma_common.hand import FINGERS
 from prisma_force_estimator.bundle import save_untrained_bundle
 from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline, build_estimators
 from prisma_force_estimator.inference import ForceEstimator
-
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 
 
 class CountingEstimator:

@@ -25,6 +25,7 @@ from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from prisma_common.hand import FINGERS  # noqa: E402
 from prisma_common.hand_config import HandConfigError  # noqa: E402
 from prisma_force_estimator.bundle import BundleError, save_untrained_bundle  # noqa: E402
 from prisma_force_estimator.inference import ForceEstimator  # noqa: E402
@@ -32,7 +33,6 @@ from prisma_force_estimator.node_config import ForceEstimatorConfig, ParameterEr
 from prisma_hand_sim.pad_model import PadParams  # noqa: E402
 
 CONFIG = CONFIG / "force_estimator.yaml"
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prisma_common.hand import ADC_LEVELS, ADC_MAX, N_TAXELS, counts_to_voltages
+from prisma_common.hand import ADC_LEVELS, ADC_MAX, N_TAXELS, TAXEL_PITCH_M, counts_to_voltages
 
 # One physical sensor unit ("unit 0"): rest voltages and relative gains as measured on a pad.
 # Gains have a standard deviation of ~0.14 around 1 (the paper's ~15% taxel-to-taxel spread).
@@ -44,7 +44,7 @@ UNIT0_GAINS = (1.12, 0.91, 1.05, 0.83, 1.00, 1.18, 0.95, 1.21, 0.86)
 class PadParams:
     """Every imperfection of the pad model, in physical units."""
 
-    pitch_mm: float = 4.0  # centre-to-centre taxel spacing
+    pitch_mm: float = TAXEL_PITCH_M * 1e3  # centre-to-centre taxel spacing
     pad_size_mm: float = 14.0  # side of the square sensing surface (contacts beyond it still spread)
     rest_volts: tuple[float, ...] = UNIT0_REST_VOLTS  # per-taxel output with no contact
     gains: tuple[float, ...] = UNIT0_GAINS  # per-taxel relative sensitivity (~15% spread)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prisma_common.hand import FINGERS
+from prisma_common.hand import FINGERS, TAXEL_PITCH_M
 from prisma_common.parameters import Params, check_fingers, parameter
 
 
@@ -14,8 +14,8 @@ class TactileMarkersConfig(Params):
                               rules=f"distinct names among {', '.join(FINGERS)}")
     rate_hz: float = parameter(30.0, "display rate: at most this many MarkerArrays per second", unit="Hz",
                                bounds=(0.0, 100.0), open_low=True, live=True)
-    taxel_pitch: float = parameter(0.004, "distance between taxel centres on a pad (the description's)", unit="m",
-                                   bounds=(0.0, 0.02), open_low=True)
+    taxel_pitch: float = parameter(TAXEL_PITCH_M, "distance between taxel centres on a pad (the description's)",
+                                   unit="m", bounds=(0.0, 0.02), open_low=True)
     cell_thickness: float = parameter(0.001, "height of the drawn taxel cells above the pad", unit="m",
                                       bounds=(0.0, 0.01), open_low=True, live=True)
     contact_force_n: float = parameter(0.1, "estimated normal force from which the contact point and the force "

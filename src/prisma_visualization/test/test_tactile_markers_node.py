@@ -19,6 +19,7 @@ from rosidl_runtime_py.utilities import get_action, get_message  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
+from prisma_common.hand import FINGERS  # noqa: E402
 from prisma_common.messages import robot_types  # noqa: E402
 from prisma_manipulation.contact_monitor import ContactMonitor  # noqa: E402
 from prisma_manipulation.ros_conversions import contact_state_to_msg, hand_contact_to_msg  # noqa: E402
@@ -27,8 +28,7 @@ PARAMS = CONFIG / "tactile_markers.yaml"
 LEFT_PRESS = np.array([0.40, 1.10, 2.00, 0.45, 1.30, 2.40, 0.42, 1.05, 1.90], dtype=np.float32)
 REST = np.array([0.42, 0.47, 0.39, 0.45, 0.41, 0.50, 0.44, 0.38, 0.46], dtype=np.float32)
 NODE = "tactile_markers"
-INPUTS = {"/prisma/hand/contact", "/prisma/hand/wrench"} | {f"/prisma/{f}/{kind}" for f in
-                                                            ("thumb", "index", "middle", "ring", "little")
+INPUTS = {"/prisma/hand/contact", "/prisma/hand/wrench"} | {f"/prisma/{f}/{kind}" for f in FINGERS
                                                             for kind in ("contact", "wrench")}
 
 

@@ -38,10 +38,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import ndimage
 
+from prisma_common.hand import FINGERS
+
 from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset
 from .layout import GloveLayout, load_layout
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 SHAPES = ("sphere", "cylinder", "box", "thin", "soft")
 EMPTY_HAND = "empty_hand"
 
