@@ -26,7 +26,8 @@ from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import ContactState, GloveFrame, ObjectEstimate, TaxelArray, WeightEstimate  # noqa: E402
 from sensor_msgs.msg import Image, JointState  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+from prisma_common.hand import FINGERS  # noqa: E402
+
 NODES = {"tactile_driver", "force_estimator", "motor_driver", "manipulation", "glove_driver", "glove_perception"}
 TOPICS = ({f"/prisma/{f}/taxels": TaxelArray for f in FINGERS}
           | {f"/prisma/{f}/wrench": WrenchStamped for f in FINGERS}
@@ -64,7 +65,7 @@ class TestAll(unittest.TestCase):
 class TestAllShutdown(unittest.TestCase):
     def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
         assert_clean_shutdown(proc_info, proc_output)
-        # and robot_state_publisher and tactile_markers beside the hand's nodes
-        self.assertEqual(len(proc_info.process_names()), len(NODES) + 2)
+        # and robot_state_publisher, tendon_stretch and tactile_markers beside the hand's nodes
+        self.assertEqual(len(proc_info.process_names()), len(NODES) + 3)
         torque_off = "torque off: fingers, thumb_flexion, thumb_rotation"
         self.assertIn(torque_off, output_of(proc_output, "motor_driver"))

@@ -66,9 +66,11 @@ def test_every_motor_driver_and_force_estimator_gets_it():
 @pytest.mark.parametrize("launch_file, declared, handed_on", [
     ("all.launch.py", 'DeclareLaunchArgument("hand_config", default_value="auto"',
      '"hand_config": LaunchConfiguration("hand_config")'),
-    # one per hand, declared for side in ("left", "right")
-    ("bimanual.launch.py", 'DeclareLaunchArgument(f"{side}_hand_config", default_value="auto"',
-     '"hand_config": LaunchConfiguration(f"{side}_hand_config")'),
+    # one per hand
+    ("bimanual.launch.py", 'DeclareLaunchArgument("left_hand_config", default_value="auto"',
+     '"left": LaunchConfiguration("left_hand_config")'),
+    ("bimanual.launch.py", 'DeclareLaunchArgument("right_hand_config", default_value="auto"',
+     '"right": LaunchConfiguration("right_hand_config")'),
 ])
 def test_the_including_launch_files_hand_it_on(launch_file, declared, handed_on):
     text = (LAUNCH / launch_file).read_text()

@@ -35,6 +35,7 @@ require_ros()
 import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch_ros.actions import SetParametersFromFile  # noqa: E402
@@ -45,9 +46,10 @@ from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 from rclpy.parameter import parameter_value_to_python  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from prisma_common.hand import FINGERS  # noqa: E402
+
 NS = "/left"
 NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 # set by hand.launch.py sim:=true itself, after the parameter files
 INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object", "frame_id_format"},
           "motor_driver": {"backend"}, "force_estimator": {"model_bundle"}, "manipulation": {"frame_id_format"}}
@@ -55,7 +57,6 @@ INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object", "frame_i
 DECOYS = {"sim_seed": 7, "rate_hz": 50.0, "batch_window": 0.001, "torch_threads": 2,
           "max_force_n": 2.0, "stale_timeout": 0.5, "position_tolerance": 0.05}
 DECOY_FILE = Path(tempfile.gettempdir()) / f"prisma_namespace_decoys_{os.getpid()}.yaml"
-SUCCEEDED = 4
 
 
 @pytest.mark.launch_test
@@ -125,7 +126,7 @@ class TestHandNamespace(unittest.TestCase):
         actions = {name for node in NODES
                    for name, _ in get_action_server_names_and_types_by_node(ros.probe, node, NS)}
         self.assertEqual(actions, {f"{NS}/prisma/grasp", f"{NS}/prisma/manipulate", f"{NS}/prisma/gripper_cmd",
-                                   f"{NS}/prisma/motors/move"})
+                                   f"{NS}/prisma/motors/move", f"{NS}/prisma/motors/home"})
 
     def test_3_a_grasp_runs_through_the_namespaced_graph(self):
         ros = self.ros
@@ -136,7 +137,7 @@ class TestHandNamespace(unittest.TestCase):
         wrenches = ros.collect(WrenchStamped, f"{NS}/prisma/thumb/wrench")
         ros.wait_until_keeping_up(joints, wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
         result = ros.result(ros.send_until_started(client, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
-        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((result.status, result.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
 
 
 @launch_testing.post_shutdown_test()

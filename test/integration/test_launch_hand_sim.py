@@ -42,13 +42,14 @@ from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 from topic_table import topic_table  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
-# what hand.launch.py starts beside them: the TF of the description and the RViz markers
-LAUNCHED = (*HAND_NODES, "robot_state_publisher", "tactile_markers")
-MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
+# what hand.launch.py starts beside them: the TF of the description (the fingers under load from
+# tendon_stretch) and the RViz markers
+LAUNCHED = (*HAND_NODES, "robot_state_publisher", "tendon_stretch", "tactile_markers")
+MOTORS = MOTOR_NAMES
 WINDOW_S = 3.0
 WINDOWS = 5
 SAMPLE_RATE_HZ = (80.0, 110.0)  # 100 Hz nominal (config rate_hz of tactile_driver and motor_driver)
@@ -147,8 +148,9 @@ class TestHandSim(unittest.TestCase):
 
     def test_every_topic_and_action_of_the_table_with_its_type(self):
         rows = hand_rows()
-        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 4 actions
-        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 6)
+        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 5 actions (the
+        # manipulation node's three, the motor driver's move and home)
+        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 7)
         for row in rows:
             found = self.action_servers if row.is_action else self.graph
             self.assertEqual(found.get(row.name), [row.type], row.name)

@@ -45,11 +45,10 @@ from tf2_ros import Buffer, TransformListener  # noqa: E402
 from urdf_parser_py.urdf import URDF  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from prisma_common.hand import MOTOR_NAMES  # noqa: E402
+from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
 from urdf_kinematics import link_poses  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 HANDS = {"": "", "/left": "left/"}  # namespace -> frame prefix
 SUCCEEDED = 4
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -227,6 +227,10 @@ def pyproject_scripts() -> dict[str, str]:
     return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
 
 
+# console scripts only `ros2 run` knows, under a shorter name than the tool's own on PATH
+ROS2_RUN_ALIASES = {"doctor": "prisma-doctor"}  # ros2 run prisma_bringup doctor
+
+
 def test_pyproject_scripts_are_the_setup_py_scripts_less_the_nodes():
     union: dict[str, str] = {}
     for package in PYTHON_PACKAGES:
@@ -236,6 +240,9 @@ def test_pyproject_scripts_are_the_setup_py_scripts_less_the_nodes():
             # ros2 run <package> <name>: the script must be in the setup.py of its module's package
             assert target.split(".")[0] == package, f"{name} -> {target} is in src/{package}/setup.py"
     nodes = {name for name, target in union.items() if target.split(":")[0].endswith("_node")}
+    # `ros2 run <package> <short name>` beside a tool's own name: the same entry point, kept off PATH
+    for alias, tool in ROS2_RUN_ALIASES.items():
+        assert union.pop(alias) == union[tool], f"ros2 run alias {alias} is not {tool}"
     assert {name: union[name] for name in sorted(set(union) - nodes)} == dict(sorted(pyproject_scripts().items()))
     # the three tactile CLIs that once were only in pyproject.toml
     assert {"prisma-tactile-calset", "prisma-tactile-pad-plot", "prisma-tactile-hub-emulator"} <= set(

@@ -40,20 +40,25 @@ def generate_launch_description():
                               description="Serial port of the right hand's Dynamixel adapter (sim:=false)"),
         DeclareLaunchArgument("right_tactile_port", default_value="/dev/ttyUSB3",
                               description="Serial port of the right hand's fingertip hub (sim:=false)"),
-        *(DeclareLaunchArgument(f"{side}_hand_config", default_value="auto",
-                                description=f"The {side} hand's directory (hand.launch.py hand_config): auto = "
-                                            f"~/.config/prisma_hand/{side} with sim:=false, none in sim; none; "
-                                            "or a directory") for side in ("left", "right")),
+        DeclareLaunchArgument("left_hand_config", default_value="auto",
+                              description="The left hand's directory (hand.launch.py hand_config): auto = "
+                                          "~/.config/prisma_hand/left with sim:=false, none in sim; none; or a "
+                                          "directory"),
+        DeclareLaunchArgument("right_hand_config", default_value="auto",
+                              description="The right hand's directory (hand.launch.py hand_config): auto = "
+                                          "~/.config/prisma_hand/right with sim:=false, none in sim; none; or a "
+                                          "directory"),
     ]
     ports = {"left": (LaunchConfiguration("left_motor_port"), LaunchConfiguration("left_tactile_port")),
              "right": (LaunchConfiguration("right_motor_port"), LaunchConfiguration("right_tactile_port"))}
+    hand_configs = {"left": LaunchConfiguration("left_hand_config"), "right": LaunchConfiguration("right_hand_config")}
     # each include in a scope of its own: an include's arguments otherwise stay set for the next
     # (the glove would run under the right hand's namespace)
     hands = [GroupAction([IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": LaunchConfiguration("sim"), "namespace": side, "parts": parts,
                           "motor_port": ports[side][0], "tactile_port": ports[side][1],
-                          "hand_config": LaunchConfiguration(f"{side}_hand_config")}.items(),
+                          "hand_config": hand_configs[side]}.items(),
     )], scoped=True) for side in ("left", "right")]
     glove = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "glove.launch.py"])),

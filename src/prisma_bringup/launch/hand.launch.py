@@ -65,6 +65,7 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 from prisma_common.hand_config import launch_hand_config
+from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY, NICE_ENV, RT_PRIORITY_ENV
 
 
 def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
@@ -156,9 +157,9 @@ def generate_launch_description():
                               description="Which computer's share to start: robot (the drivers and "
                                           "robot_state_publisher), workstation (force_estimator, manipulation, "
                                           "the display tools) or all"),
-        DeclareLaunchArgument("rt_priority", default_value="20",
+        DeclareLaunchArgument("rt_priority", default_value=str(CONTROL_PATH_RT_PRIORITY),
                               description="SCHED_FIFO priority of the control path (1-99; 0: no real-time scheduling)"),
-        DeclareLaunchArgument("nice", default_value="-5",
+        DeclareLaunchArgument("nice", default_value=str(CONTROL_PATH_NICE),
                               description="Niceness of the control path where real-time scheduling is not asked for "
                                           "or not permitted (-20..19; lower runs first)"),
     ]
@@ -170,7 +171,7 @@ def generate_launch_description():
     on_workstation = IfCondition(PythonExpression(workstation_side))
     pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
     # read by each process at start, before its threads exist (prisma_common/scheduling.py)
-    priority = {"PRISMA_RT_PRIORITY": LaunchConfiguration("rt_priority"), "PRISMA_NICE": LaunchConfiguration("nice")}
+    priority = {RT_PRIORITY_ENV: LaunchConfiguration("rt_priority"), NICE_ENV: LaunchConfiguration("nice")}
     home = ParameterValue(LaunchConfiguration("home"), value_type=bool)
     hand_dir = ParameterValue(HandConfigDir(LaunchConfiguration("hand_config"), namespace, PythonExpression(
         ["'", hardware, "' == 'emulated' or '", sim, "' == 'true'"])), value_type=str)

@@ -31,190 +31,14 @@ line says so and the exit status is 1.
 from __future__ import annotations
 
 import argparse
-import os
-import time
-from collections.abc import Mapping, Sequence
-from typing import Any
 
 from prisma_common.cli_args import ArgumentParser, UserError, command, positive_float
-from prisma_common.hand import FINGERS
 
 from .doctor_checks import (
-    HAND_NODES,
-    HandFacts,
-    TaxelSample,
+    SAMPLE_SECONDS,
     exit_status,
-    node_path,
-    port_facts,
-    rt_capable,
-    rtprio_limits,
     run_checks,
-    udev_installed,
 )
-
-MOTOR_PARAMS = ("backend", "port", "baud", "motor_names", "motor_ids")
-TACTILE_PARAMS = ("backend", "port", "baud", "fingers", "rate_hz", "vref", "i2c_socket")
-FORCE_PARAMS = ("fingers", "model_bundle")
-SAMPLE_SECONDS = 1.0  # how long the taxel topics are sampled
-DISCOVERY_SETTLE_S = 0.5  # after every hand node is seen: a duplicate is discovered about as soon
-
-
-class Gatherer:
-    """An rclpy node that collects the facts of one hand for `timeout` seconds at most."""
-
-    def __init__(self, namespace: str, timeout: float) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from prisma_msgs.msg import TaxelArray
-        from rclpy.qos import qos_profile_sensor_data
-
-        from prisma_common.diagnostics import diagnostics_from_msg
-
-        self.rclpy = rclpy
-        self.namespace = namespace.strip("/")
-        self.deadline = time.monotonic() + timeout
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, args=[])
-        self.node = rclpy.create_node(f"prisma_doctor_{os.getpid()}", context=self.context,
-                                      start_parameter_services=False)
-        from rclpy.executors import SingleThreadedExecutor
-
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.diagnostics: dict[tuple[str, str], Any] = {}
-        self.samples: dict[str, list[tuple[int, float, float]]] = {f: [] for f in FINGERS}
-        self.sampling = False
-        self._from_diag = diagnostics_from_msg
-
-        def on_diagnostics(msg: Any) -> None:
-            for status in self._from_diag(msg):
-                self.diagnostics[(status.name, status.hardware_id)] = status
-
-        def on_taxels(finger: str):
-            def take(msg: Any) -> None:
-                if self.sampling:
-                    voltages = list(msg.voltages)
-                    stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                    self.samples[finger].append((stamp, min(voltages), max(voltages)))
-            return take
-
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
-        for finger in FINGERS:
-            self.node.create_subscription(TaxelArray, node_path(self.namespace, f"prisma/{finger}/taxels"),
-                                          on_taxels(finger), qos_profile_sensor_data)
-
-    def left(self) -> float:
-        return max(0.0, self.deadline - time.monotonic())
-
-    def spin_for(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
-
-    def nodes(self) -> list[str]:
-        return [node_path(ns, name) for name, ns in self.node.get_node_names_and_namespaces()]
-
-    def wait_for_nodes(self) -> list[str]:
-        """The graph once every hand node is seen (plus a moment for duplicates), or at the deadline
-        less the time the other steps need."""
-        wanted = {node_path(self.namespace, n) for n in HAND_NODES}
-        budget = max(0.5, self.left() - SAMPLE_SECONDS - 1.0)
-        end = time.monotonic() + budget
-        while time.monotonic() < end:
-            self.spin_for(0.1)
-            if wanted <= set(self.nodes()):
-                self.spin_for(min(DISCOVERY_SETTLE_S, max(0.0, end - time.monotonic())))
-                break
-        return self.nodes()
-
-    def parameters(self, node: str, names: Sequence[str]) -> dict[str, Any] | None:
-        """The node's parameters by name (None when it does not answer); unset ones are left out."""
-        from rcl_interfaces.srv import GetParameters
-        from rclpy.parameter import parameter_value_to_python
-
-        client = self.node.create_client(GetParameters, node_path(self.namespace, f"{node}/get_parameters"))
-        try:
-            if not client.wait_for_service(timeout_sec=min(2.0, max(0.1, self.left()))):
-                return None
-            future = client.call_async(GetParameters.Request(names=list(names)))
-            end = time.monotonic() + max(0.5, min(3.0, self.left()))
-            while not future.done() and time.monotonic() < end:
-                self.executor.spin_once(timeout_sec=0.05)
-            if not future.done() or future.result() is None:
-                return None
-            values = [parameter_value_to_python(v) for v in future.result().values]
-            return {n: v for n, v in zip(names, values) if v is not None}
-        finally:
-            self.node.destroy_client(client)
-
-    def sample_taxels(self, seconds: float) -> dict[str, TaxelSample]:
-        for values in self.samples.values():
-            values.clear()
-        self.sampling = True
-        start = time.monotonic()
-        self.spin_for(seconds)
-        self.sampling = False
-        elapsed = time.monotonic() - start
-        return {f: TaxelSample(len(v), _stamped_seconds(v, elapsed), min((lo for _, lo, _ in v), default=0.0),
-                               max((hi for _, _, hi in v), default=0.0)) for f, v in self.samples.items()}
-
-    def wait_for_diagnostics(self, names: Sequence[str]) -> None:
-        while self.left() > 0 and not all(any(n == name for n, _ in self.diagnostics) for name in names):
-            self.spin_for(0.1)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.rclpy.shutdown(context=self.context)
-
-
-def _stamped_seconds(samples: Sequence[tuple[int, float, float]], elapsed: float) -> float:
-    """The time the samples cover by their stamps (n samples span n - 1 periods): the driver's rate,
-    not how fast this process, starting up on a busy computer, took them in."""
-    stamps = sorted(stamp for stamp, _, _ in samples)
-    if len(stamps) < 2 or stamps[-1] <= stamps[0]:
-        return elapsed
-    return (stamps[-1] - stamps[0]) * 1e-9 * len(stamps) / (len(stamps) - 1)
-
-
-def _ours(status: Any, motor: Mapping[str, Any] | None, tactile: Mapping[str, Any] | None) -> bool:
-    """Whether a /diagnostics status is of this hand's drivers: every hand publishes on /diagnostics
-    under the same names, and the ports (hardware_id) tell a bimanual launch's two hands apart."""
-    if status.name.startswith("motor_driver:") and motor and motor.get("backend") == "dynamixel":
-        port = str(motor.get("port", ""))
-        return bool(status.hardware_id == port or status.hardware_id.startswith(port + "#"))
-    if status.name.startswith("tactile_driver:") and tactile and tactile.get("backend") == "serial":
-        return bool(status.hardware_id.startswith(str(tactile.get("port", "")) + "@"))
-    return True
-
-
-def gather(namespace: str, timeout: float) -> HandFacts:
-    gatherer = Gatherer(namespace, timeout)
-    try:
-        nodes = gatherer.wait_for_nodes()
-        motor = gatherer.parameters("motor_driver", MOTOR_PARAMS) \
-            if node_path(namespace, "motor_driver") in nodes else None
-        tactile = gatherer.parameters("tactile_driver", TACTILE_PARAMS) \
-            if node_path(namespace, "tactile_driver") in nodes else None
-        force = gatherer.parameters("force_estimator", FORCE_PARAMS) \
-            if node_path(namespace, "force_estimator") in nodes else None
-        taxels = gatherer.sample_taxels(SAMPLE_SECONDS) if tactile is not None else {}
-        wanted = (["motor_driver: bus"] if motor is not None else []) \
-            + (["tactile_driver: hub"] if tactile is not None else []) \
-            + ([f"force_estimator: {f}" for f in force.get("fingers", FINGERS)] if force is not None else [])
-        gatherer.wait_for_diagnostics(wanted)
-        diagnostics = [s for s in gatherer.diagnostics.values() if _ours(s, motor, tactile)]
-    finally:
-        gatherer.close()
-    ports = {}
-    if motor is not None and motor.get("backend") == "dynamixel":
-        ports["servos"] = port_facts(str(motor.get("port", "")))
-    if tactile is not None and tactile.get("backend") == "serial":
-        ports["hub"] = port_facts(str(tactile.get("port", "")))
-    return HandFacts(namespace=namespace.strip("/"), env=dict(os.environ), rtprio=rtprio_limits(),
-                     rt_capable=rt_capable(), nodes=nodes, motor_params=motor, tactile_params=tactile,
-                     force_params=force, diagnostics=diagnostics, taxels=taxels, sample_seconds=SAMPLE_SECONDS,
-                     ports=ports, udev_installed=udev_installed())
 
 
 def _namespace(text: str) -> str:
@@ -240,9 +64,10 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--timeout {args.timeout:g}: at least {SAMPLE_SECONDS + 2:g} s (discovery, parameters "
                         f"and {SAMPLE_SECONDS:g} s of taxels)")
     try:
-        import rclpy  # noqa: F401
-    except ImportError:
-        raise UserError("rclpy not found: source the ROS 2 setup (and install/setup.bash) first") from None
+        from .doctor_graph import gather  # rclpy and the messages: only once the arguments are right
+    except ImportError as exc:
+        raise UserError(f"{exc.name or exc} not found: source the ROS 2 setup (and install/setup.bash) first") \
+            from None
     facts = gather(args.namespace, args.timeout)
     results = run_checks(facts)
     for result in results:

@@ -29,6 +29,7 @@ from prisma_motor_driver import control_table as ct
 
 # the hand's nodes (hand.launch.py), each exactly once per namespace
 HAND_NODES = ("tactile_driver", "motor_driver", "force_estimator", "manipulation")
+SAMPLE_SECONDS = 1.0  # how long prisma-doctor samples the taxel topics
 # hand.launch.py's rt_priority default: the rtprio limit must allow it
 DEFAULT_RT_PRIORITY = 20
 # config/udev/: the project's rules, looked for where udev reads rules from

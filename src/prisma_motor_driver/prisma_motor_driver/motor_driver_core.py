@@ -277,6 +277,8 @@ class MotorDriverCore:
         assert run is not None
         self.homing = None
         self._homing_return = {}
+        if run.success:
+            self._homing_at_start = False  # done: a later fault asks for a homing of its own
         found = [m for m in run.motors if m in self._homing_zeros]
         return HomingResult(run.success, run.reason(), found, [self._homing_zeros[m] for m in found],
                             [run.motors[m].travel_rad for m in found],
@@ -401,7 +403,8 @@ class MotorDriverCore:
         for name, c in self.bus.motors.items():
             s = self._last_states.get(name)
             error = self.runner.faults.get(name, 0)
-            homed = self.bus.homed.get(name, False)
+            # homed once its homing is over (the motors back at 0 rad), not when its end stop is found
+            homed = self.bus.homed.get(name, False) and self.homing is None
             m_level = ERROR if error else OK if homed or not self.connected else WARN
             m_message = ("hardware error " + ", ".join(decode_hardware_error(error)) if error
                          else "ok" if homed or not self.connected else "not homed since the servo powered up")

@@ -118,6 +118,8 @@ class SimMotorBus:
         alpha = math.exp(-dt / p.tau_s)
         v0 = m.velocity_rad_s
         v1 = target + (v0 - target) * alpha
+        if abs(v1 - target) < 1e-12:
+            v1 = target  # settled: the decay would otherwise linger in denormals (2.5e-323 rad/s on /joint_states)
         position = m.position_rad + target * dt + (v0 - target) * p.tau_s * (1.0 - alpha)
         c = m.config
         m.at_stop = False

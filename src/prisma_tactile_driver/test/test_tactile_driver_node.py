@@ -198,6 +198,7 @@ def test_hand_world_contact_source_is_fed_from_joint_states(ros, node_cls, monke
 
     class FakeHandWorld:
         def __init__(self, world):
+            self.world = world  # the node draws its object
             self.closure = 0.0
 
         def update_joints(self, names, positions, stamp_ns):

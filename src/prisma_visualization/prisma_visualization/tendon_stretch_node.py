@@ -1,5 +1,5 @@
 """tendon_stretch: the hand's full joint state with the fingers where they are under load, for
-robot_state_publisher (tendon_stretch.py says how).
+robot_state_publisher (tendon_stretch_core.py says how).
 
     ros2 run prisma_visualization tendon_stretch --ros-args --params-file config/tendon_stretch.yaml
 
@@ -31,7 +31,7 @@ from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 
 from .node_config import TendonStretchConfig
-from .tendon_stretch import TendonStretch, forces_at
+from .tendon_stretch_core import TendonStretch, forces_at
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

@@ -16,7 +16,7 @@ from ros_harness import require_ros
 require_ros()
 
 import xacro  # noqa: E402
-from prisma_visualization.tendon_stretch import TendonStretch, forces_at  # noqa: E402
+from prisma_visualization.tendon_stretch_core import TendonStretch, forces_at  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 from prisma_common.kinematics import RobotModel  # noqa: E402
