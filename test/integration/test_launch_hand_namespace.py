@@ -51,8 +51,9 @@ from prisma_common.hand import FINGERS  # noqa: E402
 NS = "/left"
 NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
 # set by hand.launch.py sim:=true itself, after the parameter files
-INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object", "frame_id_format"},
-          "motor_driver": {"backend"}, "force_estimator": {"model_bundle"}, "manipulation": {"frame_id_format"}}
+INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object", "frame_id_format", "object_frame_id"},
+          "motor_driver": {"backend", "hand_config"}, "force_estimator": {"model_bundle", "hand_config"},
+          "manipulation": {"frame_id_format"}}
 # values unlike config/*.yaml, for every node (a node ignores those it does not declare)
 DECOYS = {"sim_seed": 7, "rate_hz": 50.0, "batch_window": 0.001, "torch_threads": 2,
           "max_force_n": 2.0, "stale_timeout": 0.5, "position_tolerance": 0.05}

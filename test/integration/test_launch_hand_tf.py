@@ -187,16 +187,24 @@ class TestHandTf(unittest.TestCase):
         states = {stamp_ns(m): dict(zip(m.name, m.position)) for m in model}
         compared = [(stamp, states[stamp_ns_of(stamp)]) for stamp, motors in flexing
                     if stamp_ns_of(stamp) in published and stamp_ns_of(stamp) in states]
+        # the listener has its own subscription to /tf, which a busy machine may have dropped a message
+        # of (its lookup then interpolates between the neighbours): give it every one collected here
+        for message in tf:
+            for transform in message.transforms:
+                self.buffer.set_transform(transform, "test_launch_hand_tf")
         self.assertGreater(len(compared), 5)
         for stamp, positions in compared:
             measured = translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(stamp)))
             expected = link_poses(robot, positions)["prisma_thumb_pad"][:3, 3]
             np.testing.assert_allclose(measured, expected, atol=1e-6)
         # closing toward the ball, before it touches, the pad travels the simulator's mm per motor rad
+        # closing toward the ball, well before it touches (the force estimate, and with it the tendon's
+        # stretch, rises from about 0.3 rad before the contact angle), the pad travels the simulator's
+        # mm per motor rad
         contact_rad = OBJECTS["pinch_ball"].thumb_contact_rad
         near = [(stamp, motors) for stamp, motors in flexing
-                if contact_rad - 0.4 < motors["thumb_flexion"] < contact_rad]
-        self.assertGreaterEqual(len(near), 2, "no /joint_states sample near the thumb's contact angle")
+                if contact_rad - 0.8 < motors["thumb_flexion"] < contact_rad - 0.3]
+        self.assertGreaterEqual(len(near), 2, "no /joint_states sample before the thumb's contact angle")
         (first_stamp, first), (last_stamp, last) = near[0], near[-1]
         moved_mm = 1e3 * np.linalg.norm(
             translation(self.lookup("prisma_hand_base", "prisma_thumb_pad", Time.from_msg(last_stamp)))

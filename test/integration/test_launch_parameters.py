@@ -115,7 +115,8 @@ class TestParameterDescriptions(unittest.TestCase):
     def test_1_the_suites_nodes_of_both_launch_files_are_checked(self):
         self.assertLessEqual(set(CONFIGS), set(NODES))
         for node in NODES:
-            self.assertGreater(len(self.described[node]), 5, node)
+            # tendon_stretch has two: its tendon and how old a force may be
+            self.assertGreaterEqual(len(self.described[node]), 2 if node == "tendon_stretch" else 6, node)
 
     def test_2_every_parameter_has_a_description_numbers_a_range_enums_their_choices(self):
         problems = []

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from prisma_common.hand import FINGERS, TAXEL_PITCH_M
 from prisma_common.parameters import Params, check_fingers, parameter
+from prisma_hand_sim.hand_world import HandWorldParams
 
 
 @dataclass
@@ -31,6 +32,11 @@ class TactileMarkersConfig(Params):
 
 @dataclass
 class TendonStretchConfig(Params):
+    # the shipped hand's tendon (the simulator's model of it); a hand of its own is measured and set here
+    tendon_stiffness_n_per_mm: float = parameter(HandWorldParams().tendon_stiffness_n_per_mm,
+                                                 "stiffness of each finger's tendon referred to its fingertip: "
+                                                 "the stretch is the pad's normal force over it",
+                                                 unit="N/mm", bounds=(0.0, 100.0), open_low=True)
     force_timeout: float = parameter(0.2, "a pad's force estimate older than this (against the joint sample's "
                                           "stamp) counts as none: the finger is drawn as its motor says",
                                      unit="s", bounds=(0.0, 10.0), open_low=True, live=True)

@@ -25,6 +25,7 @@ from prisma_common.hand import FINGERS
 from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
+from prisma_hand_sim.hand_world import HandWorldParams
 from prisma_manipulation.ros_conversions import hand_wrench_samples
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
@@ -57,7 +58,8 @@ class TendonStretchNode(Node):
 
     def _on_description(self, msg: String) -> None:
         try:
-            self.stretch = TendonStretch.from_model(RobotModel.from_urdf(msg.data))
+            params = HandWorldParams(tendon_stiffness_n_per_mm=self.config.tendon_stiffness_n_per_mm)
+            self.stretch = TendonStretch.from_model(RobotModel.from_urdf(msg.data), params)
         except DescriptionError as exc:
             self.get_logger().error(f"robot_description: {exc}; the fingers are not drawn until a readable one")
             return
