@@ -123,7 +123,10 @@ class TestServoSafety(GraphTestCase):
         self.assertTrue(all(float(ma) <= HOMING_CURRENT_MA for _, ma in stalls), stalls)
         for name, s in servos().items():
             self.assertLessEqual(s["peak_current_ma"], s["current_limit_ma"], name)
-            self.assertEqual((s["led"], s["bus_watchdog"]), (1, 5), name)
+        # every servo lit (homed) and its watchdog armed: a driver held up while the graph starts (torch
+        # loading beside it) may see a watchdog fire, and re-arms it on its next tick
+        self.assertTrue(self.ros.spin_until(
+            lambda: all((s["led"], s["bus_watchdog"]) == (1, 5) for s in servos().values()), 5.0), servos())
 
     def test_2_power_cycle_with_the_fingers_closed_past_one_turn(self):
         ros = self.ros

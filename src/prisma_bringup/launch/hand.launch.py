@@ -65,13 +65,7 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 from prisma_common.hand_config import launch_hand_config
-from prisma_common.scheduling import (
-    CONTROL_PATH_NICE,
-    CONTROL_PATH_RT_PRIORITY,
-    EMULATOR_RT_PRIORITY,
-    NICE_ENV,
-    RT_PRIORITY_ENV,
-)
+from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY, NICE_ENV, RT_PRIORITY_ENV
 
 
 def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
@@ -219,8 +213,7 @@ def generate_launch_description():
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
-        name="hand_emulator", output="screen", condition=emulated,
-        additional_env={**priority, RT_PRIORITY_ENV: str(EMULATOR_RT_PRIORITY)},  # the hardware: never starved
+        name="hand_emulator", output="screen", additional_env=priority, condition=emulated,
     )
     tactile_emulated = Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",

@@ -33,10 +33,6 @@ NICE_RANGE = (-20, 19)
 # A test probe that times the control path runs above it, or it would measure its own wait for a core
 # (test_launch_two_hosts: /joint_states seen up to 10 s late at the default priority).
 PROBE_RT_PRIORITY = 30
-# The emulated hardware (prisma-hand-emulator) above the control path: a servo's firmware never waits
-# for the host's CPU, and an emulator that did would see the driver's packets late and its Bus Watchdog
-# (0.1 s) fire while a node loading torch at the control path's priority held both cores.
-EMULATOR_RT_PRIORITY = 25
 # The control path (drivers, force estimator, manipulation, emulated hardware): hand.launch.py's
 # rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
 CONTROL_PATH_RT_PRIORITY = 20
