@@ -32,6 +32,10 @@ class TactileMarkersConfig(Params):
 
 @dataclass
 class TendonStretchConfig(Params):
+    # robot_state_publisher draws at most 20 times a second (its publish_frequency): a joint state per
+    # motor sample (100 Hz) would be four in five thrown away, at a cost beside the control path
+    publish_period: float = parameter(0.04, "least time between two joint states it publishes (by their "
+                                            "stamps)", unit="s", bounds=(0.0, 1.0))
     # the shipped hand's tendon (the simulator's model of it); a hand of its own is measured and set here
     tendon_stiffness_n_per_mm: float = parameter(HandWorldParams().tendon_stiffness_n_per_mm,
                                                  "stiffness of each finger's tendon referred to its fingertip: "

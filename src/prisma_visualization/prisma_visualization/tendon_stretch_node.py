@@ -42,6 +42,7 @@ class TendonStretchNode(Node):
         super().__init__("tendon_stretch", **kwargs)
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = declare_config(self, TendonStretchConfig)
+        self._last_ns = -(1 << 62)  # the stamp last published
         accept_live_changes(self, TendonStretchConfig, self._reconfigure)
         self.stretch: TendonStretch | None = None
         self._forces: dict[str, tuple[int, float]] = {}
@@ -72,7 +73,11 @@ class TendonStretchNode(Node):
     def _on_joints(self, msg: JointState) -> None:
         if self.stretch is None or len(msg.name) != len(msg.position):
             return
-        forces = forces_at(self._forces, ns_from_stamp(msg.header.stamp), int(self.config.force_timeout * 1e9))
+        stamp_ns = ns_from_stamp(msg.header.stamp)
+        if 0 <= stamp_ns - self._last_ns < self.config.publish_period * 1e9:
+            return
+        self._last_ns = stamp_ns
+        forces = forces_at(self._forces, stamp_ns, int(self.config.force_timeout * 1e9))
         positions = self.stretch.joint_positions(dict(zip(msg.name, msg.position)), forces)
         out = JointState(header=msg.header)
         out.name = list(positions)
