@@ -287,6 +287,10 @@ class DynamixelBus:
         return zero
 
     def abort_homing(self, names: list[str]) -> None:
+        # whatever mode the cache holds: a start_homing that failed half-way may have left the servo in
+        # current-based position mode before the cache learnt it
+        for name in names:
+            self._modes.pop(name, None)
         self._ensure_mode(names, ct.MODE_VELOCITY)
 
     def hardware_error(self, name: str) -> int:

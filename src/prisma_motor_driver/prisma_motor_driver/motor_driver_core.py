@@ -29,6 +29,11 @@ from .motor_goals import (
 )
 from .node_config import MotorDriverConfig
 
+# A homing at start that something interrupted (a fired watchdog, the bus lost or failing under its
+# start) goes again, this many times in all: the hand must come up homed without an operator, and a
+# fault that persists must not keep the motors turning toward their end stops.
+HOMING_AT_START_TRIES = 3
+
 
 def make_bus(config: MotorDriverConfig, start_ns: int | None = 0, zeros: dict[str, int] | None = None) -> MotorBus:
     """The configured bus; `zeros` (motor -> ticks, from the hand's directory) override zero_ticks."""
@@ -92,6 +97,7 @@ class MotorDriverCore:
         self.homing: HomingRun | None = None
         self.homing_wanted = config.home_at_start  # home as soon as the bus is open
         self._homing_at_start = False  # the running homing is the one asked for at start
+        self._homing_at_start_tries = HOMING_AT_START_TRIES
         self.watchdog_firings = 0
         self.servo_resets = 0
         self._homing_zeros: dict[str, int] = {}
@@ -272,6 +278,26 @@ class MotorDriverCore:
             return self._end_homing()
         return None
 
+    def _interrupt_homing(self, reason: str, bus_open: bool) -> HomingResult | None:
+        """The running homing (if any) ends with `reason` for every motor still homing, those motors back
+        in velocity mode where the bus is open. A homing asked for at start goes again (at most
+        HOMING_AT_START_TRIES in all): an interruption (a fired watchdog, the bus lost) says nothing
+        about the end stops, unlike a motor that found none."""
+        if self.homing is None:
+            return None
+        self._retry_homing_at_start()
+        self.homing.fail_all(reason)
+        if bus_open:
+            try:
+                self.bus.abort_homing([m for m in self.homing.motors if m not in self._homing_zeros])
+            except BusError as exc:
+                self._note_error(str(exc))
+        return self._end_homing()
+
+    def _retry_homing_at_start(self) -> None:
+        if self._homing_at_start and self._homing_at_start_tries > 0:
+            self.homing_wanted = True
+
     def _end_homing(self) -> HomingResult:
         run = self.homing
         assert run is not None
@@ -312,18 +338,18 @@ class MotorDriverCore:
         self._last_states = states
         if stopped:
             result = self.runner.abort(stopped)
-            homing = None
-            if self.homing is not None:
-                # a homing asked for at start goes again (the servos are made safe again above)
-                self.homing_wanted = self.homing_wanted or self._homing_at_start
-                self.homing.fail_all(stopped)
-                homing = self._end_homing()
+            # the servos were made safe again above: the ones still homing go back to velocity mode
+            homing = self._interrupt_homing(stopped, bus_open=True)
             return TickResult(states, None, result, homing_result=homing)
         if self.homing is not None:
             return self._step_homing(states, now_ns)
         if self.homing_wanted and not self.runner.active:
             self.homing_wanted = False
+            self._homing_at_start_tries -= 1
             preempted, done = self.start_homing([], now_ns)
+            self._homing_at_start = True
+            if done is not None and not done.success:
+                self._retry_homing_at_start()  # the bus failed under it: as an interruption
             self._homing_at_start = done is None
             return TickResult(states, None, preempted, homing_result=done)
         feedback, result = self.runner.tick(states, now_ns)
@@ -357,13 +383,9 @@ class MotorDriverCore:
         self.last_error = str(exc)
         self._note_error(self.last_error)
         result = self.runner.communication_failure(exc)
-        homing = None
-        if self.homing is not None:
-            # the servos may power up again with the bus: a homing asked for at start is tried again
-            # once it reopens (one that found no end stop is not)
-            self.homing_wanted = self.homing_wanted or self._homing_at_start
-            self.homing.fail_all(f"motor bus lost: {exc}")
-            homing = self._end_homing()
+        # the servos may power up again with the bus: a homing asked for at start is tried again once
+        # it reopens
+        homing = self._interrupt_homing(f"motor bus lost: {exc}", bus_open=False)
         self.connected = False
         self.reconnects += 1
         try:

@@ -10,10 +10,10 @@ import math
 import pytest
 
 from prisma_motor_driver import control_table as ct
-from prisma_motor_driver.backend import MotorMap
+from prisma_motor_driver.backend import BusError, MotorMap
 from prisma_motor_driver.dynamixel_backend import DynamixelBus
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ManualClock
-from prisma_motor_driver.motor_driver_core import MotorDriverCore, TickResult
+from prisma_motor_driver.motor_driver_core import HOMING_AT_START_TRIES, MotorDriverCore, TickResult
 from prisma_motor_driver.motor_goals import MoveGoal
 from prisma_motor_driver.node_config import MotorDriverConfig
 
@@ -204,7 +204,55 @@ def test_a_homing_at_start_that_the_watchdog_interrupted_goes_again(hand):
     tick = core.tick(round(clock.now_s * 1e9))
     assert tick.homing_result is not None and not tick.homing_result.success
     assert "stopped by their bus watchdogs" in tick.homing_result.reason
+    # the servos still homing went back to velocity mode, none left pulling in current-based position
+    assert {s.read_int(ct.ADDR_OPERATING_MODE, 1) for s in emu.servos.values()} == {ct.MODE_VELOCITY}
     ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None)
     assert ticks[-1].homing_result is not None and ticks[-1].homing_result.success
     assert core.unhomed() == []
     assert ct.ticks_to_rad(emu.present()[1].mechanical_ticks) == pytest.approx(0.0, abs=0.05)
+
+
+class StartsThatFail:
+    """bus.start_homing failing its first `count` calls as a servo refusing a write does."""
+
+    def __init__(self, bus: DynamixelBus, count: int) -> None:
+        self.start_homing, self.count, self.calls = bus.start_homing, count, 0
+
+    def __call__(self, names: list[str], rpm: float, current_ma: float) -> None:
+        self.calls += 1
+        if self.calls <= self.count:
+            raise BusError("write 0 to address 65 of thumb_rotation (id 3): [RxPacketError] Data range error!")
+        self.start_homing(names, rpm, current_ma)
+
+
+def homing_at_start(emu) -> tuple[DynamixelBus, MotorDriverCore]:
+    bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=1)
+    core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", home_at_start=True), bus=bus)
+    assert core.connect(0) is None
+    return bus, core
+
+
+def test_a_homing_at_start_whose_start_the_bus_failed_goes_again_a_bounded_number_of_times(hand, monkeypatch):
+    emu, clock = hand
+    emu.power_cycle()
+    bus, core = homing_at_start(emu)
+    starts = StartsThatFail(bus, count=100)
+    monkeypatch.setattr(bus, "start_homing", starts)
+    results = [t.homing_result for t in run(core, emu, clock, 0.5) if t.homing_result is not None]
+    # every try failed at its start; the tries stop after HOMING_AT_START_TRIES, nothing moved
+    assert starts.calls == len(results) == HOMING_AT_START_TRIES
+    assert all(r.reason.startswith("homing_failed: write 0 to address 65") for r in results)
+    assert not core.homing_wanted and core.homing is None
+    assert {s.read_int(ct.ADDR_OPERATING_MODE, 1) for s in emu.servos.values()} == {ct.MODE_VELOCITY}
+
+
+def test_a_homing_at_start_whose_first_start_failed_homes_at_the_second(hand, monkeypatch):
+    emu, clock = hand
+    emu.power_cycle()
+    bus, core = homing_at_start(emu)
+    starts = StartsThatFail(bus, count=1)
+    monkeypatch.setattr(bus, "start_homing", starts)
+    ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None and t.homing_result.success)
+    assert starts.calls == 2
+    assert ticks[-1].homing_result is not None and ticks[-1].homing_result.success
+    assert core.unhomed() == []
