@@ -16,8 +16,12 @@ it is refused the process falls back to a raised niceness, which needs the `nice
 otherwise runs at the default priority; `apply_priority` says which happened, for the node's log.
 
 The launch files ask for it through the environment (PRISMA_RT_PRIORITY, PRISMA_NICE), read once at
-the start of the process, before any thread exists: threads started later (DDS, the executor's)
-inherit the policy.
+the start of the process. A node takes its real-time rung only once it is built (node_process.py):
+its start (loading a model, torch's first inference) is seconds of CPU that, at SCHED_FIFO 20, would
+hold a core away from the nodes already running on the rung, a motor driver homing included (its
+servos' 100 ms Bus Watchdog fired so in a full test run). Until then it runs at the niceness.
+`apply_priority` sets every thread the process has (DDS's, the executor's); threads started later
+inherit the policy of the thread that starts them.
 """
 from __future__ import annotations
 
@@ -104,12 +108,18 @@ def apply_priority(rt_priority: int | None, nice: int | None) -> str:
     return (refused + "; " if refused else "") + applied
 
 
-def apply_priority_from_env(env: Mapping[str, str] | None = None) -> str | None:
-    """`apply_priority` with PRISMA_RT_PRIORITY and PRISMA_NICE (None when neither is set: a
-    process started by hand keeps the priority it was given). ValueError names a malformed one."""
+def priority_from_env(env: Mapping[str, str] | None = None) -> tuple[int | None, int | None] | None:
+    """(rt_priority, nice) from PRISMA_RT_PRIORITY and PRISMA_NICE, None when neither is set (a process
+    started by hand keeps the priority it was given). ValueError names a malformed one."""
     env = os.environ if env is None else env
     rt_priority = _env_int(env, RT_PRIORITY_ENV, *RT_PRIORITY_RANGE)
     nice = _env_int(env, NICE_ENV, *NICE_RANGE)
     if rt_priority is None and nice is None:
         return None
-    return apply_priority(rt_priority, nice)
+    return rt_priority, nice
+
+
+def apply_priority_from_env(env: Mapping[str, str] | None = None) -> str | None:
+    """`apply_priority` with `priority_from_env` (None when nothing is asked)."""
+    priority = priority_from_env(env)
+    return None if priority is None else apply_priority(*priority)

@@ -20,7 +20,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from prisma_common.scheduling import apply_priority_from_env
+from prisma_common.scheduling import apply_priority, priority_from_env
 
 SHUTDOWN_CHECK_PERIOD_S = 0.25  # the longest a stop request can wait when rclpy's wake-up comes too early
 
@@ -44,18 +44,20 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
     # ExternalShutdownException. Python's KeyboardInterrupt on top would land wherever the main thread
     # is, inside rclpy's message conversion too, where it turns into a RuntimeError.
     signal.signal(signal.SIGINT, lambda signum, frame: None)
-    # before rclpy starts any thread, so that DDS's and the executor's threads inherit it
     try:
-        scheduling = apply_priority_from_env()
+        priority = priority_from_env()
     except ValueError as exc:
         rclpy.logging.get_logger(logger_name).fatal(str(exc))
         raise SystemExit(1) from None
+    if priority is not None:
+        apply_priority(None, priority[1])  # the start time-shared, at the niceness (scheduling.py)
     rclpy.init(args=args)
     node = None
     try:
         node = make_node()
-        if scheduling is not None:
-            node.get_logger().info(f"scheduling: {scheduling}")
+        if priority is not None:
+            # every thread, DDS's and the executor's included, onto the rung once the node is built
+            node.get_logger().info(f"scheduling: {apply_priority(*priority)}")
         # rclpy's SIGINT handler wakes the executor by a guard condition and shuts the context down
         # from its own thread; when the executor wakes first (seen under load) it goes back to
         # waiting, and a node with no timer of its own (glove_perception) then never sees the

@@ -1,7 +1,11 @@
-"""settle_garbage_collector: what a node holds from its start is left out of later collections."""
+"""run_node: a node is built at the niceness and takes its real-time rung once built (every thread);
+settle_garbage_collector: what a node holds from its start is left out of later collections."""
 from __future__ import annotations
 
 import gc
+import os
+import subprocess
+import sys
 
 import pytest
 
@@ -22,3 +26,37 @@ def test_objects_alive_at_start_are_frozen_and_new_ones_still_collected():
         assert gc.collect() >= 1
     finally:
         gc.unfreeze()
+
+
+NODE = """
+import os, rclpy
+from rclpy.node import Node
+from prisma_node_wiring.node_process import run_node
+
+def policy():
+    return os.sched_getscheduler(0), os.getpriority(os.PRIO_PROCESS, 0)
+
+def make_node():
+    node = Node("rung_probe")
+    print("building", *policy(), flush=True)  # where a model would load
+
+    def built():
+        threads = sorted(int(t) for t in os.listdir("/proc/self/task"))
+        print("built", *sorted({os.sched_getscheduler(t) for t in threads}), len(threads) > 1, flush=True)
+        rclpy.shutdown()
+    node.create_timer(0.05, built)
+    return node
+
+run_node(make_node, "rung_probe", ())
+"""
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="real-time scheduling needs root (or an rtprio limit) to be granted")
+def test_a_node_is_built_at_its_niceness_and_runs_on_the_real_time_rung():
+    env = {**os.environ, "PRISMA_RT_PRIORITY": "20", "PRISMA_NICE": "-5", "ROS_DOMAIN_ID": "231"}
+    out = subprocess.run([sys.executable, "-c", NODE], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    lines = [line for line in out.stdout.splitlines() if line.startswith(("building", "built"))]
+    # built time-shared at nice -5; then every thread (DDS's, the executor's) at SCHED_FIFO
+    assert lines == [f"building {os.SCHED_OTHER} -5", f"built {os.SCHED_FIFO} True"]
+    assert "scheduling: real-time scheduling (SCHED_FIFO 20)" in out.stderr
