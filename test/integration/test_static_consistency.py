@@ -17,7 +17,8 @@ a topic-table row needs no change here.
 Nodes are found by instantiating the rclpy Node subclass of every console-script module (real
 rclpy; those checks skip where ROS is absent) with default parameters and reading what they
 declared, published and served (rclpy's own /rosout, /parameter_events and the action servers'
-hidden topics left out). Rows and entries whose node has no console script yet skip, naming the node.
+hidden topics left out). A row or entry whose node is no console script fails, naming it (a typo in
+`executable=` or in the table).
 """
 from __future__ import annotations
 
@@ -271,7 +272,9 @@ def _thread_settings_kept() -> Iterator[None]:
 RCLPY_OWN_TOPICS = {"/rosout", "/parameter_events"}
 
 
-def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
+def _inspect_node(script: ConsoleScript, overrides: tuple[tuple[str, str], ...] = ()) -> NodeInfo | None:
+    """What the node of `script` declares, publishes and serves, started with default parameters but
+    `overrides` (name, value as written)."""
     import rclpy
     from rclpy.parameter import Parameter
 
@@ -288,9 +291,9 @@ def _inspect_node(script: ConsoleScript) -> NodeInfo | None:
     with _thread_settings_kept():
         rclpy.init()
         try:
-            node = cls()
+            node = cls(parameter_overrides=[Parameter(n, value=v) for n, v in overrides]) if overrides else cls()
         except Exception as exc:  # noqa: BLE001
-            info.error = f"{cls.__name__}() with default parameters failed: {exc!r}"
+            info.error = f"{cls.__name__}() with parameters {dict(overrides) or 'default'} failed: {exc!r}"
             rclpy.shutdown()
             return info
         try:
@@ -403,13 +406,14 @@ def test_launched_executable_is_a_console_script(entry: LaunchedNode):
     assert not module_file.exists(), (
         f"{entry.launch_file}:{entry.line}: {module_file.relative_to(ROOT)} exists but "
         f"'{entry.executable}' is not a console script in src/{entry.package}/setup.py")
-    pytest.skip(f"node {entry.package}/{entry.executable} not written yet (no console script, no module)")
+    pytest.fail(f"{entry.launch_file}:{entry.line}: {entry.package}/{entry.executable} is neither a console script of "
+                f"src/{entry.package}/setup.py nor a module {module_file.relative_to(ROOT)}: a typo in executable=?")
 
 
 @pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
 def test_launched_parameter_files_exist(entry: LaunchedNode):
-    if (entry.package, entry.executable) not in all_console_scripts():
-        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    assert (entry.package, entry.executable) in all_console_scripts() or not _in_workspace(entry), (
+        f"{entry.launch_file}:{entry.line}: {entry.package}/{entry.executable} is not a console script")
     missing = [f for f in entry.parameter_files if not list(CONFIG.glob(f"**/{f}"))]
     assert not missing, f"{entry.launch_file}:{entry.line}: parameter files missing from config/: {missing}"
 
@@ -435,8 +439,8 @@ def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
     from rclpy.parameter import Parameter
 
     info = nodes.get((entry.package, entry.executable))
-    if info is None:
-        pytest.skip(f"node {entry.package}/{entry.executable} has no console script yet")
+    assert info is not None, (
+        f"{entry.launch_file}:{entry.line}: {entry.package}/{entry.executable} is not a console script")
     _require_started(info)
     problems = []
     for name, value in entry.inline_parameters:
@@ -547,7 +551,7 @@ def test_config_parameters_are_declared_with_matching_defaults(nodes, path: str,
             launched = _launch_names().get(node_key.strip("/").rsplit("/", 1)[-1])
             assert launched is not None, (
                 f"{path}: node '{node_key}' is neither a node of a console script nor named in a launch file")
-            pytest.skip(f"node {launched[0]}/{launched[1]} ('{node_key}') has no console script yet")
+            pytest.fail(f"{path}: node '{node_key}' is launched as {launched[0]}/{launched[1]}, not a console script")
         _require_started(info)
         targets = [info]
     problems = [problem for info in targets for problem in config_problems(info, values)]
@@ -571,10 +575,20 @@ def _from_another_package(row: TableRow) -> bool:
 @pytest.mark.parametrize("row", [r for r in topic_table()
                                  if r.name not in SHARED_TOPICS and not _from_another_package(r)], ids=_table_id)
 def test_topic_table_row_has_exactly_one_source(nodes, row: TableRow):
-    source = _node_named(nodes, row.source)
-    if source is None:
-        pytest.skip(f"node '{row.source}' has no console script yet")
+    # 'tactile_driver (backend=sim, contact_source=hand_world)': a topic the node has with those parameters
+    match = re.fullmatch(r"(\S+)(?: \((.*)\))?", row.source)
+    assert match, f"docs/architecture.md topic table: {row.name}'s source '{row.source}': a node name, then (p=v, ...)"
+    source = _node_named(nodes, match.group(1))
+    assert source is not None, f"docs/architecture.md topic table: {row.name}'s source '{row.source}' is no node here"
     _require_started(source)
+    if match.group(2):
+        overrides = tuple(tuple(part.strip().split("=", 1)) for part in match.group(2).split(","))
+        assert all(len(o) == 2 for o in overrides), f"{row.name}: parameters of '{row.source}' are not p=v, ..."
+        variant = _inspect_node(source.script, overrides)  # type: ignore[arg-type]
+        assert variant is not None
+        _require_started(variant)
+        nodes = {**nodes, (source.script.package, source.script.executable): variant}
+        source = variant
     kind = "action servers" if row.is_action else "publishers"
     providers = []
     for info in nodes.values():
@@ -724,7 +738,7 @@ def test_node_core_config_backend_and_converter_modules_are_named_alike_in_every
     `backend.py` and each implementation in `<kind>_backend.py`."""
     problems = []
     nodes = [path for path in sorted((ROOT / "src").glob("*/*/*_node.py")) if path.parent.name != "test"]
-    assert len(nodes) == 8
+    assert len(nodes) == 10
     for node in nodes:
         folder, name = node.parent, node.name.removesuffix("_node.py")
         for expected in (f"{name}_core.py", "node_config.py", "ros_conversions.py"):
