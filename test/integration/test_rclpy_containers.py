@@ -29,6 +29,12 @@ from prisma_manipulation.ros_conversions import (
     gripper_result_to_msg,
     joint_sample_from_msg,
 )
+from prisma_manipulation.teleop_goal import (
+    TeleopStatus,
+    teleop_feedback_to_msg,
+    teleop_result_to_msg,
+    teleop_target_from_msg,
+)
 from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.motor_goals import MoveFeedback, MoveGoal, MoveResult
 from prisma_motor_driver.ros_conversions import (
@@ -173,6 +179,23 @@ def test_gripper_command_converters_on_the_robots_classes(rclpy_types):
     result = round_trip(gripper_result_to_msg(rclpy_types, done))
     assert (result.position, result.stalled, result.reached_goal) == (8.92, False, True)
     assert np.isnan(result.effort)  # non-finite values are sent as NaN, as in every converter here
+
+
+def test_teleoperate_converters_on_both_kinds_of_class(rclpy_types):
+    status = TeleopStatus(("fingers", "thumb_flexion", "thumb_rotation"), (5.0, float("nan"), 0.0), (4.9, 1.0, 0.0),
+                          (0.4, 2.02, 0.0, 0.0, 0.0), ("fingers",))
+    for types in (rclpy_types, typestore_types):
+        targets = joint_state_to_msg(types, 1_700_000_000_123_456_789, {"fingers": MotorState("fingers", 3.0, 0, 0)})
+        assert teleop_target_from_msg(cdr_round_trip(targets))[1].positions == {"fingers": 3.0}
+        feedback = cdr_round_trip(teleop_feedback_to_msg(types, Feedback("teleop", "holding", status)))
+        assert (feedback.phase, list(feedback.force_limited), list(feedback.positions)) == \
+            ("holding", ["fingers"], pytest.approx([4.9, 1.0, 0.0]))
+        result = teleop_result_to_msg(types, Finished("teleop", False, "input_stale", 2.5, status,
+                                                      "prisma/teleop/motor_targets silent for 153 ms"))
+        back = cdr_round_trip(result)
+        assert back.reason == "input_stale: prisma/teleop/motor_targets silent for 153 ms" and np.isnan(back.targets[1])
+        if types is rclpy_types:
+            assert isinstance(result.pad_forces, array.array) and result.pad_forces.typecode == "f"
 
 
 def test_glove_converters_on_both_kinds_of_class(rclpy_types):

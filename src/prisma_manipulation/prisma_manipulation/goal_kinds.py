@@ -7,10 +7,14 @@ the node serves one action server per kind through one generic path. A new kind 
 manipulation_core.GOAL_KINDS.
 
 A kind's extra input (a teleoperation goal following the glove's targets, issue 27) is one more
-`InputStream` in `GoalKind.inputs` (topic, message type, converter): the node subscribes to it, the
-core watches it like the taxels (`Streams.inputs`: not_ready until it flows, stale while a goal of
-that kind runs, ending the goal with the kind's `stale_reason`) and steps the controller with its
-latest value of the scan (`ControlInput.inputs`).
+`InputStream` in `GoalKind.inputs` (topic, message type, converter): the node subscribes to it and
+the core holds its latest value. An input comes from another device at its own rate, so it never
+shares a tactile scan's stamp: the controller is stepped once per scan, as for every kind, with the
+latest value of each input (`ControlInput.inputs`; sample-and-hold). A goal of that kind is admitted
+before its input flows and its controller waits for it (`ControlInput.inputs` lacks it); a value
+older than the input's timeout at the start does not count. Once one came during the goal, the input
+silent (by receipt) or older than /joint_states (by stamp) longer than `Streams.input_timeout_s`
+ends the goal with the kind's `stale_reason`, as stale taxels end it sensor_stale.
 
 Everything here is ROS-free: the converters take a message-class lookup `types(name)` as
 ros_conversions' do.
@@ -54,17 +58,20 @@ class Finished:
 @dataclass(frozen=True)
 class Streams:
     """What a goal needs flowing to be admitted and keeps watched while it runs: the fingers whose
-    taxels and whose wrenches it steps on, the extra inputs of its kind (`InputStream.stream`), and
-    the pad that must show a contact for it to start (None: no such condition)."""
+    taxels and whose wrenches it steps on, and the pad that must show a contact for it to start
+    (None: no such condition). Also the extra inputs of its kind (`InputStream.stream`), which it
+    waits for rather than needs at admission, and how long they may fall silent once they came
+    (None: stale_timeout)."""
 
     taxels: tuple[str, ...]
     wrenches: tuple[str, ...]
     inputs: tuple[str, ...] = ()
     contact: str | None = None
+    input_timeout_s: float | None = None
 
     def watched(self) -> list[str]:
-        """The watchdog's names for them."""
-        return [f"taxels/{f}" for f in self.taxels] + [f"wrench/{f}" for f in self.wrenches] + list(self.inputs)
+        """The watchdog's names of the sensor streams (not the inputs: the goal waits for those)."""
+        return [f"taxels/{f}" for f in self.taxels] + [f"wrench/{f}" for f in self.wrenches]
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,9 @@ results, cancel requests, watchdog ticks) as plain data and carries out the retu
 - Ignored: an input set aside (a /joint_states message without the hand's joints), for the log.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
-What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py,
-gripper_goal.py: a `GoalKind` each, listed in GOAL_KINDS): its request's validation and defaults,
-the streams it needs, its controller, its status. The core finds a request's kind by its type.
+What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py, gripper_goal.py,
+teleop_goal.py: a `GoalKind` each, listed in GOAL_KINDS): its request's validation and defaults, the
+streams and inputs it needs, its controller, its status. The core finds a request's kind by its type.
 
 Goals are admitted in two steps. `accept` answers a `Refusal` (prisma_common.goal_refusal:
 `invalid`, `busy`, `not_ready`, `no_contact` and why) or None: the request within the limits
@@ -57,10 +57,11 @@ from .gripper_goal import GRIPPER_GOAL, GripperRequest, GripperStatus
 from .manipulate_goal import MANIPULATE_GOAL, MOTIONS, ManipulateRequest, ManipulateStatus
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
+from .teleop_goal import TELEOP_GOAL
 from .watchdog import SensorWatchdog
 
 # The goal kinds the node serves, one action server each: a new kind is its module and one entry here.
-GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL)
+GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL, TELEOP_GOAL)
 GRASP, MANIPULATE, GRIPPER = GRASP_GOAL.name, MANIPULATE_GOAL.name, GRIPPER_GOAL.name
 
 __all__ = ["GOAL_KINDS", "MOTIONS", "Feedback", "Finished", "GraspRequest", "GraspStatus", "GripperRequest",
@@ -157,9 +158,9 @@ class ManipulationCore:
         self.inputs: dict[str, Any] = {}  # the goal kinds' extra inputs, latest value each
         self._streams = Streams((), ())  # the running goal's
         self._required: frozenset = frozenset()
+        self._input_timeout_ns = 0  # the running goal's inputs'
         self._accepted: str | None = None  # kind of a goal admitted and not started yet
         self.evaluations: dict[str, ContactEvaluation] = {}  # each finger's latest
-        self.stale_reason = ""
         self.ignored_joint_states = 0
 
     # ---- parameters ------------------------------------------------------------------------
@@ -268,7 +269,8 @@ class ManipulationCore:
         streams = goal.streams(r, ctx)
         self.controller, self.goal, self._streams = built.controller, goal, streams
         self._required = frozenset({("taxels", f) for f in built.controller.fingers} |
-                                   {("wrench", f) for f in streams.wrenches} | {("input", s) for s in streams.inputs})
+                                   {("wrench", f) for f in streams.wrenches})
+        self._input_timeout_ns = int(round((streams.input_timeout_s or self.config.stale_timeout) * 1e9))
         if built.k is not None:
             self.monitor.set_k(built.k)
         self.aligner.reset()
@@ -302,14 +304,11 @@ class ManipulationCore:
         return self._try_step(receipt_ns)
 
     def on_input(self, stream: str, stamp_ns: int, value: Any, receipt_ns: int) -> list:
-        """A goal kind's extra input (`InputStream`): watched like the sensors; a goal whose kind
-        declares it steps only on scans that carry it."""
+        """A goal kind's extra input (`InputStream`): held and watched; it never shares a scan's
+        stamp, so the controller gets its latest value on the next scan (sample-and-hold)."""
         self.inputs[stream] = value
         self.watchdog.sample(stream, stamp_ns, receipt_ns)
-        if self.controller is None or stream not in self._streams.inputs:
-            return []
-        self.aligner.add(("input", stream), stamp_ns, value)
-        return self._try_step(receipt_ns)
+        return []
 
     def on_joints(self, sample: JointSample, receipt_ns: int) -> list:
         """A /joint_states message. One without a position for every hand motor (another driver's
@@ -333,11 +332,13 @@ class ManipulationCore:
             return []
         controller, goal = self._running()
         streams = [f"taxels/{f}" for f in controller.fingers] + [f"wrench/{f}" for f in self._streams.wrenches]
-        stale = self.watchdog.check(streams + list(self._streams.inputs), now_ns)
+        stale = self.watchdog.check(streams, now_ns)
         if stale is not None:
-            self.stale_reason = stale
-            silent = next((s for s in self._streams.inputs if stale.startswith(f"{s} ")), None)
-            return self._abort(now_ns, goal.stale_reason(silent) if silent else SENSOR_STALE, stale)
+            return self._abort(now_ns, SENSOR_STALE, stale)
+        for spec in (i for i in goal.inputs if i.stream in self._streams.inputs):
+            silent = self.watchdog.check_input(spec.stream, self._input_timeout_ns, now_ns, spec.topic)
+            if silent is not None:
+                return self._abort(now_ns, goal.stale_reason(spec.stream), silent)
         refresh = self.lease.refresh(now_ns)
         return [refresh] if refresh is not None else []
 
@@ -379,7 +380,8 @@ class ManipulationCore:
         contacts = {f: entries[("taxels", f)] for f in controller.fingers}
         forces = dict(self.forces)
         forces.update({f: entries[("wrench", f)] for f in self._streams.wrenches})
-        inputs = {s: entries[("input", s)] for s in self._streams.inputs}
+        # each input's latest value (sample-and-hold), once one came for this goal: until then it waits
+        inputs = {s: self.inputs[s] for s in self._streams.inputs if self.watchdog.arrived(s, self._input_timeout_ns)}
         return self._actions(controller.step(ControlInput(stamp, contacts, forces, self.joints, inputs)), now_ns)
 
     def _actions(self, out: ControlOutput, now_ns: int, detail: str = "") -> list:

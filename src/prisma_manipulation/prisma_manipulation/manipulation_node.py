@@ -1,7 +1,8 @@
 """manipulation: Algorithm 1 on every fingertip sample (/prisma/<finger>/contact, also when idle),
 one action server per goal kind (manipulation_core.GOAL_KINDS: Grasp on /prisma/grasp, Manipulate
-on /prisma/manipulate, control_msgs GripperCommand on /prisma/gripper_cmd), one goal at a time
-across them, a client of /prisma/motors/move, and the 100 ms sensor watchdog.
+on /prisma/manipulate, control_msgs GripperCommand on /prisma/gripper_cmd, Teleoperate on
+/prisma/teleoperate following /prisma/teleop/motor_targets), one goal at a time across them, a
+client of /prisma/motors/move, and the 100 ms sensor watchdog.
 
     ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
 

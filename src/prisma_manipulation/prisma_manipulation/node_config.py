@@ -28,17 +28,20 @@ from prisma_motor_driver.control_table import VELOCITY_LIMIT_MAX_RPM
 
 from .contact_monitor import DEFAULT_K, K_RANGE
 from .gripper_controller import DEFAULT_THUMB_RATIO
+from .teleop_controller import COMMAND_PERIOD_S
 
 MAX_FORCE_N = 10.0  # the highest force any parameter may name: twice the calibrated range of the pads
 MAX_TIMEOUT_S = 600.0
+MAX_INPUT_TIMEOUT_S = 1.0  # a Teleoperate goal's input_timeout: a glove silent longer is not teleoperating
 SPEED = (0.0, VELOCITY_LIMIT_MAX_RPM)
 FORCE = (0.0, MAX_FORCE_N)
 TIMEOUT = (0.0, MAX_TIMEOUT_S)
 BELOW_MAX_SPEED = "at most max_speed_rpm"
 BELOW_MAX_FORCE = "at most max_force_n"
 GOAL_SPEEDS = ("grasp_speed_rpm", "horizontal_speed_rpm", "vertical_speed_rpm", "hold_speed_rpm", "force_speed_rpm",
-               "gripper_speed_rpm")
-GOAL_FORCES = ("grasp_finger_force", "grasp_thumb_force", "force_target_n", "gripper_max_effort")
+               "gripper_speed_rpm", "teleop_max_speed_rpm")
+GOAL_FORCES = ("grasp_finger_force", "grasp_thumb_force", "force_target_n", "gripper_max_effort",
+               "teleop_max_pad_force")
 
 
 @dataclass
@@ -96,6 +99,23 @@ class ManipulationConfig(Params):
                                            rules="gripper_thumb_ratio x gripper_speed_rpm at most max_speed_rpm")
     gripper_timeout: float = parameter(10.0, "a GripperCommand goal ends after this long", unit="s",
                                        bounds=TIMEOUT, open_low=True, live=True)
+    # Teleoperate (/prisma/teleoperate): the motors follow prisma/teleop/motor_targets; docs/manipulation.md
+    teleop_max_pad_force: float = parameter(2.0, "Teleoperate touch limit when the goal's max_pad_force is 0: no "
+                                                 "finger closes further once its pad's estimated normal force "
+                                                 "reaches this (the sim ball held well inside the pads' range)",
+                                            unit="N", bounds=FORCE, open_low=True, live=True, rules=BELOW_MAX_FORCE)
+    teleop_max_speed_rpm: float = parameter(40.0, "Teleoperate: the fastest a motor follows its target when the "
+                                                  "goal's max_speed_rpm is 0", unit="rpm", bounds=SPEED,
+                                            open_low=True, live=True, rules=BELOW_MAX_SPEED)
+    teleop_input_timeout: float = parameter(0.15, "Teleoperate: targets silent this long end the goal input_stale "
+                                                  "when the goal's input_timeout is 0 (0.15 s + the watchdog: the "
+                                                  "motors stop within 0.3 s of the glove falling silent)", unit="s",
+                                            bounds=(0.0, MAX_INPUT_TIMEOUT_S), open_low=True, live=True)
+    teleop_gain: float = parameter(10.0, "Teleoperate: velocity toward the target per rad of error, rad/s per rad "
+                                         "(10 = 95 rpm per rad of error, capped at the goal's max_speed_rpm)",
+                                   unit="1/s", bounds=(0.0, 1.0 / COMMAND_PERIOD_S), open_low=True, live=True,
+                                   rules=f"at most {1.0 / COMMAND_PERIOD_S:g}: the speed is updated every "
+                                         f"{COMMAND_PERIOD_S} s, a higher gain would overshoot the target")
     # controller details
     contact_force_n: float = parameter(0.1, "a pad touches above this force (the power grasp averages those)",
                                        unit="N", bounds=FORCE, open_low=True, live=True)

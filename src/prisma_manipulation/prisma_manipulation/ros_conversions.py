@@ -1,6 +1,6 @@
 """Core data <-> ROS messages for prisma_manipulation: ContactState, JointState -> JointSample,
 and (defined in each goal kind's module, re-exported here) the Grasp / Manipulate / GripperCommand
-(control_msgs) goals, feedback and results.
+(control_msgs) / Teleoperate goals, feedback and results, and the teleoperation targets (JointState).
 
 Every function takes a message-class lookup `types(name)` (on the robot
 `prisma_common.messages.robot_types`, off-robot `prisma_common.typestore.types`) and builds
@@ -26,12 +26,19 @@ from .controllers import JointSample
 from .grasp_goal import grasp_feedback_to_msg, grasp_request_from_msg, grasp_result_to_msg
 from .gripper_goal import gripper_feedback_to_msg, gripper_request_from_msg, gripper_result_to_msg
 from .manipulate_goal import manipulate_feedback_to_msg, manipulate_request_from_msg, manipulate_result_to_msg
+from .teleop_goal import (
+    teleop_feedback_to_msg,
+    teleop_request_from_msg,
+    teleop_result_to_msg,
+    teleop_target_from_msg,
+)
 
 __all__ = ["contact_state_from_msg", "contact_state_to_msg", "grasp_feedback_to_msg", "grasp_request_from_msg",
            "grasp_result_to_msg", "gripper_feedback_to_msg", "gripper_request_from_msg", "gripper_result_to_msg",
            "hand_contact_samples", "hand_contact_to_msg", "hand_wrench_samples", "joint_sample_from_msg",
            "manipulate_feedback_to_msg", "manipulate_request_from_msg", "manipulate_result_to_msg",
-           "normal_force_from_wrench"]
+           "normal_force_from_wrench", "teleop_feedback_to_msg", "teleop_request_from_msg", "teleop_result_to_msg",
+           "teleop_target_from_msg"]
 
 Types = Callable[[str], Any]
 

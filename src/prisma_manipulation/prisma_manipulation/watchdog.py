@@ -19,6 +19,9 @@ still stops the motors (and the motor driver's goal lease stops them in any case
 
 `fresh` asks the same two questions before a goal is accepted, without that grace: a goal is only
 accepted once every stream it needs (and /joint_states) is flowing.
+
+A goal kind's input (a glove's targets) is asked the same two questions with its own timeout
+(`check_input`), except that a goal may wait for it: until it comes, nothing is stale.
 """
 from __future__ import annotations
 
@@ -108,4 +111,25 @@ class SensorWatchdog:
                 age = self._reference_ns - s.stamp_ns
                 if age > self.stale_ns:
                     return f"{name} {age / 1e6:.0f} ms older than /joint_states"
+        return None
+
+    def arrived(self, stream: str, timeout_ns: int) -> bool:
+        """A goal kind's input came for the running goal: received since `timeout_ns` before its start
+        (an older value is not one to follow)."""
+        s = self._streams.get(stream)
+        return self._armed_ns is not None and s is not None and s.receipt_ns >= self._armed_ns - timeout_ns
+
+    def check_input(self, stream: str, timeout_ns: int, now_ns: int, label: str | None = None) -> str | None:
+        """A goal kind's input during a goal, after `check` of the same tick: None while it has not
+        come since `timeout_ns` before the goal's start (the goal waits for it), else as `check` with
+        `timeout_ns`: silent by receipt (counted from the end of a forgiven hold-up), or older than
+        /joint_states by stamp. The description names it `label` (its topic), else `stream`."""
+        s = self._streams.get(stream)
+        if s is None or not self.arrived(stream, timeout_ns):
+            return None
+        name = label or stream
+        if now_ns - max(s.receipt_ns, self._resumed_ns or s.receipt_ns) > timeout_ns:
+            return f"{name} silent for {(now_ns - s.receipt_ns) / 1e6:.0f} ms"
+        if self._reference_ns is not None and self._reference_ns - s.stamp_ns > timeout_ns:
+            return f"{name} {(self._reference_ns - s.stamp_ns) / 1e6:.0f} ms older than /joint_states"
         return None
