@@ -140,7 +140,7 @@ class TestHandEmulated(unittest.TestCase):
         self.assertEqual(hub["port"], str(EMULATOR_DIR / "hub"))
         self.assertEqual(bus["port"], str(EMULATOR_DIR / "servos"))
         before = emulator_status()
-        self.assertEqual(before["world"], "hand")
+        self.assertEqual(before["world"], "pinch_ball")  # hand.launch.py's sim_object default
         self.assertTrue(ros.spin_until(lambda: self.grasp.server_is_ready() and self.manipulate.server_is_ready(),
                                        60.0), "no /prisma/grasp and /prisma/manipulate servers")
 

@@ -12,7 +12,8 @@ YAML was skipped would read this file's.
 Checked through /left/<node>/get_parameters: every parameter of config/<node>.yaml, except those the
 launch file sets inline; then the topics are /left/prisma/<finger>/taxels|wrench|contact and
 /left/joint_states (/diagnostics stays absolute), the actions /left/prisma/grasp|manipulate and
-/left/prisma/motors/move, no other topic of the hand's nodes outside /left; and a pinch Grasp on
+/left/prisma/motors/move, no other topic of the hand's nodes outside /left; every /diagnostics status
+name and hardware ID starts with left/ (a second hand's would not be merged with it); and a pinch Grasp on
 /left/prisma/grasp runs through the namespaced graph to force_reached. Every node exits 0 on SIGINT,
 no traceback.
 
@@ -37,6 +38,7 @@ import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch_ros.actions import SetParametersFromFile  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
@@ -127,7 +129,20 @@ class TestHandNamespace(unittest.TestCase):
         actions = {name for node in NODES
                    for name, _ in get_action_server_names_and_types_by_node(ros.probe, node, NS)}
         self.assertEqual(actions, {f"{NS}/prisma/grasp", f"{NS}/prisma/manipulate", f"{NS}/prisma/gripper_cmd",
-                                   f"{NS}/prisma/motors/move", f"{NS}/prisma/motors/home"})
+                                   f"{NS}/prisma/teleoperate", f"{NS}/prisma/motors/move", f"{NS}/prisma/motors/home"})
+
+    def test_2b_diagnostics_say_which_hand(self):
+        """/diagnostics is one topic for every hand: each status name and hardware ID starts with left/."""
+        ros = self.ros
+        diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        drivers = {f"left/{d}" for d in ("tactile_driver", "motor_driver", "force_estimator")}
+
+        def reported() -> dict[str, str]:
+            return {s.name: s.hardware_id for m in diagnostics for s in m.status}
+        self.assertTrue(ros.spin_until(lambda: {n.split(":")[0] for n in reported()} == drivers, 30.0), reported())
+        self.assertEqual(reported()["left/motor_driver: fingers"], "left/sim#1")
+        self.assertEqual(reported()["left/tactile_driver: hub"], "left/sim/hand_world/pinch_ball")
+        self.assertTrue(all(hw.startswith("left/") for hw in reported().values()), reported())
 
     def test_3_a_grasp_runs_through_the_namespaced_graph(self):
         ros = self.ros

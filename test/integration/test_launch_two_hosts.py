@@ -18,7 +18,8 @@ In order:
 
 1. a pinch Grasp on the right hand, then a pinch Grasp on the left and a horizontal Manipulate on the
    right sent together: SUCCEEDED force_reached, force_reached and edge_lost; the left thumb does not
-   rotate while the right one does; the glove's frames reach glove_perception across the link;
+   rotate while the right one does; the glove's frames reach glove_perception across the link; on
+   /diagnostics each hand's statuses say which hand (`left/motor_driver: fingers`, `left/sim#1`);
 2. the link down mid-grasp (left fingers closing at 10 rpm): on the robot's /joint_states every
    joint of both hands below 0.05 rad/s within 0.5 s of the link going down, and stays so; the goal
    ends ABORTED sensor_stale, the log naming the stream that went silent; the link back up, no
@@ -84,6 +85,7 @@ class TwoHostGraph:
             self.workstation.call("collect", topic=f"/{hand}/joint_states", type="sensor_msgs/msg/JointState")
             self.workstation.call("collect", topic=f"/{hand}/prisma/hand/wrench", type="prisma_msgs/msg/HandWrench")
         self.workstation.call("collect", topic="/stag/hand_pose", type="prisma_msgs/msg/ObjectEstimate")
+        self.robot.call("collect", topic="/diagnostics", type="diagnostic_msgs/msg/DiagnosticArray")
 
     def _probe(self, host) -> HostProbe:
         # above the graph's real-time priority (20): two hands and the glove fill this 2-core machine,
@@ -247,6 +249,16 @@ def test_1_two_hands_reach_their_paper_outcomes_at_once(graph):
     # the glove's frames (robot) reach glove_perception (workstation), whose estimates come back here
     poses = graph.workstation.call("stamped", topic="/stag/hand_pose", since_ns=0)["messages"]
     assert len(poses) > 5, "no /stag/hand_pose from glove_perception"
+    # both hands' drivers report on the one /diagnostics: each status says which hand, so that a
+    # robot monitor keeps the left motor driver's `fingers` apart from the right one's
+    reported = {tuple(status) for row in graph.robot.call("stamped", topic="/diagnostics")["messages"]
+                for status in row[1]}
+    side = {hand: {(name[len(hand) + 1:], hw[len(hand) + 1:]) for name, hw in reported if name.startswith(f"{hand}/")}
+            for hand in HANDS}
+    assert ("motor_driver: fingers", "sim#1") in side["left"], sorted(reported)
+    assert side["left"] == side["right"], sorted(reported)  # the same drivers, told apart by the prefix
+    assert all(hw.startswith(name.split("/")[0] + "/") for name, hw in reported if "/" in name.split(":")[0])
+    assert {name for name, _ in reported if "/" not in name.split(":")[0]} == {"glove_driver: readout"}
 
 
 def link_down_mid_goal(graph, hosts, goal: dict, joint: int, rad_s: float, next_goal: dict,

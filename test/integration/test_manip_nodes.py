@@ -604,9 +604,12 @@ def test_motor_fault_aborts_move_and_grasp_naming_motor_and_bit(ros, hand):
     assert not h.motor.core.bus.read_state(ros.now_ns())["fingers"].torque_on
     ros.advance(1.0, step=STEP, settle=True)  # /diagnostics every second
     assert ros.spin_until(lambda: diagnostics and stamp_ns(diagnostics[-1]) > faulted_at)
+    # named for this hand's namespace, so that another hand's motor driver is not merged with it
+    hand_prefix = NS.strip("/") + "/"
     status = {s.name: s for s in diagnostics[-1].status}
-    assert "overload" in status["motor_driver: fingers"].message
-    assert "bit 5 overload" in status["motor_driver: bus"].message
+    assert "overload" in status[f"{hand_prefix}motor_driver: fingers"].message
+    assert status[f"{hand_prefix}motor_driver: fingers"].hardware_id == f"{hand_prefix}sim#1"
+    assert "bit 5 overload" in status[f"{hand_prefix}motor_driver: bus"].message
     # a goal naming the faulted motor (a client's refresh on its way when the fault was found) is
     # accepted and aborted with the fault reason, which a rejection could not carry
     move = finish(ros, send(ros, f"{NS}/prisma/motors/move", MoveMotors,

@@ -14,7 +14,8 @@ Requests (`op` and its fields) and what each answers:
 - goals(topic, since_ns): [[accepted_ns, last status]] of the goals an action's status topic (collected,
   type action_msgs/msg/GoalStatusArray) listed, accepted after since_ns;
 - stamped(topic, since_ns, until_ns): {"messages": [[stamp_ns, fields...]]} of the messages stamped
-  after since_ns (JointState: [stamp, velocities, positions], with "names"; others: [stamp]), once
+  after since_ns (JointState: [stamp, velocities, positions], with "names"; DiagnosticArray: [stamp,
+  [[name, hardware_id], ...]]; others: [stamp]), once
   one stamped at or after until_ns (if given) has been received;
 - keeping_up(leader, follower, lag_s, checks, timeout_s): answers once the follower topic's newest
   stamp stays within lag_s of the leader's (both collected), an error at the timeout;
@@ -122,6 +123,8 @@ class _Probe:
             if hasattr(msg, "velocity"):
                 names = list(msg.name)
                 rows.append([stamp, list(msg.velocity), list(msg.position)])
+            elif hasattr(msg, "status"):  # diagnostic_msgs/DiagnosticArray: who reported
+                rows.append([stamp, [[status.name, status.hardware_id] for status in msg.status]])
             else:
                 rows.append([stamp])
         return {"messages": rows[::-1], "names": names}

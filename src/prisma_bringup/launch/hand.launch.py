@@ -28,7 +28,9 @@ hand/world model. The drivers run their hardware paths on them: motor_driver bac
 through dynamixel-sdk, tactile_driver backend serial (or i2c) through pyserial (or smbus2).
 `prisma-hand-fault --dir <emulator_dir> ...` injects faults while it runs (those of the other
 tactile link are refused). Its servos come up as real ones do, their turn count lost: home:=true
-homes them at start (the motor driver refuses every goal `not_homed` until then).
+homes them at start (the motor driver refuses every goal `not_homed` until then). sim_object names
+its world as it does the sim one's (pinch_ball, power_ball, lateral_card, none), and a prisma-sim
+scenario's start besides (the emulator poses its servos; the simulated motors start open).
 
 Beside them: robot_state_publisher (the hand's description from prisma_description, /tf and
 /tf_static for every frame the hand's messages name; under a namespace its frames get the prefix
@@ -133,13 +135,12 @@ def generate_launch_description():
                                           "devices (overrides sim)"),
         DeclareLaunchArgument("emulator_dir", default_value="/tmp/prisma_hand_emulator",
                               description="Where the emulator's devices appear, an absolute path (hardware:=emulated)"),
-        DeclareLaunchArgument("emulator_world", default_value="hand",
-                              description="The emulator's object and pose: hand (as sim:=true) or a "
-                                          "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
-                                          "vertical, disturbance, combined)"),
         DeclareLaunchArgument("sim_object", default_value="pinch_ball",
-                              description="sim:=true: the object in the hand's world, pinch_ball, power_ball, "
-                                          "lateral_card or none (an empty hand)"),
+                              description="The simulated world (sim:=true or hardware:=emulated): the object "
+                                          "presented to the open hand, pinch_ball, power_ball, lateral_card or "
+                                          "none (an empty hand); with hardware:=emulated also the start of a "
+                                          "prisma-sim scenario (pinch_grasp, lateral_grasp, horizontal, "
+                                          "vertical, disturbance, combined), the hand posed and the object held"),
         DeclareLaunchArgument("frame_prefix", default_value="auto",
                               description="Put in front of every frame of the hand: its TF frames and the "
                                           "frame_id of its messages; auto: '<namespace>/' under a namespace, "
@@ -211,7 +212,7 @@ def generate_launch_description():
     emulator = ExecuteProcess(
         cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup",
                                    "prisma-hand-emulator"]),
-             "--dir", emulator_dir, "--world", LaunchConfiguration("emulator_world"),
+             "--dir", emulator_dir, "--world", LaunchConfiguration("sim_object"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
         name="hand_emulator", output="screen", additional_env=priority, condition=emulated,
     )

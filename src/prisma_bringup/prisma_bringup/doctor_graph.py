@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import rclpy
@@ -17,7 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import qos_profile_sensor_data
 
-from prisma_common.diagnostics import diagnostics_from_msg
+from prisma_common.diagnostics import diagnostics_from_msg, of_namespace
 from prisma_common.hand import FINGERS
 
 from .doctor_checks import (
@@ -55,8 +55,11 @@ class Gatherer:
         self.sampling = False
 
         def on_diagnostics(msg: Any) -> None:
+            # every hand publishes on /diagnostics; a namespaced hand's statuses carry its namespace
             for status in diagnostics_from_msg(msg):
-                self.diagnostics[(status.name, status.hardware_id)] = status
+                ours = of_namespace(status, self.namespace)
+                if ours is not None:
+                    self.diagnostics[(ours.name, ours.hardware_id)] = ours
 
         def on_taxels(finger: str):
             def take(msg: Any) -> None:
@@ -142,17 +145,6 @@ def _stamped_seconds(samples: Sequence[tuple[int, float, float]], elapsed: float
     return (stamps[-1] - stamps[0]) * 1e-9 * len(stamps) / (len(stamps) - 1)
 
 
-def _ours(status: Any, motor: Mapping[str, Any] | None, tactile: Mapping[str, Any] | None) -> bool:
-    """Whether a /diagnostics status is of this hand's drivers: every hand publishes on /diagnostics
-    under the same names, and the ports (hardware_id) tell a bimanual launch's two hands apart."""
-    if status.name.startswith("motor_driver:") and motor and motor.get("backend") == "dynamixel":
-        port = str(motor.get("port", ""))
-        return bool(status.hardware_id == port or status.hardware_id.startswith(port + "#"))
-    if status.name.startswith("tactile_driver:") and tactile and tactile.get("backend") == "serial":
-        return bool(status.hardware_id.startswith(str(tactile.get("port", "")) + "@"))
-    return True
-
-
 def gather(namespace: str, timeout: float) -> HandFacts:
     gatherer = Gatherer(namespace, timeout)
     try:
@@ -168,7 +160,7 @@ def gather(namespace: str, timeout: float) -> HandFacts:
             + (["tactile_driver: hub"] if tactile is not None else []) \
             + ([f"force_estimator: {f}" for f in force.get("fingers", FINGERS)] if force is not None else [])
         gatherer.wait_for_diagnostics(wanted)
-        diagnostics = [s for s in gatherer.diagnostics.values() if _ours(s, motor, tactile)]
+        diagnostics = list(gatherer.diagnostics.values())  # this hand's only (on_diagnostics)
     finally:
         gatherer.close()
     ports = {}

@@ -32,6 +32,7 @@ from prisma_motor_driver.dynamixel_emulator import stderr_log
 
 from .hand_emulator import (
     DEFAULT_DIR,
+    DEFAULT_WORLD,
     FAULTS,
     REQUIRED,
     TACTILE_LINKS,
@@ -49,9 +50,11 @@ def emulator_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dir", type=Path, default=DEFAULT_DIR,
                         help=f"where the devices appear (default {DEFAULT_DIR}); created if missing")
     parser.add_argument("--rate", type=positive_float, default=100.0, help="hub scans per second (default 100)")
-    parser.add_argument("--world", choices=WORLDS, default="hand",
-                        help="object and pose: hand = a foam ball presented for a pinch (as sim:=true); "
-                             "the others start as prisma-sim's scenarios (default hand)")
+    parser.add_argument("--world", choices=WORLDS, default=DEFAULT_WORLD,
+                        help="object and pose, as hand.launch.py sim_object:= names them: an object "
+                             "presented to the open hand (pinch_ball = a foam ball let go once held, as "
+                             "sim:=true; none = an empty hand) or a prisma-sim scenario's start "
+                             f"(default {DEFAULT_WORLD})")
     parser.add_argument("--tactile-link", choices=TACTILE_LINKS, default="serial",
                         help="how the pads reach the host, as tactile_driver's backend: serial = the "
                              "fingertip hub on <dir>/hub, i2c = the pads' bus on <dir>/i2c.sock (default "

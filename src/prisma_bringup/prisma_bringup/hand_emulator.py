@@ -48,7 +48,7 @@ import numpy as np
 
 from prisma_common.cli_args import non_negative_float, non_negative_int, positive_int
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldContactSource
+from prisma_hand_sim.hand_world import OBJECTS, Disturbance, HandWorld, HandWorldContactSource
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
 from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.backend import DEFAULT_MAX_POSITIONS, DEFAULT_MIN_POSITIONS
@@ -67,9 +67,12 @@ MOTOR_IDS = dict(zip(MOTOR_NAMES, (1, 2, 3)))
 FINGER_CHANNELS = dict(zip(FINGERS, range(5)))
 # the fingertip pads reach the host through the Arduino hub (serial) or its own I2C bus (i2c)
 TACTILE_LINKS = ("serial", "i2c")
-# "hand": the world of the sim graph (a foam ball presented for a pinch, let go once held); the
-# others start as prisma-sim's scenarios do (prisma_manipulation.scenarios.scenario_world).
-WORLDS = ("hand",) + SCENARIO_NAMES
+# One vocabulary with the sim graph (hand.launch.py sim_object:=): an object presented to the open
+# hand as sim:=true presents it (pinch_ball, the default: a foam ball let go once held; none: an empty
+# hand), or a prisma-sim scenario's start, the hand posed and the object held
+# (prisma_manipulation.scenarios.scenario_world).
+WORLDS = tuple(OBJECTS) + SCENARIO_NAMES
+DEFAULT_WORLD = "pinch_ball"
 DEFAULT_DIR = Path("/tmp/prisma_hand_emulator")
 
 
@@ -152,8 +155,8 @@ END_STOPS_RAD = {name: (lo, hi + END_STOP_MARGIN_RAD)
 
 
 def world_for(name: str) -> HandWorld:
-    if name == "hand":
-        return HandWorld()
+    if name in OBJECTS:
+        return HandWorld(obj=name)
     if name not in SCENARIO_NAMES:
         raise ValueError(f"unknown world {name!r}; choose one of {', '.join(WORLDS)}")
     return scenario_world(name)
@@ -189,7 +192,7 @@ class EmulatorPaths:
 @dataclass(frozen=True)
 class EmulatorSettings:
     rate_hz: float = 100.0  # hub scans per second (the Arduino firmware's rate)
-    world: str = "hand"
+    world: str = DEFAULT_WORLD  # one of WORLDS
     seed: int = 0  # pad noise
     tactile_link: str = "serial"  # serial | i2c: how the pads reach the host (TACTILE_LINKS)
     directions: tuple[int, ...] = (1, 1, 1)  # as motor_driver's `directions`, per MOTOR_NAMES

@@ -112,9 +112,9 @@ class Rig:
 
 @pytest.fixture
 def rig(tmp_path):
-    """rig(world="hand", link="serial", root=tmp_path): a Rig, closed after the test."""
+    """rig(world="pinch_ball", link="serial", root=tmp_path): a Rig, closed after the test."""
     rigs: list[Rig] = []
-    yield lambda world="hand", link="serial", root=tmp_path: rigs.append(Rig(root, world, link)) or rigs[-1]
+    yield lambda world="pinch_ball", link="serial", root=tmp_path: rigs.append(Rig(root, world, link)) or rigs[-1]
     for r in rigs:
         r.close()
 
@@ -446,6 +446,24 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     assert status["world"] == "pinch_grasp" and all(f == 0.0 for f in status["forces_n"].values())
 
 
+def test_the_emulator_places_the_sim_graphs_objects_too(rig):
+    """One vocabulary for the simulated world (hand.launch.py sim_object:=): the emulated hand takes
+    the objects the sim graph presents, an empty hand included, besides the scenarios' starts."""
+    from prisma_bringup.hand_emulator import WORLDS, world_for
+
+    assert WORLDS[:4] == ("pinch_ball", "power_ball", "lateral_card", "none")
+    assert [world_for(name).obj.name for name in WORLDS[:4]] == list(WORLDS[:4])
+    r = rig("none")
+    r.hand.servos.sync()
+    r.hand.apply("servo-place", motor="fingers", rad=8.0)  # closed on nothing
+    r.hand.apply("servo-place", motor="thumb_flexion", rad=6.0)
+    r.tick()
+    status = r.hand.status()
+    assert status["world"] == "none" and all(f == 0.0 for f in status["forces_n"].values())
+    assert r.hand.apply("world", name="pinch_ball").startswith("world pinch_ball")
+    assert r.hand.status()["world"] == "pinch_ball"
+
+
 def test_one_fault_table_drives_the_emulator_and_the_cli():
     """Each command of FAULTS has its `_fault_` handler (status: the request itself) and none is
     handled that the table lacks; prisma-hand-fault parses each with the table's defaults."""
@@ -485,7 +503,7 @@ def test_bad_fault_values_raise_fault_error_naming_them(rig, command, args, name
         r.hand.apply(command, **args)
     assert named in str(info.value)
     status = r.hand.status()  # nothing was changed
-    assert status["world"] == "hand" and status["servos"]["fingers"]["hardware_error"] == 0
+    assert status["world"] == "pinch_ball" and status["servos"]["fingers"]["hardware_error"] == 0
     assert r.hand.hub.state.corrupt_pending == 0
 
 
@@ -512,11 +530,11 @@ def test_cli_running_emulator_answers_faults_and_stops_on_sigint(tmp_path):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=EMULATOR_ENV)
     try:
         assert select.select([proc.stdout], [], [], 60.0)[0], "the emulator printed nothing in 60 s"
-        assert proc.stdout.readline().startswith("emulated hand (hand, 100 Hz)")
+        assert proc.stdout.readline().startswith("emulated hand (pinch_ball, 100 Hz)")
         done = run_cli("prisma-hand-fault", "--dir", d, "status")
         assert done.returncode == 0, done.stderr
         status = json.loads(done.stdout)
-        assert status["world"] == "hand" and status["hub"]["plugged"] is True
+        assert status["world"] == "pinch_ball" and status["hub"]["plugged"] is True
         done = run_cli("prisma-hand-fault", "--dir", d, "servo-error", "--motor", "fingers", "--bit", "9")
         assert done.returncode == 2 and "bit 9" in done.stderr and "Traceback" not in done.stderr
         done = run_cli("prisma-hand-fault", "--dir", d, "servo-error", "--motor", "fingers", "--bit", "overload")

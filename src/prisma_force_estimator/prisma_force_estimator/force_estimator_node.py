@@ -24,7 +24,7 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_message
 from std_srvs.srv import Trigger
 
-from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.hand_config import HandConfigError
 from prisma_node_wiring.node_parameters import declare_config
 from prisma_node_wiring.node_process import run_node
@@ -101,7 +101,8 @@ class ForceEstimatorNode(Node):
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self.get_clock().now().nanoseconds
-        statuses = pipeline_diagnostics(self.pipeline, self.get_name(), self.bundle_paths)
+        statuses = in_namespace(pipeline_diagnostics(self.pipeline, self.get_name(), self.bundle_paths),
+                                self.get_namespace())  # which hand says it
         self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, statuses))
 
 

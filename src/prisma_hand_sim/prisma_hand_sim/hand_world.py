@@ -189,8 +189,12 @@ class HandWorld:
         trials: unshifted, no width change, on its support again, where the thumb pad will touch it
         in the middle at the thumb's present rotation. The object's motion in the trials before
         (rolled off the pad by a manipulation, pushed by a disturbance) is gone; timed disturbances
-        already applied stay applied. ValueError while a finger touches it: the hand opens first.
-        Returns what was done, for a log."""
+        already applied stay applied. ValueError while a finger touches it (the hand opens first) or
+        in an empty hand (object none: nothing to put back). Returns what was done, for a log."""
+        if not self.obj.finger_contact_rad and self.obj.thumb_contact_rad is None:
+            objects = [name for name, o in OBJECTS.items() if o.finger_contact_rad or o.thumb_contact_rad is not None]
+            raise ValueError(f"no object to put back: the hand is empty (object {self.obj.name!r}); start it with "
+                             f"one: sim_object:={'|'.join(objects)}")
         touching = sorted(f for f, force in self.state.finger_forces.items() if force > 0.0)
         if touching:
             raise ValueError(f"the object cannot be re-placed while {', '.join(touching)} touch it: "

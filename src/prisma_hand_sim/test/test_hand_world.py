@@ -97,6 +97,14 @@ def test_replace_object_puts_a_rolled_object_back_under_the_thumb_pad_middle():
     assert world.forces()["thumb"] == pytest.approx(1.0, rel=0.01)
 
 
+def test_an_empty_hand_has_no_object_to_put_back():
+    world = HandWorld(obj="none")
+    with pytest.raises(ValueError) as refused:
+        world.replace_object()
+    assert str(refused.value) == ("no object to put back: the hand is empty (object 'none'); start it with one: "
+                                  "sim_object:=pinch_ball|power_ball|lateral_card")
+
+
 def test_object_pose_the_ball_between_the_pads_squeezed_by_their_forces():
     world = HandWorld(obj="pinch_ball")
     ball = OBJECTS["pinch_ball"]

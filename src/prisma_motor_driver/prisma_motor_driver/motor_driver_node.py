@@ -21,7 +21,7 @@ from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
-from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.hand_config import HandConfig, HandConfigError
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
@@ -216,7 +216,8 @@ class MotorDriverNode(Node):
             self.get_logger().error(f"motor bus: {error}; retrying with backoff")
 
     def _on_diagnostics(self) -> None:
-        self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), self.core.diagnostics()))
+        statuses = in_namespace(self.core.diagnostics(), self.get_namespace())  # which hand says it
+        self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), statuses))
 
     def destroy_node(self) -> None:
         core = getattr(self, "core", None)  # absent when the parameters were rejected at start

@@ -26,7 +26,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
-from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
@@ -107,7 +107,8 @@ class TactileDriverNode(Node):
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()
-        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.hub.diagnostics(stamp_ns)))
+        statuses = in_namespace(self.hub.diagnostics(stamp_ns), self.get_namespace())  # which hand says it
+        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, statuses))
 
     def _on_joints(self, msg: JointState) -> None:
         assert self._source is not None  # subscribed only with the hand_world contact source

@@ -88,6 +88,22 @@ def test_diagnostics_at_1hz_with_counters(ros, node_cls):
     assert values == {"samples": "301", "age_ms": "0.0"}
     # no tare here: zeroing the fingertip forces is the force estimator's ~/bias
     assert "/tactile_driver/tare" not in dict(ros.probe.get_service_names_and_types())
+    assert hub.hardware_id == "sim/scripted"
+
+
+def test_two_hands_diagnostics_say_which_hand(ros, node_cls):
+    """/diagnostics is one topic for every hand: under a namespace the names and hardware IDs carry it,
+    so that a robot monitor keeps the left hand's hub apart from the right one's."""
+    diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+    for side in ("left", "right"):
+        ros.node(node_cls, namespace=side, params={"contact_source": "hand_world"}, sim_time=True)
+    ros.advance(1.0, step=0.01)
+    assert ros.spin_until(lambda: len(diagnostics) >= 4)  # two per hand: the start instant and 1 s
+    named = {s.name: s.hardware_id for m in diagnostics for s in m.status}
+    for side in ("left", "right"):
+        assert named[f"{side}/tactile_driver: hub"] == f"{side}/sim/hand_world/pinch_ball"
+        assert {f"{side}/tactile_driver: {f}" for f in FINGERS} <= set(named)
+    assert len(named) == 2 * (1 + len(FINGERS))  # none unprefixed, none shared
 
 
 @pytest.mark.parametrize("override, name, bad", [
@@ -250,3 +266,16 @@ def test_sim_object_names_what_the_hand_closes_on(ros, node_cls, sim_object, pre
     for pad in (index, thumb):
         mean = float(np.mean(pad[-1].voltages))
         assert (mean > rest + 0.2) if pressed else abs(mean - rest) < 0.02, (sim_object, mean)
+
+
+@pytest.mark.parametrize("sim_object, success, says", [
+    ("pinch_ball", True, "pinch_ball re-placed at the thumb pad's middle"),
+    ("none", False, "no object to put back: the hand is empty (object 'none'); start it with one: "
+                    "sim_object:=pinch_ball|power_ball|lateral_card"),
+])
+def test_replace_object_answers_what_it_did_or_why_not(ros, node_cls, sim_object, success, says):
+    from std_srvs.srv import Trigger
+
+    ros.node(node_cls, params={"contact_source": "hand_world", "sim_object": sim_object}, sim_time=True)
+    answer = ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
+    assert answer.success is success and answer.message.startswith(says), answer.message

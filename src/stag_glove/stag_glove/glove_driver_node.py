@@ -20,7 +20,7 @@ from rosidl_runtime_py.utilities import get_message
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
-from prisma_common.diagnostics import diagnostics_to_msg
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.parameters import ParameterError
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
@@ -31,6 +31,7 @@ from .node_config import GloveDriverConfig
 from .pressure_map import PressureMap
 from .processing import FrameProcessor
 from .ros_conversions import glove_frame_to_msg, pressure_image_msg, pressure_map_to_msg
+from .sim_backend import NO_LOAD_NOTE
 
 
 class GloveDriverNode(Node):
@@ -70,6 +71,8 @@ class GloveDriverNode(Node):
         self._poll_timer = self.create_timer(1.0 / cfg.poll_rate_hz, self._on_poll)
         self._diag_timer = self.create_timer(cfg.diagnostics_period, self._on_diagnostics)
         self.get_logger().info(f"{cfg.backend} backend ({hardware_id}), polling at {cfg.poll_rate_hz:g} Hz")
+        if cfg.backend == "sim":
+            self.get_logger().info(NO_LOAD_NOTE)
         accept_live_changes(self, GloveDriverConfig, self._reconfigure)
 
     def _reconfigure(self, config: GloveDriverConfig) -> None:
@@ -91,7 +94,8 @@ class GloveDriverNode(Node):
 
     def _on_diagnostics(self) -> None:
         stamp_ns = self._now_ns()
-        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, self.driver.diagnostics(stamp_ns)))
+        statuses = in_namespace(self.driver.diagnostics(stamp_ns), self.get_namespace())  # which glove says it
+        self._diag_pub.publish(diagnostics_to_msg(self.types, stamp_ns, statuses))
 
     def _on_capture(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         result = self.driver.capture_empty_hand()

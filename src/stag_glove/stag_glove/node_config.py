@@ -26,8 +26,9 @@ SEED = (0, 2**31 - 1)
 
 @dataclass
 class GloveDriverConfig(Params):
-    backend: str = parameter("sim", "glove source: serial (readout board), sim (synthetic glove) or replay "
-                                    "(dataset file)", choices=BACKENDS)
+    backend: str = parameter("sim", "glove source: serial (readout board), sim (synthetic glove: objects held, "
+                                    "never lifted, so /stag/weight has no load to read) or replay (dataset file)",
+                             choices=BACKENDS)
     frame_id: str = parameter("stag_glove", "header.frame_id of /stag/frame and /stag/image")
     # serial readout board (firmware/stag_readout)
     port: str = parameter("/dev/ttyACM0", "serial port of the readout board (backend serial)",

@@ -7,6 +7,12 @@ import numpy as np
 
 from .backend import BackendStatus, PacedBackend
 
+# The synthetic stream grasps objects as the object set records them: held, never lifted. The weight
+# network (trained on lifts) then reads the grip of a hand that carries no load: ~24 g whatever is
+# held (docs/glove.md, "Perception node behaviour"). Said where a user of the sim backend looks.
+NO_LOAD_NOTE = ("synthetic glove: objects are held, never lifted, so /stag/weight has no load to read "
+                "(about 24 g whatever is held; docs/glove.md)")
+
 
 class SimGloveBackend(PacedBackend):
     """Synthetic glove stream (empty hand first, then grasps of random objects)."""
@@ -25,4 +31,4 @@ class SimGloveBackend(PacedBackend):
             yield raw
 
     def status(self) -> BackendStatus:
-        return BackendStatus(True, "simulated glove", {"frames": str(self.frames_sent)})
+        return BackendStatus(True, f"simulated glove; {NO_LOAD_NOTE}", {"frames": str(self.frames_sent)})

@@ -108,6 +108,19 @@ def test_capture_empty_hand_service_and_diagnostics(ros, driver_cls):
     assert values["empty_hand_calibrated"] == "True" and int(values["frames_processed"]) == len(frames)
 
 
+def test_the_synthetic_glove_says_its_weight_has_no_load_to_read(ros, driver_cls):
+    """The sim backend's objects are held, never lifted: its log and /diagnostics say that /stag/weight
+    then reads no load (a user would otherwise take ~24 g for a measurement)."""
+    ros.capture_logs()
+    diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+    ros.node(driver_cls, params_files=[DRIVER_YAML], sim_time=True)
+    said = "synthetic glove: objects are held, never lifted, so /stag/weight has no load to read"
+    assert ros.wait_for_log(severity="info", name="glove_driver", contains=said)
+    ros.advance(0.1, step=POLL_STEP)
+    assert ros.spin_until(lambda: diagnostics)
+    assert said in diagnostics[-1].status[0].message
+
+
 def test_shorted_frames_are_published_flagged(ros, driver_cls):
     frames = ros.collect(GloveFrame, "/stag/frame")
     ros.node(driver_cls, params={"sim_short_probability": 0.3, "sim_seed": 4}, sim_time=True)
