@@ -148,9 +148,9 @@ class TestHandSim(unittest.TestCase):
 
     def test_every_topic_and_action_of_the_table_with_its_type(self):
         rows = hand_rows()
-        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 5 actions (the
-        # manipulation node's three, the motor driver's move and home)
-        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 7)
+        # taxels/wrench/contact per finger and per hand, /joint_states, /diagnostics, 6 actions (the
+        # manipulation node's four goal kinds, the motor driver's move and home)
+        self.assertEqual(len(rows), 3 * len(FINGERS) + 3 + 2 + 6)
         for row in rows:
             found = self.action_servers if row.is_action else self.graph
             self.assertEqual(found.get(row.name), [row.type], row.name)
