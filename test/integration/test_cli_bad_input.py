@@ -52,6 +52,7 @@ SCRIPTS = {
     "stag-train-weight": "stag_glove.cli:train_weight_main",
     "stag-train-pose": "stag_glove.cli:train_pose_main",
     "stag-glove-correlation": "stag_glove.cli:correlation_main",
+    "prisma-teleop-stag-session": "prisma_teleop.cli:stag_session_main",
 }
 HEAVY = {"torch", "matplotlib", "scipy", "h5py", "rosbags", "sklearn"}
 # the scripts that write nothing (they talk to a running emulator, a running hand)
@@ -320,6 +321,10 @@ CASES = [
     C("stag-glove-correlation", ["--threads", "0"], ("--threads", "'0'")),
     C("stag-glove-correlation", ["--dataset", "{data}/garbage.mat"], ("--dataset", "garbage.mat")),
     C("stag-glove-correlation", ["--dataset", "{data}/one_frame.mat"], ("one_frame.mat", "1 frame(s)")),
+    # prisma-teleop-stag-session
+    C("prisma-teleop-stag-session", ["poses.csv"], ("poses.csv", ".h5")),
+    C("prisma-teleop-stag-session", ["poses.h5", "--seed", "-2"], ("--seed", "'-2'")),
+    C("prisma-teleop-stag-session", ["notes/poses.h5"], ("notes", "not a directory"), regular_file("notes")),
 ]
 
 
@@ -357,6 +362,7 @@ def _unwritable_cases() -> list[Case]:
         ("stag-train-pose", ["--confusion-png", "{out}.png"], "--confusion-png"),
         ("stag-train-pose", ["--bundle-out", "{out}"], "--bundle-out"),
         ("stag-glove-correlation", ["--png", "{out}.png"], "--png"),
+        ("prisma-teleop-stag-session", ["{out}.h5"], "out"),
     ]:
         cases += unwritable(script, args, option)
     return cases

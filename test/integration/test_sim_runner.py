@@ -33,7 +33,7 @@ EXPECTED = {
     "combined": ("manipulate", "timeout"),
 }
 ACTION_TYPES = {"grasp": "prisma_msgs/action/Grasp", "manipulate": "prisma_msgs/action/Manipulate",
-                "motors/move": "prisma_msgs/action/MoveMotors"}
+                "teleoperate": "prisma_msgs/action/Teleoperate", "motors/move": "prisma_msgs/action/MoveMotors"}
 
 
 def hand_topics(action: str) -> dict[str, str]:
@@ -85,11 +85,12 @@ def header_ns(msg) -> int:
 
 def test_every_scenario_ends_as_in_the_paper(run):
     assert run.code == 0
-    assert set(run.summaries) == set(EXPECTED) | {"glove"}
+    assert set(run.summaries) == set(EXPECTED) | {"glove", "teleop"}
     for name, (_, reason) in EXPECTED.items():
         s = run.summaries[name]
         assert s["reason"] == reason and s["success"], (name, s["reason"])
     assert run.summaries["glove"]["reason"] == "session_complete"
+    assert run.summaries["teleop"]["reason"] == "input_stale" and run.summaries["teleop"]["as_expected"]
     # stop instants where the closed-loop tests put them (100 Hz samples)
     assert 0.1 < run.summaries["horizontal"]["stop_time_s"] < 1.0
     assert run.summaries["vertical"]["first_top_lost_s"] < run.summaries["vertical"]["stop_time_s"]
@@ -121,7 +122,8 @@ def test_summary_markdown_plots_and_printed_summary(run, capsys):
     for name in EXPECTED:
         assert f"| {name} | {EXPECTED[name][1]} | yes |" in md
     assert "objects recognised" in md
-    for name in list(EXPECTED) + ["glove"]:
+    assert "Teleop: the synthetic operator's hand-pose glove" in md
+    for name in list(EXPECTED) + ["glove", "teleop"]:
         png = run.out / run.summaries[name]["plot"]
         data = png.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000, png
@@ -192,7 +194,7 @@ def test_hand_bag_topics_stamps_and_counts(run, name):
         assert list(c.safe) == list(np.asarray(c.voltages) >= c.threshold)
 
 
-@pytest.mark.parametrize("name", list(EXPECTED) + ["glove"])
+@pytest.mark.parametrize("name", list(EXPECTED) + ["glove", "teleop"])
 def test_bags_open_with_mcap_ros2(run, name):
     from mcap.reader import make_reader
     from mcap_ros2.reader import read_ros2_messages
@@ -217,6 +219,39 @@ def test_bags_open_with_mcap_ros2(run, name):
             if channel.topic.endswith("/_action/feedback"):
                 counts[channel.topic] += 1
     assert dict(counts) == rosbags_counts
+
+
+def test_teleop_bag_and_summary(run):
+    """The operator's glove at 60 Hz and the teleop core's targets per sample beside the hand's 100 Hz
+    topics; one Teleoperate goal, fed back on every scan, ended input_stale when the glove fell
+    silent, the motors stopped within 0.3 s of its last sample; the ball held at the touch limit."""
+    summary = run.summaries["teleop"]
+    messages, types = read_all(run.out / summary["bag"])
+    assert types == hand_topics("teleoperate") | {"/glove/joint_states": "sensor_msgs/msg/JointState",
+                                                  "/prisma/teleop/motor_targets": "sensor_msgs/msg/JointState"}
+    for topic, items in messages.items():
+        log = [t for t, _ in items]
+        assert log == sorted(log), topic
+    glove = [header_ns(m) for _, m in messages["/glove/joint_states"]]
+    targets = [(header_ns(m), list(m.name), list(m.position)) for _, m in messages["/prisma/teleop/motor_targets"]]
+    assert [t for t, _, _ in targets] == glove  # one target per glove sample, with its stamp
+    assert np.diff(glove) == pytest.approx(NS / 60, abs=1)
+    assert glove[-1] == round(summary["glove_silent_s"] * NS)
+    assert all(names == ["fingers", "thumb_flexion", "thumb_rotation"] for _, names, _ in targets)
+    assert max(p[0] for _, _, p in targets) == 9.0  # the operator's fist: the closed limit
+    joint_stamps = [t for t, _ in messages["/joint_states"]]
+    assert joint_stamps == list(range(0, joint_stamps[-1] + 1, PERIOD_NS))
+    codes = goal_status()
+    (goal,) = [g for g in summary["goals"] if g["action"] == "teleoperate"]
+    assert goal["status"] == codes.STATUS_ABORTED and goal["ended_s"] == pytest.approx(summary["end_time_s"])
+    in_goal = sum(goal["accepted_s"] * NS < t <= goal["ended_s"] * NS for t in joint_stamps)
+    assert goal["feedback"] == in_goal + 1  # every step, and the start
+    assert summary["stopped_after_silent_s"] < 0.3
+    assert summary["force_error_n"] <= summary["force_tolerance_n"] == 0.15
+    for f in ("thumb", "index"):
+        assert summary["peak_force_n"]["used"][f] >= summary["touch_limit_n"] - 0.1
+    assert 3.0 < summary["held_fingers_rad"] < 8.5  # on the ball, short of the fist
+    assert summary["thumb_rotation_range_rad"] == pytest.approx([-1.5, 1.5], abs=0.05)
 
 
 def test_glove_bag_topics_stamps_and_counts(run):
@@ -283,7 +318,7 @@ def test_offline_estimator_reproduces_the_recorded_wrenches(run, tmp_path):
 def test_cli_lists_scenarios_and_reports_a_missing_bundle(tmp_path, capsys):
     assert main(["--list"]) == 0
     listed = capsys.readouterr().out
-    assert all(name in listed for name in list(EXPECTED) + ["glove"])
+    assert all(name in listed for name in list(EXPECTED) + ["glove", "teleop"])
     assert main(["--scenarios", "horizontal", "--no-plots", "--out", str(tmp_path), "--bundle",
                  str(tmp_path / "no_bundle")]) == 2
     assert f"model bundle {tmp_path / 'no_bundle'}" in capsys.readouterr().err
@@ -297,7 +332,8 @@ def test_cli_lists_scenarios_and_reports_a_missing_bundle(tmp_path, capsys):
 # ---------------------------------------------------------------------- bundle, force set points, output
 def test_one_set_of_scenario_names_in_every_tool_and_launch_argument():
     """prisma-sim, prisma-manip-scenarios, the emulator's worlds (--world, `world` fault command,
-    hand.launch.py emulator_world:=) and the scenarios themselves use the same names."""
+    hand.launch.py sim_object:= with hardware:=emulated) and the scenarios themselves use the same
+    names; the emulator's worlds start with the sim graph's objects (sim_object:= with sim:=true)."""
     from prisma_bringup.hand_emulator import WORLDS
     from prisma_bringup.hand_session import HAND_SCENARIOS
     from prisma_bringup.sim_runner import HAND_SCENARIO_NAMES
@@ -305,7 +341,8 @@ def test_one_set_of_scenario_names_in_every_tool_and_launch_argument():
 
     names = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
     assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS) == SCENARIO_NAMES == names
-    assert WORLDS == ("hand", *names)
+    assert WORLDS == ("pinch_ball", "power_ball", "lateral_card", "none", *names)
+    assert "emulator_world" not in (ROOT / "src" / "prisma_bringup" / "launch" / "hand.launch.py").read_text()
     launch = (ROOT / "src" / "prisma_bringup" / "launch" / "hand.launch.py").read_text()
     joined = re.sub(r'"\s*\n\s*"', "", launch)  # the description's adjacent string literals, as Python joins them
     assert f"prisma-sim scenario ({', '.join(names)})" in joined
@@ -319,7 +356,7 @@ def test_summaries_name_the_bundle_and_every_force_set_point(run):
     checks = {name: set(s["force_set_points"]) for name, s in run.summaries.items() if name != "glove"}
     assert checks == {"pinch_grasp": {"close_fingers", "close_thumb"}, "lateral_grasp": {"close_thumb"},
                       "horizontal": set(), "vertical": set(), "disturbance": set(),
-                      "combined": {"hold_thumb_force"}}
+                      "combined": {"hold_thumb_force"}, "teleop": {"touch_limit"}}
     for name, s in run.summaries.items():
         if name == "glove":
             continue

@@ -43,6 +43,7 @@ from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     grasp_feedback_to_msg,
     manipulate_feedback_to_msg,
+    teleop_feedback_to_msg,
 )
 from prisma_manipulation.scenarios import Scenario, build, scenario_request
 from prisma_motor_driver.ros_conversions import joint_state_to_msg, move_feedback_to_msg
@@ -61,9 +62,12 @@ def goal_status() -> Any:
 
 
 # default topic names (docs/architecture.md, Topic table)
-ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "move": MOVE_MOTORS}
+ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "teleoperate": "/prisma/teleoperate",
+           "move": MOVE_MOTORS}
 ACTION_TYPES = {"grasp": "prisma_msgs/action/Grasp", "manipulate": "prisma_msgs/action/Manipulate",
-                "move": "prisma_msgs/action/MoveMotors"}
+                "teleoperate": "prisma_msgs/action/Teleoperate", "move": "prisma_msgs/action/MoveMotors"}
+FEEDBACK = {"grasp": grasp_feedback_to_msg, "manipulate": manipulate_feedback_to_msg,
+            "teleoperate": teleop_feedback_to_msg}
 
 
 def feedback_topic(action: str) -> str:
@@ -172,8 +176,8 @@ class HandRecorder:
 
     def __init__(self, scenario: Scenario, writer: BagWriter, action: str,
                  types: Callable[[str], Any] = typestore_types) -> None:
-        if action not in ("grasp", "manipulate"):
-            raise ValueError(f"action must be grasp or manipulate, got {action!r}")
+        if action not in FEEDBACK:
+            raise ValueError(f"action must be one of {', '.join(FEEDBACK)}, got {action!r}")
         loop = scenario.loop
         if loop.pipeline is None or loop.estimator is None:
             raise ValueError(f"scenario {scenario.name} has no force estimator: its wrench topics would be empty")
@@ -230,8 +234,7 @@ class HandRecorder:
             if self._move is not None:
                 self._end_move(goal_status().STATUS_CANCELED, t)  # a stop cancels the running goal
         elif isinstance(action, Feedback) and self._goal is not None:
-            convert = grasp_feedback_to_msg if self.action == "grasp" else manipulate_feedback_to_msg
-            self._write_feedback(self._goal, convert(self.types, action), t)
+            self._write_feedback(self._goal, FEEDBACK[self.action](self.types, action), t)
             self._goal.record.feedback += 1
         elif isinstance(action, Finished) and self._goal is not None:
             codes = goal_status()

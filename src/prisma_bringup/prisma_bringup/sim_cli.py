@@ -34,6 +34,7 @@ from .sim_runner import (
     EXPECTED_REASONS,
     FORCE_TOLERANCE_N,
     GLOVE,
+    TELEOP,
     SimOptions,
     check_out,
     failures,
@@ -70,9 +71,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.list:
         from .hand_session import HAND_SCENARIOS
+        from .teleop_session import DESCRIPTION
 
         for name in names:
-            text = HAND_SCENARIOS[name].description if name in HAND_SCENARIOS else (
+            text = HAND_SCENARIOS[name].description if name in HAND_SCENARIOS else DESCRIPTION if name == TELEOP else (
                 "STAG glove: empty-hand capture, then grasps of synthetic objects through the driver and "
                 "perception cores")
             print(f"{name:<14} expects {EXPECTED_REASONS[name]:<16} {text}")

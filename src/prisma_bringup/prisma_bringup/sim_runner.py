@@ -31,6 +31,7 @@ from prisma_force_estimator.force_estimator_core import load_estimator as load_b
 from prisma_manipulation.scenarios_cli import ending, plot, summarise
 
 GLOVE = "glove"
+TELEOP = "teleop"  # teleop_session.TELEOP, spelled out as the hand scenarios' names are
 NS = 1_000_000_000
 # hand_session.HAND_SCENARIOS' names, spelled out so that the command line is built without
 # importing the closed loop and torch (test_sim_runner checks that they agree)
@@ -46,6 +47,7 @@ EXPECTED_REASONS = {
     "disturbance": "timeout",  # a hold goal runs until its time is up; the restore happened before
     "combined": "timeout",
     GLOVE: "session_complete",
+    TELEOP: "input_stale",  # the operator's glove falls silent at the end: the motors stop, the goal ends
 }
 
 # Largest allowed |force - set point| (N). The pinch grasp's measured step responses peak 0.078 N
@@ -57,7 +59,7 @@ SETTLE_SAMPLES = 10  # as prisma_manipulation.scenarios_cli: a grasp phase's fin
 
 
 def scenario_names() -> tuple[str, ...]:
-    return HAND_SCENARIO_NAMES + (GLOVE,)
+    return HAND_SCENARIO_NAMES + (TELEOP, GLOVE)
 
 
 @dataclass
@@ -224,6 +226,31 @@ def run_glove(options: SimOptions, progress: Callable[[str], None], root: Path |
     return summary
 
 
+def run_teleop(options: SimOptions, estimator, progress: Callable[[str], None], root: Path | None = None) -> dict:
+    from .teleop_session import plot, run_teleop_session, summarise
+
+    root = options.out if root is None else root
+    started = time.perf_counter()
+    bag = root / "bags" / TELEOP
+    with BagWriter(bag) as writer:
+        trace, recording = run_teleop_session(writer, estimator, progress=lambda line: progress(f"[{TELEOP}] {line}"))
+    summary = summarise(trace)
+    summary.update({"bundle": str(estimator.path), "bag": _rel(bag, root), "samples": recording.samples,
+                    "topics": dict(sorted(recording.counts.items())),
+                    "force_tolerance_n": options.force_tolerance_n,
+                    "force_within_tolerance": summary["force_error_n"] <= options.force_tolerance_n,
+                    "goals": [{"action": g.action, "accepted_s": g.accepted_ns / NS,
+                               "ended_s": None if g.ended_ns is None else g.ended_ns / NS, "status": g.status,
+                               "feedback": g.feedback} for g in recording.goals]})
+    if options.plots:
+        path = root / f"{TELEOP}.png"
+        with atomic_output(path) as staged:
+            plot(trace, summary, staged)
+        summary["plot"] = _rel(path, root)
+    summary["wall_s"] = time.perf_counter() - started
+    return summary
+
+
 def run(options: SimOptions, progress: Callable[[str], None] = print, estimator=None) -> list[dict]:
     """Run the chosen scenarios; write bags, plots, summary.json and summary.md as options.out.
 
@@ -247,13 +274,15 @@ def run(options: SimOptions, progress: Callable[[str], None] = print, estimator=
             progress(f"[{name}] running")
             if name == GLOVE:
                 summary = run_glove(options, progress, root)
+            elif name == TELEOP:
+                summary = run_teleop(options, estimator, progress, root)
             else:
                 summary = run_hand(name, options, estimator, progress, root)
             summary["expected_reason"] = EXPECTED_REASONS.get(name)
             summary["reason_as_expected"] = summary["reason"] == summary["expected_reason"]
             summary["as_expected"] = summary["reason_as_expected"] and summary.get("force_within_tolerance", True)
             summaries.append(summary)
-            progress(f"[{name}] " + (ending(summary) if name != GLOVE else summary["reason"])
+            progress(f"[{name}] " + (ending(summary) if name not in (GLOVE, TELEOP) else summary["reason"])
                      + (f", force set point miss {summary['force_error_n']:.3f} N"
                         if summary.get("force_error_n") is not None else "")
                      + f" ({summary['wall_s']:.1f} s) -> {options.out / summary['bag']}")
@@ -287,8 +316,9 @@ def _fmt(value, digits: int = 2) -> str:
 
 
 def markdown(summaries: list[dict]) -> str:
-    hand = [s for s in summaries if s["scenario"] != GLOVE]
+    hand = [s for s in summaries if s["scenario"] not in (GLOVE, TELEOP)]
     glove = [s for s in summaries if s["scenario"] == GLOVE]
+    teleop = [s for s in summaries if s["scenario"] == TELEOP]
     lines = ["# prisma-sim summary", ""]
     if hand:
         bundles = sorted({s["bundle"] for s in hand if s.get("bundle")})
@@ -321,6 +351,16 @@ def markdown(summaries: list[dict]) -> str:
                                if not e["what"].startswith("phase"))
             lines.append(f"- **{s['scenario']}**: {s['description']}. Events: {events or 'none'}.")
         lines.append("")
+    for s in teleop:
+        peak = {which: max(p.values()) for which, p in s["peak_force_n"].items()}
+        lines += [
+            f"Teleop: {s['description']}. Ended {s['reason']} at {s['end_time_s']:.2f} s "
+            f"({'as expected' if s['as_expected'] else 'NOT as expected'}): every motor stopped "
+            f"{s['stopped_after_silent_s']:.2f} s after the glove's last sample ({s['glove_silent_s']:.2f} s); "
+            f"held the ball at fingers {s['held_fingers_rad']:.2f} rad, thumb {s['held_thumb_flexion_rad']:.2f} rad, "
+            f"peak pad force {peak['used']:.3f} N estimated / {peak['true']:.3f} N true against the "
+            f"{s['touch_limit_n']:g} N touch limit; thumb rotation swept {s['thumb_rotation_range_rad'][0]:.2f} .. "
+            f"{s['thumb_rotation_range_rad'][1]:.2f} rad; {s['samples']} samples; bag {s['bag']}.", ""]
     for s in glove:
         lines += [
             f"Glove: {s['frames']} frames over {s['duration_s']:.1f} s, {s['shorted_frames']} shorted (dropped), "

@@ -19,7 +19,7 @@ Finished end up in the `Scan` each period hands to `observer` (the bag recorder)
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -52,13 +52,14 @@ from .manipulation_core import (
     StopMotors,
 )
 from .node_config import ManipulationConfig
+from .teleop_goal import TeleopRequest
 
 if TYPE_CHECKING:
     from prisma_force_estimator.force_estimator_core import WrenchSample
     from prisma_force_estimator.inference import ForceEstimator
 
 NS = 1_000_000_000
-Request = GraspRequest | ManipulateRequest | GripperRequest
+Request = GraspRequest | ManipulateRequest | GripperRequest | TeleopRequest
 FRAME_ID_FORMAT = "prisma_{finger}_pad"  # tactile_driver's and force_estimator's default frame ids
 
 
@@ -107,6 +108,7 @@ class Scan:
     move_result: MoveResult | None = None  # the MoveMotors goal that ended by itself this tick
     goal_started: bool = False  # the goal was sent (and accepted) at this scan, before `actions`
     actions: list = field(default_factory=list)  # the manipulation core's decisions, in order
+    inputs: list = field(default_factory=list)  # goal kinds' extra inputs received: (stream, stamp_ns, value)
 
 
 class ClosedLoop:
@@ -142,15 +144,20 @@ class ClosedLoop:
         self.finished: Finished | None = None
 
     # ---- one scan --------------------------------------------------------------------------
-    def scan(self, stamp_ns: int) -> tuple[Scan, np.ndarray, np.ndarray]:
+    def scan(self, stamp_ns: int, inputs: Iterable[tuple[str, int, Any]] = ()) -> tuple[Scan, np.ndarray, np.ndarray]:
         """One period at stamp_ns: (the scan, the pads' voltages [5, 9], the normal forces the
-        manipulation core got [5]). The decisions are carried out before it returns."""
+        manipulation core got [5]). `inputs`: a goal kind's extra input samples (stream, stamp_ns,
+        value) received since the last scan (a glove's targets), handed to the core first, as the
+        node's subscription would. The decisions are carried out before it returns."""
         tick = self.motor.tick(stamp_ns)
         states = tick.states or {}
         joints = JointSample(stamp_ns, {n: s.position_rad for n, s in states.items()},
                              {n: s.velocity_rpm for n, s in states.items()},
                              {n: s.current_ma for n, s in states.items()})
-        scan = Scan(stamp_ns, states, [], {}, {}, move_feedback=tick.feedback, move_result=tick.result)
+        scan = Scan(stamp_ns, states, [], {}, {}, move_feedback=tick.feedback, move_result=tick.result,
+                    inputs=list(inputs))
+        for stream, sample_ns, value in scan.inputs:
+            self._carry_out(self.core.on_input(stream, sample_ns, value, stamp_ns), scan)
         if tick.result is not None:
             self._carry_out(self.core.on_move_result(tick.result.reason, stamp_ns), scan)
         self.contacts.update_joints(list(joints.positions), list(joints.positions.values()), stamp_ns)

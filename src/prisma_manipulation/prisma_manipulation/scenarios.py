@@ -1,7 +1,7 @@
 """The paper's scenarios (docs/manipulation.md) as ready closed loops (tests, bench, plots and the CLI).
 
 Their names are the scenarios' names everywhere: prisma-sim, prisma-manip-scenarios, the hand
-emulator's worlds (`prisma-hand-emulator --world`, `hand.launch.py emulator_world:=`,
+emulator's worlds (`prisma-hand-emulator --world`, `hand.launch.py hardware:=emulated sim_object:=`,
 `prisma-hand-fault world`).
 
 Each is a world to start from and the goal a client sends the manipulation node, run through the

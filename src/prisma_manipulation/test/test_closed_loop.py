@@ -167,6 +167,28 @@ def test_pinch_grasp_at_60_rpm_100_hz_with_the_estimators_forces():
     assert tr.force("thumb")[thumb_end] == pytest.approx(1.0, abs=0.1)
 
 
+@pytest.mark.skipif(not (BUNDLE / "model.pt").exists(),
+                    reason=f"default force-estimator bundle {BUNDLE} not built yet")
+def test_a_pinch_reports_the_index_force_the_thumb_pushed_it_to():
+    """docs/manipulation.md, "The finger force a pinch reports": on the sim graph's world (the ball let
+    go once held) the fingers stop at their 0.8 N target; the thumb then presses the ball against the
+    stopped index, so the result's finger_force, read when the thumb reaches 1 N, is ~0.97 N."""
+    from prisma_force_estimator.inference import ForceEstimator
+    from prisma_hand_sim.hand_world import HandWorld
+    from prisma_manipulation.closed_loop import ClosedLoop
+    from prisma_manipulation.grasp_goal import GraspRequest
+
+    loop = ClosedLoop(HandWorld(obj="pinch_ball"), ForceEstimator.from_bundle(BUNDLE), seed=0)
+    tr = loop.run(GraspRequest("pinch"), 5.0)
+    assert loop.finished is not None and loop.finished.reason == "force_reached"
+    fingers_stop = tr.index_of(loop.controller.phase_end_ns["close_fingers"])
+    assert tr.force("index", "used")[fingers_stop] == pytest.approx(0.83, abs=0.02)  # the target and its overshoot
+    assert tr.force("index")[fingers_stop] == pytest.approx(0.825, abs=0.02)
+    assert loop.finished.status.finger_force == pytest.approx(0.97, abs=0.03)  # 0.969 N measured
+    assert loop.finished.status.thumb_force == pytest.approx(1.02, abs=0.03)
+    assert tr.force("index")[-1] == pytest.approx(0.92, abs=0.02)  # true: the thumb's 1.0 N less the support's share
+
+
 def test_combined_restores_force_and_orientation_after_a_slip():
     sc = build("combined")
     tr = sc.run()

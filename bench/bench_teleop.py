@@ -1,0 +1,180 @@
+"""Teleoperation over DDS beside a bare rclpy relay chain of the same hops (python bench/run.py --only teleop_...).
+
+Needs ROS 2 Jazzy and this workspace's install/ sourced; without them every entry prints
+`skipped: needs ROS 2 (...)` and the value nan. Each run is in the calling shell's ROS_DOMAIN_ID and
+is driven by bench/teleop_relay.py's step glove (/glove/joint_states at 60 Hz, the fingers stepping
+between open and half a fist every 1.5 s):
+- real: `teleop.launch.py glove:=none`: the sim hand, the teleop node engaged at start;
+- relay: teleop_relay.py's teleop and manipulation roles and ros_relay.py's motor role.
+A probe (`ros2 bag record`) takes the MoveMotors status and feedback and the targets. Ratios are
+"higher is better":
+
+teleop_latency_p99: relay p99 / graph p99 of glove sample stamp -> MoveMotors goal accepted at the
+  motor driver (the motor command on the bus), per glove step: real, the first goal accepted after the
+  step's first sample whose motor feedback moves the fingers the step's way; relay, the stamp the goal
+  carries. Needed 0.5 (p99 at most 2x the relay chain's).
+teleop_cpu_vs_relay: relay CPU / teleop node CPU, the relay handling the same messages: the 60 Hz
+  glove in, its targets out, and a Teleoperate goal held (its feedback comes with every manipulation
+  step, 100 Hz). Needed 1 / 1.5 (the node at most 1.5x its relay).
+"""
+from __future__ import annotations
+
+import atexit
+import functools
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import ros_graph
+from run import Benchmark
+
+HERE = Path(__file__).resolve().parent
+TARGETS = "/prisma/teleop/motor_targets"
+STEP_S = 1.5
+STEPS = 20
+NODES = ("teleop", "manipulation", "motor_driver")
+MOVING_RAD_S = 0.05  # a fingers velocity in the motor feedback that is a move, not noise
+
+
+@functools.cache
+def _out() -> Path:
+    return Path(tempfile.mkdtemp(prefix="prisma_teleop_bench_"))
+
+
+@functools.cache
+def _control() -> ros_graph.Control:
+    control = ros_graph.Control()
+    atexit.register(control.close)
+    return control
+
+
+def _python(script: str, role: str, *args: str) -> list[str]:
+    return [sys.executable, str(HERE / script), role, *args]
+
+
+def _start_graph(kind: str, logdir: Path) -> tuple[list[ros_graph.Proc], dict[str, int]]:
+    if kind == "real":
+        launch = ros_graph.start("teleop_launch", ["ros2", "launch", "prisma_bringup", "teleop.launch.py",
+                                                   "glove:=none"], logdir)
+        return [launch], ros_graph.node_pids(launch.popen.pid, NODES)
+    procs = {"motor_driver": ros_graph.start("relay_motor", _python("ros_relay.py", "motor"), logdir),
+             "teleop": ros_graph.start("relay_teleop", _python("teleop_relay.py", "teleop"), logdir),
+             "manipulation": ros_graph.start("relay_manipulation", _python("teleop_relay.py", "manipulation"), logdir)}
+    return list(procs.values()), {node: p.popen.pid for node, p in procs.items()}
+
+
+def _wait_for(log: Path, text: str, timeout_s: float, procs: list[ros_graph.Proc]) -> None:
+    deadline = time.monotonic() + timeout_s
+    while text.encode() not in log.read_bytes():
+        ros_graph._check_alive(procs)
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"'{text}' not in {log} after {timeout_s:.0f} s")
+        time.sleep(0.2)
+
+
+def run(kind: str, out: Path, settle_s: float = 3.0, cpu_s: float = 12.0) -> dict:
+    """One graph driven by the step glove: the teleop node's CPU, then STEPS steps recorded."""
+    control = _control()
+    logdir = out / f"teleop_{kind}_{time.strftime('%H%M%S')}"
+    logdir.mkdir(parents=True, exist_ok=True)
+    result: dict = {"kind": kind, "machine_before": ros_graph.wait_quiet(None, 0.0)}
+    procs, pids = _start_graph(kind, logdir)
+    glove = probe = None
+    try:
+        control.wait_publishers(["/joint_states"], 90.0, procs)
+        glove = ros_graph.start("glove", _python("teleop_relay.py", "glove", "--step-s", str(STEP_S)), logdir)
+        control.wait_publishers([TARGETS], 60.0, procs + [glove])
+        if kind == "real":  # the teleop node's goal runs once the targets flow
+            _wait_for(procs[0].log, "teleop goal started", 90.0, procs)
+        time.sleep(settle_s)
+        result["cpu"] = ros_graph.measure_cpu(pids, cpu_s)
+        probe = ros_graph.start_probe([ros_graph.MOVE_STATUS, ros_graph.MOVE_FEEDBACK, TARGETS], logdir / "probe",
+                                      logdir, control)
+        t_lo = time.time_ns()
+        time.sleep(STEPS * STEP_S)
+        t_hi = time.time_ns()
+        ros_graph.stop([probe])
+        rec = ros_graph.read_probe(logdir / "probe")
+        ros_graph._check_alive(procs)
+    finally:
+        ros_graph.stop(([probe] if probe else []) + ([glove] if glove else []) + procs)
+    steps = [(int(stamp), float(level)) for line in glove.log.read_text().splitlines()
+             if line.startswith("step ") for _, stamp, level in [line.split()] if t_lo <= int(stamp) <= t_hi]
+    ms, counts = (_step_latency(rec, steps) if kind == "real" else _relay_latency(rec, t_lo, t_hi))
+    result["latency"] = ros_graph._stats(ms) | counts
+    result["targets_hz"] = round(len(rec.stamps.get(TARGETS, [])) / ((t_hi - t_lo) / 1e9), 1)
+    return result
+
+
+def _step_latency(rec: ros_graph.Recording, steps: list[tuple[int, float]]) -> tuple[np.ndarray, dict]:
+    """Per glove step: the first MoveMotors goal accepted after it whose feedback moves the fingers
+    motor the step's way (closing to a level > 0, else opening), acceptance - the step's stamp."""
+    goals = sorted(rec.goals.items(), key=lambda kv: kv[1])
+    out, missed = [], 0
+    for i, (stamp, level) in enumerate(steps):
+        until = steps[i + 1][0] if i + 1 < len(steps) else math.inf
+        way = 1.0 if level > 0 else -1.0
+        hit = next((accept for gid, accept in goals if stamp <= accept < until
+                    and any(way * fb.velocities[0] > MOVING_RAD_S for fb in rec.feedback.get(gid, []))), None)
+        if hit is None:
+            missed += 1
+        else:
+            out.append((hit - stamp) / 1e6)
+    return np.array(out), {"steps": len(steps), "steps_without_goal": missed}
+
+
+def _relay_latency(rec: ros_graph.Recording, t_lo: int, t_hi: int) -> tuple[np.ndarray, dict]:
+    """Per goal: acceptance - the stamp of the target that triggered it (in its feedback positions)."""
+    out = []
+    for gid, accept in rec.goals.items():
+        fbs = rec.feedback.get(gid)
+        if fbs and len(fbs[0].positions) >= 2:
+            trigger = int(fbs[0].positions[0]) * 1_000_000_000 + int(fbs[0].positions[1])
+            if t_lo <= trigger <= t_hi:
+                out.append((accept - trigger) / 1e6)
+    return np.array(out), {"steps": len(out)}
+
+
+@functools.cache
+def _runs() -> dict:
+    return {kind: run(kind, _out()) for kind in ("real", "relay")}
+
+
+def _guarded(bench: Benchmark, measure) -> float:
+    missing = ros_graph.ros_missing()
+    if missing:
+        bench.notes["skipped"] = missing
+        return math.nan
+    bench.notes["logs"] = str(_out())
+    return measure()
+
+
+def _latency(bench: Benchmark) -> float:
+    lat = {kind: r["latency"] for kind, r in _runs().items()}
+    for key in ("p50_ms", "p99_ms", "max_ms", "n"):
+        bench.notes[f"{key} (relay)"] = f"{lat['real'].get(key)} ({lat['relay'].get(key)})"
+    bench.notes["real steps without a goal"] = lat["real"].get("steps_without_goal")
+    runs = _runs()
+    bench.notes["targets Hz at the probe (relay)"] = f"{runs['real']['targets_hz']} ({runs['relay']['targets_hz']})"
+    if not lat["real"].get("n") or not lat["relay"].get("n"):
+        bench.notes["no ratio"] = "no step reached the motors in one of the runs"
+        return math.nan
+    return lat["relay"]["p99_ms"] / lat["real"]["p99_ms"]
+
+
+def _cpu(bench: Benchmark) -> float:
+    cpu = {kind: r["cpu"]["processes"] for kind, r in _runs().items()}
+    for node in NODES:
+        bench.notes[f"{node} % (relay %)"] = f"{cpu['real'][node]['cpu_pct']} ({cpu['relay'][node]['cpu_pct']})"
+    bench.notes["machine: others % (real, relay)"] = (f"{_runs()['real']['cpu']['others_pct']}, "
+                                                     f"{_runs()['relay']['cpu']['others_pct']}")
+    return cpu["relay"]["teleop"]["cpu_pct"] / cpu["real"]["teleop"]["cpu_pct"]
+
+
+LATENCY = Benchmark("teleop_latency_p99", lambda: _guarded(LATENCY, lambda: _latency(LATENCY)), "relay/graph", 0.5)
+CPU = Benchmark("teleop_cpu_vs_relay", lambda: _guarded(CPU, lambda: _cpu(CPU)), "relay/node", 1 / 1.5)
+BENCHMARKS = [LATENCY, CPU]

@@ -1,0 +1,174 @@
+"""launch_testing: `teleop.launch.py glove:=none` (hand-pose input, the sim hand with the pinch ball,
+the teleop node engaged at start), the test wearing the glove: the operator's joint angles on
+/glove/joint_states at 60 Hz from a process on the control path's rung (test/support/operator_glove.py).
+The tests run in order, on one launch:
+
+1. the operator closes to a fist: the teleop node's Teleoperate goal runs, the hand closes on the
+   ball and stops there touch-limited, no pad's estimated force (/prisma/<finger>/wrench Fz) more
+   than 0.15 N above max_pad_force (2 N) while it closes and holds, thumb and index both at the limit;
+2. the operator opens: the hand opens (fingers and thumb within 0.05 rad of 0);
+3. the glove falls silent mid-closing (the fingers closing faster than 2 rad/s): every /joint_states
+   velocity 0 (below one velocity unit of an X-series Dynamixel) within 0.3 s of the last glove
+   sample's publication, the goal ended `input_stale` (the teleop node's log);
+4. the glove back: the teleop node sends a new goal by itself and the hand follows the operator again:
+   the thumb's opposition sweeps thumb_rotation to its opposed end (1.5 rad), the open hand back to 0.
+After the launch is stopped every node exits 0 without a traceback.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import time
+import unittest
+
+import pytest
+
+from operator_glove import FIST, OPEN, OperatorGlove
+from ros_harness import (
+    STOPPED_RAD_S,
+    GraphTestCase,
+    assert_clean_shutdown,
+    include_launch,
+    joint,
+    require_ros,
+    stamp_ns,
+    stopped,
+)
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from prisma_msgs.action import Teleoperate  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+from prisma_teleop.synthetic_glove_core import Synergies  # noqa: E402
+
+MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
+OVERSHOOT_N = 0.15
+STOP_WITHIN_S = 0.3
+OPPOSED = Synergies(0.0, 0.0, 1.0)
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    return launch.LaunchDescription([include_launch("teleop.launch.py", glove="none"),
+                                     launch_testing.actions.ReadyToTest()])
+
+
+class TestTeleop(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros) -> None:
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
+        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.feedback = ros.collect(Teleoperate.Impl.FeedbackMessage, "/prisma/teleoperate/_action/feedback")
+        cls.glove = OperatorGlove()
+
+    @classmethod
+    def tearDownClass(cls) -> None:
+        cls.glove.close()
+        super().tearDownClass()
+
+    def positions(self) -> dict[str, float]:
+        """Where the motors stood in the first /joint_states published from now on."""
+        last = self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)
+        return {m: joint(last, m) for m in MOTOR_NAMES}
+
+    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
+        deadline = time.monotonic() + timeout_sec
+        while True:
+            at = self.positions()
+            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
+                return at
+            self.ros.spin_for(0.1)
+
+    def following_after(self, count: int) -> bool:
+        """A Teleoperate goal's feedback received after the first `count` says it follows or holds."""
+        return any(m.feedback.phase in ("following", "holding") for m in self.feedback[count:])
+
+    def test_1_the_operator_closes_and_the_hand_stops_on_the_ball_at_the_touch_limit(self):
+        ros, glove = self.ros, self.glove
+        ros.wait_until_keeping_up(self.joints, self.wrenches["thumb"], lag_sec=0.05, checks=10, timeout_sec=90.0)
+        glove.move(OPEN)
+        # the teleop node sends its goal once the targets flow (again after a refusal while the graph comes up)
+        self.assertTrue(ros.spin_until(lambda: self.following_after(0), 60.0), ros.logs(name="teleop")[-5:])
+        closing_ns = time.time_ns()
+        glove.move(FIST, 1.5)
+
+        def held() -> bool:
+            fb = self.feedback[-1].feedback if self.feedback else None
+            return fb is not None and fb.phase == "holding" and set(fb.force_limited) == {"fingers", "thumb_flexion"}
+
+        self.assertTrue(ros.spin_until(held, 20.0), self.feedback[-1].feedback if self.feedback else None)
+        ros.spin_for(2.0)  # holding: nothing creeps on
+        at = self.positions()
+        peaks = {f: max(w.wrench.force.z for w in self.wrenches[f] if stamp_ns(w) >= closing_ns) for f in FINGERS}
+        target = self.targets[-1]
+        print(f"operator's fist: targets {[round(v, 3) for v in target.position]} rad, the hand stopped at "
+              f"{ {m: round(v, 3) for m, v in at.items()} }, peak Fz { {f: round(v, 3) for f, v in peaks.items()} }, "
+              f"overshoot {max(peaks.values()) - MAX_PAD_FORCE:+.3f} N")
+        self.assertEqual(list(target.position), [9.0, 7.0, 0.0])  # the fist: the closed limits exactly
+        for f, peak in peaks.items():
+            self.assertLessEqual(peak, MAX_PAD_FORCE + OVERSHOOT_N, f)
+        for f in ("thumb", "index"):  # the ball is held by both pads, at the limit
+            self.assertGreaterEqual(peaks[f], MAX_PAD_FORCE - 0.1, f)
+        self.assertGreater(at["fingers"], 3.0)  # past first touch (3 rad)
+        self.assertLess(at["fingers"], 8.5)  # stopped on the ball, short of the operator's fist
+        self.assertTrue(stopped(self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)))
+
+    def test_2_the_operator_opens_and_the_hand_opens(self):
+        self.glove.move(OPEN, 1.5)
+        at = self.wait_until_at({"fingers": 0.0, "thumb_flexion": 0.0}, 0.05, 15.0)
+        print(f"opened: { {m: round(v, 3) for m, v in at.items()} }")
+        for m in ("fingers", "thumb_flexion"):
+            self.assertAlmostEqual(at[m], 0.0, delta=0.05, msg=m)
+        self.assertEqual(list(self.targets[-1].position), [0.0, 0.0, 0.0])
+
+    def test_3_the_glove_falling_silent_mid_closing_stops_the_motors_within_0_3_s(self):
+        ros, glove = self.ros, self.glove
+        glove.move(FIST, 1.5)
+        # mid-closing: the fingers close toward the ball (first touch at 3 rad)
+        self.assertTrue(ros.spin_until(lambda: joint(self.joints[-1], "fingers", "velocity") > 2.0, 10.0))
+        last_ns = glove.stop()
+        self.assertTrue(ros.wait_for_log(name="teleop", contains="goal ended: input_stale", timeout_sec=10.0))
+        ros.spin_for(0.5)
+        after = [m for m in self.joints if stamp_ns(m) >= last_ns]
+        moving = [i for i, m in enumerate(after) if not stopped(m)]
+        self.assertTrue(moving and moving[-1] < len(after) - 1, "still moving at the end")
+        stop_s = (stamp_ns(after[moving[-1] + 1]) - last_ns) * 1e-9
+        speed = abs(joint(after[0], "fingers", "velocity"))
+        (ended,) = ros.logs(name="teleop", contains="goal ended: input_stale")[-1:]
+        print(f"glove silent at fingers {joint(after[0], 'fingers'):.2f} rad, {speed:.2f} rad/s: every velocity below "
+              f"{STOPPED_RAD_S:.4f} rad/s {stop_s * 1e3:.0f} ms after the last glove sample; teleop: {ended}")
+        self.assertGreater(speed, 1.0)  # it was closing when the glove fell silent
+        self.assertLess(stop_s, STOP_WITHIN_S)
+        self.assertRegex(ended, r"^goal ended: input_stale: prisma/teleop/motor_targets ")
+
+    def test_4_the_glove_back_the_hand_follows_again(self):
+        ros, glove = self.ros, self.glove
+        sent = len(ros.logs(name="teleop", contains="sending Teleoperate"))
+        feedback = len(self.feedback)
+        glove.move(OPEN, 1.0)
+        # the teleop node sends a new goal by itself once the glove is back
+        self.assertTrue(ros.spin_until(lambda: len(ros.logs(name="teleop", contains="sending Teleoperate")) > sent,
+                                       20.0))
+        self.assertTrue(ros.spin_until(lambda: self.following_after(feedback), 20.0))
+        glove.move(OPPOSED, 1.5)  # the thumb's opposition sweep: thumb_rotation to its opposed end
+        at = self.wait_until_at({"thumb_rotation": 1.5}, 0.05, 15.0)
+        print(f"thumb opposed: { {m: round(v, 3) for m, v in at.items()} }")
+        self.assertAlmostEqual(at["thumb_rotation"], 1.5, delta=0.05)
+        glove.move(OPEN, 1.0)
+        at = self.wait_until_at({m: 0.0 for m in MOTOR_NAMES}, 0.05, 15.0)
+        for m in MOTOR_NAMES:
+            self.assertAlmostEqual(at[m], 0.0, delta=0.05, msg=m)
+        glove.stop()
+
+
+@launch_testing.post_shutdown_test()
+class TestTeleopShutdown(unittest.TestCase):
+    def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)

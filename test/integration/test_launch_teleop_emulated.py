@@ -1,0 +1,107 @@
+"""launch_testing: `teleop.launch.py hardware:=emulated glove:=none`: teleoperation over the drivers'
+hardware paths (prisma-hand-emulator's servos through dynamixel-sdk, its fingertip hub through
+pyserial; the servos homed at start), the test wearing the glove (test/support/operator_glove.py):
+
+1. the operator closes to a fist: the hand closes on the ball and stops there, no pad's estimated
+   force more than 0.15 N above max_pad_force (2 N), thumb and index at the limit; the operator
+   opens: the hand opens.
+After the launch is stopped every node exits 0 without a traceback.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+import unittest
+from pathlib import Path
+
+import pytest
+
+from operator_glove import FIST, OPEN, OperatorGlove
+from ros_harness import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    include_launch,
+    joint,
+    require_ros,
+    stamp_ns,
+    wait_until_homed,
+)
+
+require_ros()
+
+import launch  # noqa: E402
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+
+# the same path in both imports of this module (launch_testing imports it twice)
+EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_teleop_emulated_{os.getpid()}"
+MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
+OVERSHOOT_N = 0.15
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    EMULATOR_DIR.mkdir(exist_ok=True)
+    return launch.LaunchDescription([
+        include_launch("teleop.launch.py", hardware="emulated", glove="none", emulator_dir=str(EMULATOR_DIR)),
+        launch_testing.actions.ReadyToTest()])
+
+
+class TestTeleopEmulated(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros) -> None:
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.glove = OperatorGlove()
+
+    @classmethod
+    def tearDownClass(cls) -> None:
+        cls.glove.close()
+        super().tearDownClass()
+
+    def positions(self) -> dict[str, float]:
+        last = self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)
+        return {m: joint(last, m) for m in MOTOR_NAMES}
+
+    def test_1_the_operator_closes_on_the_ball_and_opens(self):
+        ros, glove = self.ros, self.glove
+        wait_until_homed(ros, self.diagnostics, MOTOR_NAMES)
+        ros.wait_until_keeping_up(self.joints, self.wrenches["thumb"], lag_sec=0.05, checks=10, timeout_sec=90.0)
+        glove.move(OPEN)
+        self.assertTrue(ros.wait_for_log(name="manipulation", contains="teleop goal started", timeout_sec=60.0))
+        closing_ns = time.time_ns()
+        glove.move(FIST, 1.5)
+        ros.spin_for(6.0)  # closes at up to 40 rpm (4.2 rad/s) onto the ball, then holds
+        held = self.positions()
+        peaks = {f: max(w.wrench.force.z for w in self.wrenches[f] if stamp_ns(w) >= closing_ns) for f in FINGERS}
+        print(f"emulated: the hand stopped at { {m: round(v, 3) for m, v in held.items()} }, peak Fz "
+              f"{ {f: round(v, 3) for f, v in peaks.items()} }")
+        for f, peak in peaks.items():
+            self.assertLessEqual(peak, MAX_PAD_FORCE + OVERSHOOT_N, f)
+        for f in ("thumb", "index"):
+            self.assertGreaterEqual(peaks[f], MAX_PAD_FORCE - 0.1, f)
+        self.assertTrue(3.0 < held["fingers"] < 8.5, held)  # on the ball, short of the operator's fist
+        glove.move(OPEN, 1.5)
+        deadline = time.monotonic() + 15.0
+        while time.monotonic() < deadline and max(abs(v) for v in self.positions().values()) > 0.05:
+            ros.spin_for(0.2)
+        opened = self.positions()
+        print(f"emulated: opened to { {m: round(v, 3) for m, v in opened.items()} }")
+        for m in MOTOR_NAMES:
+            self.assertAlmostEqual(opened[m], 0.0, delta=0.05, msg=m)
+        glove.stop()
+
+
+@launch_testing.post_shutdown_test()
+class TestTeleopEmulatedShutdown(unittest.TestCase):
+    def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)
