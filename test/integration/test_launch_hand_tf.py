@@ -210,7 +210,7 @@ class TestHandTf(unittest.TestCase):
             return (drawn[coupled.name] - (coupled.mimic.offset or 0.0)) / coupled.mimic.multiplier
 
         near = [(stamp, tendon_rad(stamp)) for stamp, _ in flexing if stamp_ns_of(stamp) in states
-                and contact_rad - 0.8 < tendon_rad(stamp) < contact_rad - 0.3]
+                and contact_rad - 1.5 < tendon_rad(stamp) < contact_rad - 0.1]
         self.assertGreaterEqual(len(near), 2, "no /joint_states sample before the thumb's contact angle")
         (first_stamp, first_rad), (last_stamp, last_rad) = near[0], near[-1]
         moved_mm = 1e3 * np.linalg.norm(

@@ -207,7 +207,7 @@ def test_bag_info_reads_every_prisma_sim_bag(sim_bags):
     reader finds, topic by topic."""
     bags = sorted(p for p in sim_bags.iterdir() if p.is_dir())
     assert [b.name for b in bags] == sorted(["pinch_grasp", "lateral_grasp", "horizontal", "vertical",
-                                             "disturbance", "combined", "glove"])
+                                             "disturbance", "combined", "glove", "teleop"])
     for bag in bags:
         result = run_process(["ros2", "bag", "info", str(bag)], timeout_sec=60.0)
         assert result.returncode == 0, result.output
