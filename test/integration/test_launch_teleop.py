@@ -23,7 +23,7 @@ import unittest
 
 import pytest
 
-from operator_glove import FIST, OPEN, OperatorGlove
+from operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
 from ros_harness import (
     STOPPED_RAD_S,
     GraphTestCase,
@@ -59,7 +59,7 @@ def generate_test_description():
                                      launch_testing.actions.ReadyToTest()])
 
 
-class TestTeleop(GraphTestCase):
+class TestTeleop(WearingTheGlove, GraphTestCase):
     @classmethod
     def subscribe(cls, ros) -> None:
         cls.joints = ros.collect(JointState, "/joint_states")
@@ -67,24 +67,6 @@ class TestTeleop(GraphTestCase):
         cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
         cls.feedback = ros.collect(Teleoperate.Impl.FeedbackMessage, "/prisma/teleoperate/_action/feedback")
         cls.glove = OperatorGlove()
-
-    @classmethod
-    def tearDownClass(cls) -> None:
-        cls.glove.close()
-        super().tearDownClass()
-
-    def positions(self) -> dict[str, float]:
-        """Where the motors stood in the first /joint_states published from now on."""
-        last = self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)
-        return {m: joint(last, m) for m in MOTOR_NAMES}
-
-    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
-        deadline = time.monotonic() + timeout_sec
-        while True:
-            at = self.positions()
-            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
-                return at
-            self.ros.spin_for(0.1)
 
     def following_after(self, count: int) -> bool:
         """A Teleoperate goal's feedback received after the first `count` says it follows or holds."""

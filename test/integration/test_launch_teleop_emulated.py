@@ -19,12 +19,11 @@ from pathlib import Path
 
 import pytest
 
-from operator_glove import FIST, OPEN, OperatorGlove
+from operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
 from ros_harness import (
     GraphTestCase,
     assert_clean_shutdown,
     include_launch,
-    joint,
     require_ros,
     stamp_ns,
     wait_until_homed,
@@ -55,22 +54,13 @@ def generate_test_description():
         launch_testing.actions.ReadyToTest()])
 
 
-class TestTeleopEmulated(GraphTestCase):
+class TestTeleopEmulated(WearingTheGlove, GraphTestCase):
     @classmethod
     def subscribe(cls, ros) -> None:
         cls.joints = ros.collect(JointState, "/joint_states")
         cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
         cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
         cls.glove = OperatorGlove()
-
-    @classmethod
-    def tearDownClass(cls) -> None:
-        cls.glove.close()
-        super().tearDownClass()
-
-    def positions(self) -> dict[str, float]:
-        last = self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)
-        return {m: joint(last, m) for m in MOTOR_NAMES}
 
     def test_1_the_operator_closes_on_the_ball_and_opens(self):
         ros, glove = self.ros, self.glove
@@ -91,10 +81,7 @@ class TestTeleopEmulated(GraphTestCase):
             self.assertGreaterEqual(peaks[f], MAX_PAD_FORCE - 0.1, f)
         self.assertTrue(3.0 < held["fingers"] < 8.5, held)  # on the ball, short of the operator's fist
         glove.move(OPEN, 1.5)
-        deadline = time.monotonic() + 15.0
-        while time.monotonic() < deadline and max(abs(v) for v in self.positions().values()) > 0.05:
-            ros.spin_for(0.2)
-        opened = self.positions()
+        opened = self.wait_until_at(dict.fromkeys(MOTOR_NAMES, 0.0), 0.05, timeout_sec=15.0)
         print(f"emulated: opened to { {m: round(v, 3) for m, v in opened.items()} }")
         for m in MOTOR_NAMES:
             self.assertAlmostEqual(opened[m], 0.0, delta=0.05, msg=m)
