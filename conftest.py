@@ -4,6 +4,10 @@ pytest in src/<package>/ with this repository's pyproject.toml as its configurat
 
 Fixture `ros`: a fresh rclpy context for one test on real ROS 2 (see ros_harness.py); tests using it
 skip with the reason where ROS 2 and the built workspace are not sourced.
+
+A test that fails keeps the full output of every process its file launched or started (launch tests'
+nodes, RViz's stderr included; `ros2 launch` and other commands it ran): written whole to
+test-results/launch-logs/<test id>.log (or $PRISMA_LAUNCH_LOG_DIR), the failure message naming the file.
 """
 from __future__ import annotations
 
@@ -22,7 +26,8 @@ os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 
 import pytest  # noqa: E402
 
-from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402
+from prisma_testing.launch_case import failure_note, forget_launched_output  # noqa: E402
+from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402
 
 if ROS_AVAILABLE:
     # Before any rclpy.init and before launch tests start their processes (they inherit it).
@@ -51,10 +56,35 @@ def ros():
         if os.environ.get("PRISMA_REQUIRE_ROS") == "1":
             pytest.fail(f"PRISMA_REQUIRE_ROS=1 but {ROS_IMPORT_ERROR}")
         pytest.skip(f"{ROS_SKIP_REASON} [{ROS_IMPORT_ERROR}]")
-    from ros_harness import RosHarness
+    from prisma_testing.ros_harness import RosHarness
 
     harness = RosHarness()
     try:
         yield harness
     finally:
         harness.shutdown()
+
+
+_current_file: list = [None]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """A new test file: what the previous one launched or started is not its output (before the
+    file's fixtures start processes of its own)."""
+    if item.path != _current_file[0]:
+        _current_file[0] = item.path
+        forget_launched_output()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failed test (its call, or its fixtures' setup or teardown): the full output of what it
+    launched goes to a file, and the failure message names it (a later phase's failure rewrites it
+    with the output up to then)."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed:
+        note = failure_note(item.nodeid)
+        if note is not None:
+            report.longrepr = f"{report.longrepr}\n\n{note}"

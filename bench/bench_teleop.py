@@ -19,20 +19,22 @@ teleop_cpu_vs_relay: relay CPU / teleop node CPU, the relay handling the same me
 """
 from __future__ import annotations
 
-import atexit
 import functools
 import math
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-import ros_graph
+from graph_bench.control import measured_with_ros, shared_control
+from graph_bench.cpu import measure_cpu, wait_quiet
+from graph_bench.facts import MOVE_FEEDBACK, MOVE_STATUS
+from graph_bench.probe import Recording, read_probe, start_probe
+from graph_bench.processes import Proc, check_alive, launch_nodes, relay_command, start, stop
+from graph_bench.stats import percentiles
 from run import Benchmark
 
-HERE = Path(__file__).resolve().parent
 TARGETS = "/prisma/teleop/motor_targets"
 STEP_S = 1.5
 STEPS = 20
@@ -45,32 +47,21 @@ def _out() -> Path:
     return Path(tempfile.mkdtemp(prefix="prisma_teleop_bench_"))
 
 
-@functools.cache
-def _control() -> ros_graph.Control:
-    control = ros_graph.Control()
-    atexit.register(control.close)
-    return control
-
-
-def _python(script: str, role: str, *args: str) -> list[str]:
-    return [sys.executable, str(HERE / script), role, *args]
-
-
-def _start_graph(kind: str, logdir: Path) -> tuple[list[ros_graph.Proc], dict[str, int]]:
+def _start_graph(kind: str, logdir: Path) -> tuple[list[Proc], dict[str, int]]:
     if kind == "real":
-        launch = ros_graph.start("teleop_launch", ["ros2", "launch", "prisma_bringup", "teleop.launch.py",
-                                                   "glove:=none"], logdir)
-        return [launch], ros_graph.node_pids(launch.popen.pid, NODES)
-    procs = {"motor_driver": ros_graph.start("relay_motor", _python("ros_relay.py", "motor"), logdir),
-             "teleop": ros_graph.start("relay_teleop", _python("teleop_relay.py", "teleop"), logdir),
-             "manipulation": ros_graph.start("relay_manipulation", _python("teleop_relay.py", "manipulation"), logdir)}
+        launch, pids = launch_nodes("teleop_launch", ["ros2", "launch", "prisma_bringup", "teleop.launch.py",
+                                                      "glove:=none"], logdir, NODES)
+        return [launch], pids
+    procs = {"motor_driver": start("relay_motor", relay_command("ros_relay.py", "motor"), logdir),
+             "teleop": start("relay_teleop", relay_command("teleop_relay.py", "teleop"), logdir),
+             "manipulation": start("relay_manipulation", relay_command("teleop_relay.py", "manipulation"), logdir)}
     return list(procs.values()), {node: p.popen.pid for node, p in procs.items()}
 
 
-def _wait_for(log: Path, text: str, timeout_s: float, procs: list[ros_graph.Proc]) -> None:
+def _wait_for(log: Path, text: str, timeout_s: float, procs: list[Proc]) -> None:
     deadline = time.monotonic() + timeout_s
     while text.encode() not in log.read_bytes():
-        ros_graph._check_alive(procs)
+        check_alive(procs)
         if time.monotonic() > deadline:
             raise RuntimeError(f"'{text}' not in {log} after {timeout_s:.0f} s")
         time.sleep(0.2)
@@ -78,39 +69,38 @@ def _wait_for(log: Path, text: str, timeout_s: float, procs: list[ros_graph.Proc
 
 def run(kind: str, out: Path, settle_s: float = 3.0, cpu_s: float = 12.0) -> dict:
     """One graph driven by the step glove: the teleop node's CPU, then STEPS steps recorded."""
-    control = _control()
+    control = shared_control()
     logdir = out / f"teleop_{kind}_{time.strftime('%H%M%S')}"
     logdir.mkdir(parents=True, exist_ok=True)
-    result: dict = {"kind": kind, "machine_before": ros_graph.wait_quiet(None, 0.0)}
+    result: dict = {"kind": kind, "machine_before": wait_quiet(None, 0.0)}
     procs, pids = _start_graph(kind, logdir)
     glove = probe = None
     try:
         control.wait_publishers(["/joint_states"], 90.0, procs)
-        glove = ros_graph.start("glove", _python("teleop_relay.py", "glove", "--step-s", str(STEP_S)), logdir)
+        glove = start("glove", relay_command("teleop_relay.py", "glove", "--step-s", str(STEP_S)), logdir)
         control.wait_publishers([TARGETS], 60.0, procs + [glove])
         if kind == "real":  # the teleop node's goal runs once the targets flow
             _wait_for(procs[0].log, "teleop goal started", 90.0, procs)
         time.sleep(settle_s)
-        result["cpu"] = ros_graph.measure_cpu(pids, cpu_s)
-        probe = ros_graph.start_probe([ros_graph.MOVE_STATUS, ros_graph.MOVE_FEEDBACK, TARGETS], logdir / "probe",
-                                      logdir, control)
+        result["cpu"] = measure_cpu(pids, cpu_s)
+        probe = start_probe([MOVE_STATUS, MOVE_FEEDBACK, TARGETS], logdir / "probe", logdir, control)
         t_lo = time.time_ns()
         time.sleep(STEPS * STEP_S)
         t_hi = time.time_ns()
-        ros_graph.stop([probe])
-        rec = ros_graph.read_probe(logdir / "probe")
-        ros_graph._check_alive(procs)
+        stop([probe])
+        rec = read_probe(logdir / "probe")
+        check_alive(procs)
     finally:
-        ros_graph.stop(([probe] if probe else []) + ([glove] if glove else []) + procs)
+        stop(([probe] if probe else []) + ([glove] if glove else []) + procs)
     steps = [(int(stamp), float(level)) for line in glove.log.read_text().splitlines()
              if line.startswith("step ") for _, stamp, level in [line.split()] if t_lo <= int(stamp) <= t_hi]
     ms, counts = (_step_latency(rec, steps) if kind == "real" else _relay_latency(rec, t_lo, t_hi))
-    result["latency"] = ros_graph._stats(ms) | counts
+    result["latency"] = percentiles(ms) | counts
     result["targets_hz"] = round(len(rec.stamps.get(TARGETS, [])) / ((t_hi - t_lo) / 1e9), 1)
     return result
 
 
-def _step_latency(rec: ros_graph.Recording, steps: list[tuple[int, float]]) -> tuple[np.ndarray, dict]:
+def _step_latency(rec: Recording, steps: list[tuple[int, float]]) -> tuple[np.ndarray, dict]:
     """Per glove step: the first MoveMotors goal accepted after it whose feedback moves the fingers
     motor the step's way (closing to a level > 0, else opening), acceptance - the step's stamp."""
     goals = sorted(rec.goals.items(), key=lambda kv: kv[1])
@@ -127,7 +117,7 @@ def _step_latency(rec: ros_graph.Recording, steps: list[tuple[int, float]]) -> t
     return np.array(out), {"steps": len(steps), "steps_without_goal": missed}
 
 
-def _relay_latency(rec: ros_graph.Recording, t_lo: int, t_hi: int) -> tuple[np.ndarray, dict]:
+def _relay_latency(rec: Recording, t_lo: int, t_hi: int) -> tuple[np.ndarray, dict]:
     """Per goal: acceptance - the stamp of the target that triggered it (in its feedback positions)."""
     out = []
     for gid, accept in rec.goals.items():
@@ -142,15 +132,6 @@ def _relay_latency(rec: ros_graph.Recording, t_lo: int, t_hi: int) -> tuple[np.n
 @functools.cache
 def _runs() -> dict:
     return {kind: run(kind, _out()) for kind in ("real", "relay")}
-
-
-def _guarded(bench: Benchmark, measure) -> float:
-    missing = ros_graph.ros_missing()
-    if missing:
-        bench.notes["skipped"] = missing
-        return math.nan
-    bench.notes["logs"] = str(_out())
-    return measure()
 
 
 def _latency(bench: Benchmark) -> float:
@@ -175,6 +156,8 @@ def _cpu(bench: Benchmark) -> float:
     return cpu["relay"]["teleop"]["cpu_pct"] / cpu["real"]["teleop"]["cpu_pct"]
 
 
-LATENCY = Benchmark("teleop_latency_p99", lambda: _guarded(LATENCY, lambda: _latency(LATENCY)), "relay/graph", 0.5)
-CPU = Benchmark("teleop_cpu_vs_relay", lambda: _guarded(CPU, lambda: _cpu(CPU)), "relay/node", 1 / 1.5)
+LATENCY = Benchmark("teleop_latency_p99", lambda: measured_with_ros(LATENCY.notes, _out, lambda: _latency(LATENCY)),
+                    "relay/graph", 0.5)
+CPU = Benchmark("teleop_cpu_vs_relay", lambda: measured_with_ros(CPU.notes, _out, lambda: _cpu(CPU)),
+                "relay/node", 1 / 1.5)
 BENCHMARKS = [LATENCY, CPU]

@@ -31,6 +31,9 @@ the goal's targets (sec, nanosec); `motor` echoes a goal's targets as its feedba
 recording of the action's status (acceptance stamp) and feedback topics gives, per goal, the
 latency from the taxel stamp to the goal's acceptance at the motor driver.
 
+Once built, a role takes the scheduling rung PRISMA_RT_PRIORITY / PRISMA_NICE ask for, as the nodes
+do (prisma_common.scheduling); the benchmarks start the hand's roles on the control path's rung.
+
     python3 bench/ros_relay.py sensor --rate-hz 100
 """
 from __future__ import annotations
@@ -59,6 +62,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from prisma_common.hand import FINGERS
+from prisma_common.scheduling import apply_priority_from_env
 
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
 DEPTH = 10  # every publisher and subscription of the nodes uses a keep-last depth of 10
@@ -329,6 +333,10 @@ def main(argv: list[str] | None = None) -> int:
             "markers": lambda: Markers(args.rate_hz),
             "watch": lambda: Watch(args.topic),
         }[args.role]()
+        # onto the rung the benchmark asks for (PRISMA_RT_PRIORITY, PRISMA_NICE) once built, as a node does
+        scheduling = apply_priority_from_env()
+        if scheduling:
+            node.get_logger().info(f"scheduling: {scheduling}")
         started = node.get_clock().now()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -4,8 +4,8 @@
                           [--rt-priority 0]
 
 Cycles of a pinch Grasp, a horizontal Manipulate, a vertical Manipulate cancelled after 0.3 s and a
-GripperCommand open, back to back (test/support/goal_soak.py), on `hand.launch.py sim:=true` with a
-CPU hog per core and a memory-bandwidth hog beside it (test/support/load_harness.py). Prints each
+GripperCommand open, back to back (test/support/prisma_testing/goal_soak.py), on `hand.launch.py sim:=true` with a
+CPU hog per core and a memory-bandwidth hog beside it (test/support/prisma_testing/load_harness.py). Prints each
 goal kind's outcomes, the nodes' resident memory after the first cycle and its growth, and writes
 soak.json (and the plot: RSS per node over time, each goal's duration and outcome). Exit 1 when a
 goal missed its paper outcome, a node died or grew 5 MB or more. `--rt-priority 0` launches the
@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -23,10 +24,21 @@ from pathlib import Path
 from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent / "test" / "support"))
 
 NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
 MAX_RSS_GROWTH_MB = 5.0
+
+
+def minute_medians(report) -> dict[str, list[float]]:
+    """Each goal kind's median duration (s) in the soak's first minute and in its last: a creep shows
+    as the second above the first."""
+    last_start = report.goals[-1].started_s - 60.0 if report.goals else 0.0
+    medians = {}
+    for name in dict.fromkeys(g.name for g in report.goals):
+        first = [g.seconds for g in report.goals if g.name == name and g.started_s < 60.0]
+        last = [g.seconds for g in report.goals if g.name == name and g.started_s >= last_start]
+        medians[name] = [round(statistics.median(first), 3), round(statistics.median(last), 3)]
+    return medians
 
 
 def plot(report, path: Path) -> None:
@@ -76,9 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--minutes {args.minutes}: must be > 0")
     if not 0 <= args.rt_priority <= 99:
         parser.error(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities are 1-99 (0: none)")
-    from goal_soak import node_pids, run_soak
-    from load_harness import machine_load
-    from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, RosHarness, ros2_launch, stop_process
+    from prisma_testing.goal_soak import node_pids, run_soak
+    from prisma_testing.load_harness import machine_load
+    from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, RosHarness, ros2_launch, stop_process
 
     if not ROS_AVAILABLE:
         print(f"skipped: {ROS_IMPORT_ERROR}", file=sys.stderr)
@@ -105,9 +117,11 @@ def main(argv: list[str] | None = None) -> int:
         stop_process(hand)
         ros.shutdown()
     summary = {"started": started, "load": not args.no_load, "rt_priority": args.rt_priority,
-               "loadavg_end": os.getloadavg(), **report.summary()}
+               "loadavg_end": os.getloadavg(), **report.summary(),
+               "median_s_first_and_last_minute": minute_medians(report)}
     tmp = args.out / "soak.json.partial"
-    tmp.write_text(json.dumps({**summary, "rss_timeline": report.rss_timeline}, indent=1))
+    goals = [[g.name, *g.outcome, round(g.seconds, 4), round(g.started_s, 2)] for g in report.goals]
+    tmp.write_text(json.dumps({**summary, "rss_timeline": report.rss_timeline, "goal_records": goals}, indent=1))
     tmp.replace(args.out / "soak.json")  # whole or not at all
     print(json.dumps(summary, indent=1))
     if args.plot:

@@ -34,13 +34,10 @@ setup(
     zip_safe=True,
     maintainer="PRISMA developers",
     maintainer_email="dev@prisma-hand.org",
-    description="Launch files, off-robot closed-loop simulation runner and bag tools.",
+    description="Launch files, node configuration and model bundles, and prisma-doctor (the bring-up check).",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "prisma-sim = prisma_bringup.sim_cli:main",
-            "prisma-hand-emulator = prisma_bringup.emulator_cli:emulator_main",
-            "prisma-hand-fault = prisma_bringup.emulator_cli:fault_main",
             "prisma-doctor = prisma_bringup.doctor:main",
             "doctor = prisma_bringup.doctor:main",  # ros2 run prisma_bringup doctor
         ],

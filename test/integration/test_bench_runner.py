@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 BENCH = ROOT / "bench" / "run.py"
 

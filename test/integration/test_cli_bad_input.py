@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG, ROOT
+from prisma_testing.repo_paths import CONFIG, ROOT
 
 BUNDLE = str(CONFIG / "models" / "cnn2")
 
@@ -39,9 +39,9 @@ SCRIPTS = {
     "prisma-tactile-calset": "prisma_tactile_driver.cli:calset_main",
     "prisma-tactile-pad-plot": "prisma_tactile_driver.cli:pad_plot_main",
     "prisma-tactile-hub-emulator": "prisma_tactile_driver.cli:hub_emulator_main",
-    "prisma-sim": "prisma_bringup.sim_cli:main",
-    "prisma-hand-emulator": "prisma_bringup.emulator_cli:emulator_main",
-    "prisma-hand-fault": "prisma_bringup.emulator_cli:fault_main",
+    "prisma-sim": "prisma_sim.sim_cli:main",
+    "prisma-hand-emulator": "prisma_hand_emulator.emulator_cli:emulator_main",
+    "prisma-hand-fault": "prisma_hand_emulator.emulator_cli:fault_main",
     "prisma-doctor": "prisma_bringup.doctor:main",
     "prisma-train-force": "prisma_force_estimator.cli:train_main",
     "prisma-eval-force": "prisma_force_estimator.cli:eval_main",

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import pytest
 
-from repo_paths import BRINGUP, ROOT
-from ros_harness import NodeProcess
+from prisma_testing.repo_paths import BRINGUP, ROOT
+from prisma_testing.ros_harness import NodeProcess
 
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 NODE_MODULES = sorted(p for p in (ROOT / "src").glob("*/*/*_node.py"))

@@ -21,8 +21,8 @@ import time
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG
-from ros_harness import refusal_for_now, require_ros, stamp_ns
+from prisma_testing.repo_paths import CONFIG
+from prisma_testing.ros_harness import refusal_for_now, require_ros, stamp_ns
 
 require_ros()
 

@@ -5,7 +5,7 @@ import numpy as np
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from prisma_force_estimator.evaluation import evaluate, held_out_tests
 from prisma_force_estimator.inference import ForceEstimator
-from repo_paths import BRINGUP
+from prisma_testing.repo_paths import BRINGUP
 
 
 def test_default_bundle_is_the_cnn2_and_small():

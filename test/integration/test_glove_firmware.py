@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 from stag_glove.protocol import SYNC, VERSION, GloveStreamParser, encode_frame
 
 FIRMWARE = ROOT / "firmware" / "stag_readout"

@@ -1,8 +1,9 @@
-"""ros_harness's goal outcome helper: GoalStatus numbers named from action_msgs' own constants, and
-(status, reason) of each action's result as the tests compare them."""
+"""ros_harness's goal outcome helpers: GoalStatus numbers named from action_msgs' own constants,
+(status, reason) of each action's result as the tests compare them, and the one refusal a test sends
+a goal again for (not_ready)."""
 from __future__ import annotations
 
-from ros_harness import goal_outcome, goal_status_name, goal_status_names, require_ros
+from prisma_testing.ros_harness import goal_outcome, goal_status_name, goal_status_names, refusal_for_now, require_ros
 
 require_ros()
 
@@ -29,3 +30,13 @@ def test_outcome_of_each_action_result():
         gripper = GripperCommand.Impl.GetResultService.Response(
             status=GoalStatus.STATUS_ABORTED, result=GripperCommand.Result(reached_goal=reached, stalled=stalled))
         assert goal_outcome(gripper) == ("ABORTED", reason)
+
+
+def test_only_not_ready_is_a_refusal_to_send_again():
+    not_ready = "not_ready: no wrench/thumb received yet"
+    assert refusal_for_now(Grasp.Result(reason=not_ready)) == not_ready
+    assert refusal_for_now(Manipulate.Result(stop_reason=not_ready)) == not_ready
+    for reason in ("busy: a grasp goal is running", "sensor_stale", "joint_limit", "timeout", "force_reached",
+                   "invalid: k 2.0 outside (0.0, 1.5]", "not_homed: fingers", "not_ready"):
+        assert refusal_for_now(Grasp.Result(reason=reason)) is None, reason
+    assert refusal_for_now(GripperCommand.Result()) is None  # no text: its refusal is the node's log line

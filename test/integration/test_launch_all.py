@@ -14,11 +14,11 @@ import unittest
 
 import pytest
 
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, output_of, require_ros
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -39,26 +39,26 @@ DRIVERS = {"tactile_driver", "force_estimator", "motor_driver", "glove_driver"}
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("all.launch.py"), launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("all.launch.py"))
 
 
-class TestAll(unittest.TestCase):
+class TestAll(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros):
+        cls.received = {topic: ros.collect(msg_type, topic) for topic, msg_type in TOPICS.items()}
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+
     def test_hand_and_glove_nodes_and_topics(self):
-        ros = RosHarness()
-        try:
-            received = {topic: ros.collect(msg_type, topic) for topic, msg_type in TOPICS.items()}
-            diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        ros, received = self.ros, self.received
 
-            def drivers() -> set[str]:
-                return {s.name.split(":")[0] for m in diagnostics for s in m.status}
+        def drivers() -> set[str]:
+            return {s.name.split(":")[0] for m in self.diagnostics for s in m.status}
 
-            ros.spin_until(lambda: all(received.values()) and drivers() == DRIVERS, 90.0)
-            self.assertEqual([topic for topic, msgs in received.items() if not msgs], [])
-            self.assertEqual(drivers(), DRIVERS)
-            nodes = {(name, namespace) for name, namespace in ros.probe.get_node_names_and_namespaces()}
-            self.assertLessEqual({(name, "/") for name in NODES}, nodes)
-        finally:
-            ros.shutdown()
+        ros.spin_until(lambda: all(received.values()) and drivers() == DRIVERS, 90.0)
+        self.assertEqual([topic for topic, msgs in received.items() if not msgs], [])
+        self.assertEqual(drivers(), DRIVERS)
+        nodes = {(name, namespace) for name, namespace in ros.probe.get_node_names_and_namespaces()}
+        self.assertLessEqual({(name, "/") for name in NODES}, nodes)
 
 
 @launch_testing.post_shutdown_test()

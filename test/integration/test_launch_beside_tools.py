@@ -19,8 +19,8 @@ import os
 
 import pytest
 
-from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
-from virtual_display import require_rviz, virtual_display
+from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
+from prisma_testing.virtual_display import require_rviz, virtual_display
 
 require_ros()
 

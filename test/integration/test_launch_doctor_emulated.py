@@ -22,11 +22,10 @@ from pathlib import Path
 
 import pytest
 
-from ros_harness import (
-    GraphTestCase,
+from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
+from prisma_testing.ros_harness import (
     NodeProcess,
     console_script,
-    emulated_hand_launch,
     hand_fault,
     require_ros,
     run_process,

@@ -12,20 +12,15 @@ from __future__ import annotations
 import os
 import signal
 import time
-import unittest
 
 import pytest
 
-from ros_harness import SIM_STOPPED_RAD_S, RosHarness, closing_at_10_rpm, require_ros, stamp_ns, stopped
+from prisma_testing.launch_case import GraphTestCase, graph_under_test, include_launch
+from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, closing_at_10_rpm, require_ros, stamp_ns, stopped
 
 require_ros()
 
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch.substitutions import PathJoinSubstitution  # noqa: E402
-from launch_ros.substitutions import FindPackageShare  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
@@ -35,40 +30,29 @@ KILL_STOP_LIMIT_S = 0.5
 
 @pytest.mark.launch_test
 def generate_test_description():
-    hand = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(PathJoinSubstitution(
-            [FindPackageShare("prisma_bringup"), "launch", "hand.launch.py"])),
-        launch_arguments={"sim": "true"}.items(),
-    )
-    return launch.LaunchDescription([hand, launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
-class TestControllerLost(unittest.TestCase):
+class TestControllerLost(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.wrenches = ros.collect(WrenchStamped, "/prisma/index/wrench")
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+
     def test_kill_manipulation_mid_grasp_stops_the_motors(self, proc_info):
         """Measured from the kill instant (wall clock, read just before the signal; the nodes stamp
         with the same clock) to the header stamp of the first /joint_states stamped after it whose
-        every velocity is 0 (below 1e-3 rad/s); no velocity is nonzero after it."""
-        ros = RosHarness()
-        try:
-            self.kill_mid_grasp(ros, proc_info)
-        finally:
-            ros.shutdown()
-
-    def kill_mid_grasp(self, ros: RosHarness, proc_info) -> None:
-        ros.capture_logs()
-        joints = ros.collect(JointState, "/joint_states")
-        wrenches = ros.collect(WrenchStamped, "/prisma/index/wrench")
-        client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
-        ros.wait_until_keeping_up(joints, wrenches, lag_sec=0.08, checks=10, timeout_sec=90.0)
+        every velocity is 0 (below 1e-3 rad/s); no velocity is nonzero after it. The grasp is sent
+        again only while refused not_ready: one that ends any other way before the kill fails."""
+        ros, joints = self.ros, self.joints
+        ros.wait_until_keeping_up(joints, self.wrenches, lag_sec=0.08, checks=10, timeout_sec=90.0)
 
         # a slow grasp to a force the ball never reaches: the fingers close at 10 rpm for seconds
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
-        for _ in range(5):  # on a loaded machine estimator lag may end it sensor_stale first: again
-            result = ros.send_until_started(client, goal).get_result_async()
-            accepted = len(joints)
-            ros.spin_until(lambda: result.done() or closing_at_10_rpm(joints[accepted:]), 10.0)  # noqa: B023 - spin_until runs it now
-            if not result.done():
-                break
+        result = ros.send_until_started(self.grasp, goal, timeout_sec=60.0).get_result_async()
+        accepted = len(joints)
+        ros.spin_until(lambda: result.done() or closing_at_10_rpm(joints[accepted:]), 10.0)
         self.assertFalse(result.done(), f"the grasp ended before the kill: {result.result()}")
         self.assertTrue(closing_at_10_rpm(joints[accepted:]))
 

@@ -11,23 +11,18 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 from __future__ import annotations
 
 import time
-import unittest
 
 import pytest
 
-from ros_harness import RosHarness, require_ros, stamp_ns
+from prisma_testing.launch_case import GraphTestCase, graph_under_test, include_launch
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from builtin_interfaces.msg import Time  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
-from launch.substitutions import PathJoinSubstitution  # noqa: E402
-from launch_ros.substitutions import FindPackageShare  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
@@ -37,12 +32,7 @@ ARM_JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "w
 
 @pytest.mark.launch_test
 def generate_test_description():
-    hand = launch.actions.IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(PathJoinSubstitution(
-            [FindPackageShare("prisma_bringup"), "launch", "hand.launch.py"])),
-        launch_arguments={"sim": "true"}.items(),
-    )
-    return launch.LaunchDescription([hand, launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
 def foreign_messages() -> list[JointState]:
@@ -54,20 +44,17 @@ def foreign_messages() -> list[JointState]:
             JointState()]
 
 
-class TestForeignJointStates(unittest.TestCase):
-    def test_foreign_joint_states_change_no_decision(self, proc_info):
-        ros = RosHarness()
-        try:
-            self.run_goals(ros, proc_info)
-        finally:
-            ros.shutdown()
+class TestForeignJointStates(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.wrenches = ros.collect(WrenchStamped, "/prisma/index/wrench")
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+        cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=60.0)
 
-    def run_goals(self, ros: RosHarness, proc_info) -> None:
-        ros.capture_logs()
-        joints = ros.collect(JointState, "/joint_states")
-        wrenches = ros.collect(WrenchStamped, "/prisma/index/wrench")
-        grasp_client = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
-        manipulate_client = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=60.0)
+    def test_foreign_joint_states_change_no_decision(self, proc_info):
+        ros, joints, wrenches = self.ros, self.joints, self.wrenches
+        grasp_client, manipulate_client = self.grasp, self.manipulate
         # the force estimator lags while it warms up; a grasp started then ends sensor_stale
         ros.wait_until_keeping_up(joints, wrenches, lag_sec=0.08, checks=10, timeout_sec=90.0)
 

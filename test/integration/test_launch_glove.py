@@ -18,11 +18,11 @@ import unittest
 
 import pytest
 
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros, stamp_ns
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
@@ -36,35 +36,26 @@ WINDOW_S = 4.0
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("glove.launch.py"), launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("glove.launch.py"))
 
 
-class TestGloveSim(unittest.TestCase):
+class TestGloveSim(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            cls.frames = ros.collect(GloveFrame, "/stag/frame")
-            cls.images = ros.collect(Image, "/stag/image")
-            cls.objects = ros.collect(ObjectEstimate, "/stag/object")
-            cls.poses = ros.collect(ObjectEstimate, "/stag/hand_pose")
-            cls.weights = ros.collect(WeightEstimate, "/stag/weight")
-            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-            if not ros.spin_until(lambda: cls.frames and cls.poses, 60.0):
-                raise AssertionError("no /stag/frame or /stag/hand_pose within 60 s")
-            before = len(cls.frames)
-            start = time.monotonic()
-            ros.spin_for(WINDOW_S)
-            cls.arrival_hz = (len(cls.frames) - before) / (time.monotonic() - start)
-            cls.lag_s = time.time() - stamp_ns(cls.frames[-1]) * 1e-9
-            ros.spin_until(lambda: cls.objects and cls.weights, 30.0)
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.frames = ros.collect(GloveFrame, "/stag/frame")
+        cls.images = ros.collect(Image, "/stag/image")
+        cls.objects = ros.collect(ObjectEstimate, "/stag/object")
+        cls.poses = ros.collect(ObjectEstimate, "/stag/hand_pose")
+        cls.weights = ros.collect(WeightEstimate, "/stag/weight")
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        if not ros.spin_until(lambda: cls.frames and cls.poses, 60.0):
+            raise AssertionError("no /stag/frame or /stag/hand_pose within 60 s")
+        before = len(cls.frames)
+        start = time.monotonic()
+        ros.spin_for(WINDOW_S)
+        cls.arrival_hz = (len(cls.frames) - before) / (time.monotonic() - start)
+        cls.lag_s = time.time() - stamp_ns(cls.frames[-1]) * 1e-9
+        ros.spin_until(lambda: cls.objects and cls.weights, 30.0)
 
     def test_frames_and_images_at_7_3_hz(self):
         print(f"/stag/frame: {self.arrival_hz:.2f} frames per wall second, newest stamp {self.lag_s * 1e3:.0f} ms old")

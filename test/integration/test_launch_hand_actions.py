@@ -8,8 +8,9 @@ ActionClients on the launched graph over DDS (the tests run in order, on one lau
    (Grasp pinch: SUCCEEDED `force_reached`; then Manipulate horizontal: SUCCEEDED `edge_lost`), twice
    over; every goal gets its result and the manipulation process is still running at the end;
 2. a cancel during a Grasp ends CANCELED and the motors stop (rule below);
-3. a Grasp and a Manipulate sent together: exactly one runs to its normal end, the other is aborted
-   `busy: a <kind> goal ...`; the node then serves the other one;
+3. a Manipulate and a Grasp sent while a slow Grasp runs are both aborted at once `busy: a grasp
+   goal ...` (the reason in the result), the running one goes on until its cancel; the node then
+   serves them;
 4. goals beyond the configured limits are aborted at once, the result's reason (and the log)
    naming the value;
 5. `ros2 param set /manipulation k 0.7` shows in every ContactState stamped after it, `k 2.0` is
@@ -28,38 +29,32 @@ import unittest
 import numpy as np
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.ros_harness import (
     closing_at_10_rpm,
     goal_outcome,
-    include_launch,
-    output_of,
-    refusal_for_now,
+    gripper_goal,
     require_ros,
-    result_reason,
     stamp_ns,
     stopped,
 )
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
-from action_msgs.msg import GoalStatus  # noqa: E402
+from control_msgs.action import GripperCommand  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from prisma_msgs.msg import ContactState  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 # stopped(): every joint below one velocity unit of an X-series Dynamixel (0.229 rpm), which reads 0
 # there. The sim motors' velocity follows the command with a 10 ms time constant: from 10 rpm it is
 # below that 38 ms after the stop.
 CANCEL_STOP_S = 0.05
-RETRY_S = 0.1
 K = 0.8  # config/manipulation.yaml
 TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
 
@@ -69,69 +64,42 @@ PINCH = Grasp.Goal(grasp="pinch")
 # horizontal goal that times out does not turn back: at 20 rpm the next one would start at the edge)
 FAILING_HORIZONTAL = Manipulate.Goal(motion="horizontal", speed_rpm=1.0, timeout=0.1)
 HORIZONTAL = Manipulate.Goal(motion="horizontal")
-# the default finger force spelled out: the node's log line tells this pinch from PINCH
-TOGETHER_PINCH = Grasp.Goal(grasp="pinch", finger_force=0.8)
-TOGETHER_PINCH_STARTED = "grasp goal started: GraspRequest(grasp='pinch', finger_force=0.8"
-
-
-def goal_span(log: list[str], started: str, ended: str) -> tuple[int, int] | None:
-    """Indices in a node's log of the last line beginning with `started` and of the first line
-    beginning with `ended` after it: one goal's start and end (None until both have arrived)."""
-    first = max((i for i, m in enumerate(log) if m.startswith(started)), default=None)
-    if first is None:
-        return None
-    last = next((i for i in range(first + 1, len(log)) if log[i].startswith(ended)), None)
-    return None if last is None else (first, last)
+# a force the ball never reaches at 2 rpm: the fingers close for seconds, until the cancel
+SLOW_GRASP = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=2.0)
 
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
-class TestHandActions(unittest.TestCase):
+class TestHandActions(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.contacts = ros.collect(ContactState, "/prisma/thumb/contact")
-            # made before the servers exist: test 1 sends its first goals the moment they appear
-            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
-            cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        for client in (cls.grasp, cls.manipulate):
-            client.destroy()  # Node.destroy_node would leave them in the graph for the next launch test
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.contacts = ros.collect(ContactState, "/prisma/thumb/contact")
+        # made before the servers exist: test 1 sends its first goals the moment they appear
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=None)
+        cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
+        cls.gripper = ros.action_client(GripperCommand, "/prisma/gripper_cmd", wait_sec=None)
 
     def client(self, goal):
         return self.grasp if isinstance(goal, Grasp.Goal) else self.manipulate
 
     def run_goal(self, goal, timeout_sec: float = 60.0):
-        """Send `goal`, again every RETRY_S while it is refused for now (`not_ready`, `busy`), and
-        wait for its result. No goal is sent again for any other end: a goal stopped sensor_stale by
-        the watchdog is a failure (the control path runs at real-time priority, hand.launch.py).
-        Returns (refusals, the result)."""
-        deadline = time.monotonic() + timeout_sec
-        refusals = 0
-        while True:
-            handle = self.ros.send_goal(self.client(goal), goal)
-            self.assertTrue(handle.accepted, goal)  # every goal is accepted; a refusal is its result
-            result = self.ros.result(handle, timeout_sec=30.0)
-            if refusal_for_now(result.result):
-                refusals += 1
-                self.assertLess(time.monotonic(), deadline, f"{goal} still refused after {timeout_sec} s: "
-                                                            f"{result_reason(result.result)}")
-                self.ros.spin_for(RETRY_S)
-                continue
-            return refusals, result
+        """`goal`'s result, the goal sent again only while it is refused not_ready (send_until_started):
+        a goal stopped sensor_stale by the watchdog is a failure (the control path runs at real-time
+        priority, hand.launch.py)."""
+        return self.ros.result(self.ros.send_until_started(self.client(goal), goal, timeout_sec), timeout_sec=30.0)
+
+    def open_hand(self) -> None:
+        """The fingers back at 0 (GripperCommand position 0) and the ball back between them (the sim
+        world's ~/replace_object): a slow grasp has seconds of travel before the ball, wherever the
+        test before left the fingers (at the joint limit around it) and the ball."""
+        opened = self.ros.result(self.ros.send_until_started(self.gripper, gripper_goal(0.0)), timeout_sec=30.0)
+        self.assertEqual(goal_outcome(opened), ("SUCCEEDED", "reached_goal"))
+        replaced = self.ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
+        self.assertTrue(replaced.success, replaced.message)
 
     def test_1_goals_from_the_moment_the_servers_appear(self, proc_info):
         ros = self.ros
@@ -145,11 +113,9 @@ class TestHandActions(unittest.TestCase):
         for goal, _ in expected:
             # the first two goals meet the graph just started: the node must refuse them until it is
             # ready, then carry them out
-            refusals, result = self.run_goal(goal)
-            outcomes.append(goal_outcome(result))
+            outcomes.append(goal_outcome(self.run_goal(goal)))
             print(f"{type(goal).__name__} {goal.grasp if hasattr(goal, 'grasp') else goal.motion} "
-                  f"timeout {goal.timeout:g}: {refusals} refusals, then {outcomes[-1]} "
-                  f"at {time.monotonic() - start:.1f} s")
+                  f"timeout {goal.timeout:g}: {outcomes[-1]} at {time.monotonic() - start:.1f} s")
         refused = ros.logs(name="manipulation", contains="goal refused")
         print(f"refusals logged: {sorted(set(refused))}")
         self.assertEqual(outcomes, [want for _, want in expected])
@@ -164,7 +130,9 @@ class TestHandActions(unittest.TestCase):
         was sent; every /joint_states stamped later than t_result + 50 ms has every velocity 0
         (below one Dynamixel velocity unit, 0.024 rad/s), and there are such messages."""
         ros = self.ros
-        # a slow grasp to a force the ball never reaches: the fingers close at 10 rpm for seconds
+        # from the open hand, a slow grasp to a force the ball never reaches: the fingers close at
+        # 10 rpm for seconds
+        self.open_hand()
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
         handle = ros.send_until_started(self.grasp, goal)
         result = handle.get_result_async()
@@ -187,60 +155,30 @@ class TestHandActions(unittest.TestCase):
         self.assertGreater(len(late), 10)
         self.assertEqual([list(m.velocity) for m in late if not stopped(m)], [])
 
-    def test_3_grasp_and_manipulate_sent_together(self):
-        """Both goals go out before either is answered. Exactly one runs to its normal end; the other
-        is aborted `busy: a <kind> goal ...`, the reason in its result and the log. Both refused for
-        now happens only while a stream they need is late, and the first over before the second
-        reached the node only on a busy machine: then both are sent again."""
+    def test_3_goals_sent_while_a_grasp_runs_are_refused_busy(self):
+        """One goal at a time: a Manipulate and a Grasp sent while a slow Grasp runs (its feedback
+        came, its result has not) are aborted at once `busy: a grasp goal ...`, the reason in the
+        result and the log, and the running grasp goes on to its cancel. Then the node serves both."""
         ros = self.ros
-        normal_end = {"grasp": ("SUCCEEDED", "force_reached"), "manipulate": ("SUCCEEDED", "edge_lost")}
-        for _ in range(100):
-            # from the ball held in a pinch (whatever came before), where either can run
-            _, held = self.run_goal(PINCH)
-            self.assertEqual(goal_outcome(held), normal_end["grasp"])
-            futures = [self.grasp.send_goal_async(TOGETHER_PINCH), self.manipulate.send_goal_async(HORIZONTAL)]
-            self.assertTrue(ros.spin_until(lambda: all(f.done() for f in futures), 10.0))  # noqa: B023 - spin_until runs it now
-            handles = dict(zip(("grasp", "manipulate"), (f.result() for f in futures)))
-            self.assertTrue(all(h.accepted for h in handles.values()))
-            results = {kind: ros.result(h) for kind, h in handles.items()}
-            ended = {kind: goal_outcome(r) for kind, r in results.items()}
-            print(f"sent together: {ended}")
-            if all(refusal_for_now(r.result) for r in results.values()):
-                ros.spin_for(RETRY_S)
-                continue
-            # The pinch from a held ball ends at once: on a busy machine it can be over before the
-            # other goal reaches the node, and then both rightly run, one after the other. Only goals
-            # that met in the node count: the node's log says which (started/ended lines in order).
-            if all(r.status == GoalStatus.STATUS_SUCCEEDED for r in results.values()) and self.one_after_the_other():
-                print(f"not together (one ended before the other started): {ended}")
-                continue
-            break
-        ran = [kind for kind, r in results.items() if r.status == GoalStatus.STATUS_SUCCEEDED]
-        self.assertEqual(len(ran), 1, ended)
-        (other,) = {"grasp", "manipulate"} - set(ran)
-        self.assertEqual(ended[ran[0]], normal_end[ran[0]])
-        self.assertEqual(results[other].status, GoalStatus.STATUS_ABORTED)
-        # "... is running" or "... was accepted and is starting"
-        self.assertTrue(ended[other][1].startswith(f"busy: a {ran[0]} goal"), ended[other])
-        refused = ros.wait_for_log(name="manipulation",
-                                   contains=f"{other.capitalize()} goal refused: busy: a {ran[0]} goal")
-        self.assertTrue(refused, ros.logs(name="manipulation")[-5:])
-        # the node serves the other one now
-        _, result = self.run_goal(PINCH if other == "grasp" else HORIZONTAL)
-        self.assertEqual(goal_outcome(result), normal_end[other])
-
-    def one_after_the_other(self) -> bool:
-        """The last TOGETHER_PINCH and the last Manipulate ran one after the other (by the node's
-        log, which this process may receive late: waits for both goals' end lines)."""
-        def spans() -> tuple[tuple[int, int] | None, tuple[int, int] | None]:
-            log = self.ros.logs(name="manipulation")
-            return (goal_span(log, TOGETHER_PINCH_STARTED, "grasp goal ended: "),
-                    goal_span(log, "manipulate goal started: ", "manipulate goal ended: "))
-
-        self.assertTrue(self.ros.spin_until(lambda: None not in spans(), 30.0),
-                        self.ros.logs(name="manipulation", contains=" goal ")[-6:])
-        (g0, g1), (m0, m1) = spans()
-        return g1 < m0 or m1 < g0
+        self.open_hand()
+        running = ros.send_until_started(self.grasp, SLOW_GRASP, timeout_sec=60.0)
+        running_result = running.get_result_async()
+        for goal in (HORIZONTAL, PINCH):
+            status, reason = goal_outcome(ros.result(ros.send_goal(self.client(goal), goal), timeout_sec=10.0))
+            print(f"{type(goal).__name__} sent while the slow grasp runs: {status} {reason}")
+            self.assertFalse(running_result.done(), f"the slow grasp ended first: {running_result.result()}")
+            self.assertEqual(status, "ABORTED")
+            self.assertTrue(reason.startswith("busy: a grasp goal"), reason)
+            action = type(goal).__name__.split("_")[0]
+            refused = f"{action} goal refused: busy: a grasp goal"
+            self.assertTrue(ros.wait_for_log(name="manipulation", contains=refused), ros.logs(name="manipulation")[-5:])
+        cancel = running.cancel_goal_async()
+        self.assertTrue(ros.spin_until(running_result, 10.0), "no result after the cancel")
+        ros.spin_until(cancel, 5.0)
+        self.assertEqual(goal_outcome(running_result.result()), ("CANCELED", "canceled"))
+        # the node serves them now: the pinch holds the ball, the horizontal motion runs to the edge
+        self.assertEqual(goal_outcome(self.run_goal(PINCH)), ("SUCCEEDED", "force_reached"))
+        self.assertEqual(goal_outcome(self.run_goal(HORIZONTAL)), ("SUCCEEDED", "edge_lost"))
 
     def test_4_goals_beyond_the_limits_are_refused_with_the_reason(self):
         ros = self.ros

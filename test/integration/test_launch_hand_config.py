@@ -11,8 +11,8 @@ import importlib.util
 
 import pytest
 
-from repo_paths import LAUNCH
-from ros_harness import require_ros
+from prisma_testing.repo_paths import LAUNCH
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -34,11 +34,9 @@ from pathlib import Path
 
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, emulated_hand_launch
+from prisma_testing.ros_harness import (
     diagnostic_values,
-    emulated_hand_launch,
     goal_outcome,
     hand_fault,
     require_ros,
@@ -53,12 +51,11 @@ import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_bringup.hand_session import HAND_SCENARIOS  # noqa: E402
-from prisma_bringup.sim_runner import EXPECTED_REASONS  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
+from prisma_sim.hand_session import HAND_SCENARIOS  # noqa: E402
+from prisma_sim.sim_runner import EXPECTED_REASONS  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
@@ -85,26 +82,14 @@ def emulator_status() -> dict:
     return json.loads(fault("status"))
 
 
-class TestHandEmulated(unittest.TestCase):
+class TestHandEmulated(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.taxels = ros.collect(TaxelArray, "/prisma/thumb/taxels")
-            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
-            cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        for client in (cls.grasp, cls.manipulate):
-            client.destroy()
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.taxels = ros.collect(TaxelArray, "/prisma/thumb/taxels")
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=None)
+        cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
 
     def diagnostic(self, name_end: str, since_ns: int = 0) -> dict[str, str] | None:
         return diagnostic_values(self.diagnostics, name_end, since_ns)

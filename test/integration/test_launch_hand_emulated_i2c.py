@@ -24,11 +24,9 @@ from pathlib import Path
 
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, emulated_hand_launch
+from prisma_testing.ros_harness import (
     diagnostic_values,
-    emulated_hand_launch,
     hand_fault,
     require_ros,
     run_hand_fault,
@@ -43,7 +41,6 @@ from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
 
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
@@ -57,23 +54,12 @@ def generate_test_description():
     return emulated_hand_launch(EMULATOR_DIR, tactile_backend="i2c")
 
 
-class TestHandEmulatedI2C(unittest.TestCase):
+class TestHandEmulatedI2C(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in ("thumb", "index")}
-            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-            cls.grasp = ActionClient(ros.probe, Grasp, "/prisma/grasp")
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.grasp.destroy()
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in ("thumb", "index")}
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=None)
 
     def fresh_hub_diagnostic(self) -> dict[str, str]:
         """The hub's values from a /diagnostics message published from now on."""

@@ -23,26 +23,16 @@ import unittest
 import numpy as np
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
-    gripper_goal,
-    include_launch,
-    joint,
-    require_ros,
-    run_gripper_goal,
-    stamp_ns,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import gripper_goal, joint, require_ros, stamp_ns
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
@@ -53,30 +43,19 @@ BIAS_SAMPLES = 100  # config/force_estimator.yaml
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
-class TestHandGripper(unittest.TestCase):
+class TestHandGripper(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
-            cls.gripper = ActionClient(ros.probe, GripperCommand, "/prisma/gripper_cmd")
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.gripper.destroy()  # Node.destroy_node would leave it in the graph for the next launch test
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.gripper = ros.action_client(GripperCommand, "/prisma/gripper_cmd", wait_sec=None)
 
     def run_gripper(self, goal):
-        return run_gripper_goal(self.ros, self.gripper, goal)
+        """The goal's result, sent again only while refused not_ready (send_until_started)."""
+        return self.ros.result(self.ros.send_until_started(self.gripper, goal, timeout_sec=90.0), timeout_sec=30.0)
 
     def bias(self) -> Trigger.Response:
         return self.ros.call(Trigger, "/force_estimator/bias", Trigger.Request())

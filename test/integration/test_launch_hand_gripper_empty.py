@@ -20,27 +20,16 @@ import unittest
 
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
-    gripper_goal,
-    include_launch,
-    joint,
-    require_ros,
-    run_gripper_goal,
-    stamp_ns,
-    stopped,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import gripper_goal, joint, require_ros, stamp_ns, stopped
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from prisma_msgs.action import Manipulate  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 CANCEL_STOP_S = 0.5
@@ -48,31 +37,19 @@ CANCEL_STOP_S = 0.5
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true", sim_object="none"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true", sim_object="none"))
 
 
-class TestEmptyHandGripper(unittest.TestCase):
+class TestEmptyHandGripper(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.gripper = ActionClient(ros.probe, GripperCommand, "/prisma/gripper_cmd")
-            cls.manipulate = ActionClient(ros.probe, Manipulate, "/prisma/manipulate")
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        for client in (cls.gripper, cls.manipulate):
-            client.destroy()  # Node.destroy_node would leave them in the graph for the next launch test
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.gripper = ros.action_client(GripperCommand, "/prisma/gripper_cmd", wait_sec=None)
+        cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
 
     def run_gripper(self, goal):
-        return run_gripper_goal(self.ros, self.gripper, goal)
+        """The goal's result, sent again only while refused not_ready (send_until_started)."""
+        return self.ros.result(self.ros.send_until_started(self.gripper, goal, timeout_sec=90.0), timeout_sec=30.0)
 
     def test_1_manipulate_with_nothing_in_the_hand_is_refused_no_contact(self):
         ros = self.ros

@@ -29,11 +29,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
@@ -65,9 +65,8 @@ DECOY_FILE = Path(tempfile.gettempdir()) / f"prisma_namespace_decoys_{os.getpid(
 @pytest.mark.launch_test
 def generate_test_description():
     DECOY_FILE.write_text(yaml.safe_dump({"/**": {"ros__parameters": DECOYS}}))
-    return launch.LaunchDescription([SetParametersFromFile(str(DECOY_FILE)),
-                                     include_launch("hand.launch.py", sim="true", namespace="left"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(SetParametersFromFile(str(DECOY_FILE)),
+                            include_launch("hand.launch.py", sim="true", namespace="left"))
 
 
 def yaml_parameters(node: str) -> dict:
@@ -87,15 +86,7 @@ def yaml_parameters(node: str) -> dict:
     return flat
 
 
-class TestHandNamespace(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.ros = RosHarness()
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.ros.shutdown()
-
+class TestHandNamespace(GraphTestCase):
     def test_1_yaml_parameters_apply_under_the_namespace(self):
         ros = self.ros
         decoyed = set()

@@ -18,13 +18,13 @@ import unittest
 
 import pytest
 
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, output_of, require_ros
-from virtual_display import require_rviz, start_display, stop_display
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.ros_harness import require_ros
+from prisma_testing.virtual_display import require_rviz, start_display, stop_display
 
 require_ros()
 require_rviz()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
@@ -43,19 +43,10 @@ def generate_test_description():
     XVFB.append(xvfb)
     os.environ["DISPLAY"] = display
     os.environ["LIBGL_ALWAYS_SOFTWARE"] = "1"  # Mesa's software renderer: no GPU here
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true", rviz="true"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true", rviz="true"))
 
 
-class TestHandRviz(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        cls.ros = RosHarness()
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.ros.shutdown()
-
+class TestHandRviz(GraphTestCase):
     def rviz_subscriptions(self) -> set[str]:
         nodes = self.ros.probe.get_node_names_and_namespaces()
         return {name for node, namespace in nodes if node == "rviz2"

@@ -21,19 +21,11 @@ import unittest
 
 import pytest
 
-from ros_harness import (
-    RosHarness,
-    assert_clean_shutdown,
-    include_launch,
-    output_of,
-    require_ros,
-    stamp_ns,
-    stamp_rate_hz,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.ros_harness import require_ros, stamp_ns, stamp_rate_hz
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
@@ -43,7 +35,7 @@ from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
-from topic_table import topic_table  # noqa: E402
+from prisma_testing.topic_table import topic_table  # noqa: E402
 
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
 # what hand.launch.py starts beside them: the TF of the description (the fingers under load from
@@ -65,8 +57,7 @@ TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
 def hand_rows():
@@ -79,48 +70,39 @@ def driver_of(msg: DiagnosticArray) -> str:
     return driver
 
 
-class TestHandSim(unittest.TestCase):
+class TestHandSim(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        ros = cls.ros = RosHarness()
-        try:
-            cls.taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in FINGERS}
-            cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
-            cls.contacts = {f: ros.collect(ContactState, f"/prisma/{f}/contact") for f in FINGERS}
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-            # warm: the estimator (the slowest node: a network per sample) keeps pace with the taxels
-            start = time.monotonic()
-            ros.wait_until_keeping_up(cls.taxels["thumb"], cls.wrenches["thumb"], lag_sec=0.05, checks=10,
-                                      timeout_sec=90.0)
-            print(f"graph warm after {time.monotonic() - start:.1f} s")
-            # a machine starved by other jobs may skip scans, or drop samples from a node's queue
-            # (depth 10), for a while: up to WINDOWS windows, the first one in which every stream runs
-            # at its rate and every taxel sample has its wrench and contact is kept (else the last)
-            cls.tried = []
-            cls.first_window_ns = time.time_ns()
-            for _ in range(WINDOWS):
-                start_ns = time.time_ns()
-                cls.window = (start_ns, start_ns + round(WINDOW_S * 1e9))
-                ros.spin_for(WINDOW_S + 0.5)  # the window's last messages arrive too
-                cls.rates = cls.sample_rates()
-                unmatched = cls.unmatched()
-                cls.tried.append(f"slowest {min(cls.rates.values()):.1f} Hz, {sum(unmatched.values())} unmatched")
-                if (all(SAMPLE_RATE_HZ[0] <= rate <= SAMPLE_RATE_HZ[1] for rate in cls.rates.values())
-                        and not any(unmatched.values())):
-                    break
-            cls.graph = {name: types for name, types in ros.probe.get_topic_names_and_types()}
-            cls.action_servers = {}
-            for node in HAND_NODES:
-                for name, types in get_action_server_names_and_types_by_node(ros.probe, node, "/"):
-                    cls.action_servers[name] = types
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.ros.shutdown()
+    def subscribe(cls, ros):
+        cls.taxels = {f: ros.collect(TaxelArray, f"/prisma/{f}/taxels") for f in FINGERS}
+        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.contacts = {f: ros.collect(ContactState, f"/prisma/{f}/contact") for f in FINGERS}
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
+        # warm: the estimator (the slowest node: a network per sample) keeps pace with the taxels
+        start = time.monotonic()
+        ros.wait_until_keeping_up(cls.taxels["thumb"], cls.wrenches["thumb"], lag_sec=0.05, checks=10,
+                                  timeout_sec=90.0)
+        print(f"graph warm after {time.monotonic() - start:.1f} s")
+        # a machine starved by other jobs may skip scans, or drop samples from a node's queue
+        # (depth 10), for a while: up to WINDOWS windows, the first one in which every stream runs
+        # at its rate and every taxel sample has its wrench and contact is kept (else the last)
+        cls.tried = []
+        cls.first_window_ns = time.time_ns()
+        for _ in range(WINDOWS):
+            start_ns = time.time_ns()
+            cls.window = (start_ns, start_ns + round(WINDOW_S * 1e9))
+            ros.spin_for(WINDOW_S + 0.5)  # the window's last messages arrive too
+            cls.rates = cls.sample_rates()
+            unmatched = cls.unmatched()
+            cls.tried.append(f"slowest {min(cls.rates.values()):.1f} Hz, {sum(unmatched.values())} unmatched")
+            if (all(SAMPLE_RATE_HZ[0] <= rate <= SAMPLE_RATE_HZ[1] for rate in cls.rates.values())
+                    and not any(unmatched.values())):
+                break
+        cls.graph = {name: types for name, types in ros.probe.get_topic_names_and_types()}
+        cls.action_servers = {}
+        for node in HAND_NODES:
+            for name, types in get_action_server_names_and_types_by_node(ros.probe, node, "/"):
+                cls.action_servers[name] = types
 
     @classmethod
     def sample_rates(cls) -> dict[str, float]:

@@ -25,11 +25,11 @@ import unittest
 import numpy as np
 import pytest
 
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros, stamp_ns
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
@@ -46,8 +46,9 @@ from urdf_parser_py.urdf import URDF  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
-from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
-from urdf_kinematics import link_poses  # noqa: E402
+from prisma_hand_sim.hand_world import HandWorldParams  # noqa: E402
+from prisma_hand_sim.sim_objects import OBJECTS  # noqa: E402
+from prisma_testing.urdf_kinematics import link_poses  # noqa: E402
 
 HANDS = {"": "", "/left": "left/"}  # namespace -> frame prefix
 SUCCEEDED = 4
@@ -58,10 +59,9 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 def generate_test_description():
     # the second hand at the default priority: two control paths at real-time priority would leave
     # this test's own process too little of the two cores to see their messages
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
-                                     include_launch("hand.launch.py", sim="true", namespace="left",
-                                                    rt_priority="0", nice="0"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"),
+                            include_launch("hand.launch.py", sim="true", namespace="left",
+                                           rt_priority="0", nice="0"))
 
 
 def stamp_ns_of(stamp) -> int:
@@ -73,14 +73,13 @@ def translation(transform) -> np.ndarray:
     return np.array([t.x, t.y, t.z])
 
 
-class TestHandTf(unittest.TestCase):
+class TestHandTf(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        cls.ros = RosHarness()
+    def subscribe(cls, ros):
         cls.buffer = Buffer(cache_time=Duration(seconds=60))
         # a node and thread of its own: /tf of two hands (200 messages/s) on the probe would crowd the
         # test's own subscriptions out of its executor
-        cls.tf_node = cls.ros.rclpy.create_node("test_tf_listener")
+        cls.tf_node = ros.rclpy.create_node("test_tf_listener")
         cls.listener = TransformListener(cls.buffer, cls.tf_node, spin_thread=True)
 
     @classmethod
@@ -91,7 +90,7 @@ class TestHandTf(unittest.TestCase):
         cls.listener.dedicated_listener_thread.join()
         cls.listener.unregister()
         cls.tf_node.destroy_node()
-        cls.ros.shutdown()
+        super().tearDownClass()
 
     def description(self, namespace: str) -> URDF:
         received = []

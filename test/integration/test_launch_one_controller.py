@@ -11,8 +11,8 @@ from __future__ import annotations
 import signal
 import time
 
-from repo_paths import BRINGUP
-from ros_harness import NodeProcess, require_ros
+from prisma_testing.repo_paths import BRINGUP
+from prisma_testing.ros_harness import NodeProcess, require_ros
 
 require_ros()
 

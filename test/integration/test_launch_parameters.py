@@ -22,12 +22,12 @@ import unittest
 
 import pytest
 
-from repo_paths import LAUNCH
-from ros_harness import RosHarness, assert_clean_shutdown, include_launch, require_ros
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.repo_paths import LAUNCH
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
@@ -77,8 +77,7 @@ NODES = sorted(launched_node_names() - THIRD_PARTY)
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"), include_launch("glove.launch.py"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"), include_launch("glove.launch.py"))
 
 
 def choices_of(descriptor) -> list[str]:
@@ -87,30 +86,21 @@ def choices_of(descriptor) -> list[str]:
     return first[len(CHOICES):].split(", ") if first.startswith(CHOICES) else []
 
 
-class TestParameterDescriptions(unittest.TestCase):
+class TestParameterDescriptions(GraphTestCase):
     @classmethod
-    def setUpClass(cls):
-        cls.ros = RosHarness()
+    def subscribe(cls, ros):
         cls.described: dict[str, dict] = {}
         cls.values: dict[str, dict] = {}
-        try:
-            for node in NODES:
-                names = cls.ros.call(ListParameters, f"/{node}/list_parameters", ListParameters.Request(),
-                                     timeout_sec=90.0).result.names
-                names = [n for n in names if n not in RCLPY_OWN]
-                descriptors = cls.ros.call(DescribeParameters, f"/{node}/describe_parameters",
-                                           DescribeParameters.Request(names=names), timeout_sec=30.0).descriptors
-                values = cls.ros.call(GetParameters, f"/{node}/get_parameters", GetParameters.Request(names=names),
-                                      timeout_sec=30.0).values
-                cls.described[node] = {d.name: d for d in descriptors}
-                cls.values[node] = {n: parameter_value_to_python(v) for n, v in zip(names, values)}
-        except BaseException:
-            cls.ros.shutdown()  # tearDownClass does not run: the tests after this one need rclpy shut down
-            raise
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.ros.shutdown()
+        for node in NODES:
+            names = ros.call(ListParameters, f"/{node}/list_parameters", ListParameters.Request(),
+                             timeout_sec=90.0).result.names
+            names = [n for n in names if n not in RCLPY_OWN]
+            descriptors = ros.call(DescribeParameters, f"/{node}/describe_parameters",
+                                   DescribeParameters.Request(names=names), timeout_sec=30.0).descriptors
+            values = ros.call(GetParameters, f"/{node}/get_parameters", GetParameters.Request(names=names),
+                              timeout_sec=30.0).values
+            cls.described[node] = {d.name: d for d in descriptors}
+            cls.values[node] = {n: parameter_value_to_python(v) for n, v in zip(names, values)}
 
     def test_1_the_suites_nodes_of_both_launch_files_are_checked(self):
         self.assertLessEqual(set(CONFIGS), set(NODES))

@@ -29,7 +29,8 @@ from pathlib import Path
 
 import pytest
 
-from ros_harness import GraphTestCase, emulated_hand_launch, require_ros, wait_until_homed
+from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
+from prisma_testing.ros_harness import require_ros, wait_until_homed
 
 require_ros()
 
@@ -39,8 +40,8 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, HomeMotors, MoveMotors  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_bringup.emulator_control import send  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
+from prisma_hand_emulator.emulator_control import send  # noqa: E402
 
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_servo_safety_{os.getpid()}"
 STOP_LIMIT_S = 0.3  # the bound; the watchdog is armed at 0.1 s
@@ -162,7 +163,7 @@ class TestServoSafety(GraphTestCase):
                                                            targets=[0.0, 0.0, 0.0])), timeout_sec=30.0)
 
     def latest_motor_diag(self, motor: str) -> dict | None:
-        from ros_harness import diagnostic_values
+        from prisma_testing.ros_harness import diagnostic_values
 
         return diagnostic_values(self.diagnostics, f"motor_driver: {motor}")
 

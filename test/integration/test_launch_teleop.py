@@ -1,6 +1,6 @@
 """launch_testing: `teleop.launch.py glove:=none` (hand-pose input, the sim hand with the pinch ball,
 the teleop node engaged at start), the test wearing the glove: the operator's joint angles on
-/glove/joint_states at 60 Hz from a process on the control path's rung (test/support/operator_glove.py).
+/glove/joint_states at 60 Hz from a process on the control path's rung (test/support/prisma_testing/operator_glove.py).
 The tests run in order, on one launch:
 
 1. the operator closes to a fist: the teleop node's Teleoperate goal runs, the hand closes on the
@@ -23,21 +23,12 @@ import unittest
 
 import pytest
 
-from operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
-from ros_harness import (
-    STOPPED_RAD_S,
-    GraphTestCase,
-    assert_clean_shutdown,
-    include_launch,
-    joint,
-    require_ros,
-    stamp_ns,
-    stopped,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
+from prisma_testing.ros_harness import STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
@@ -55,8 +46,7 @@ OPPOSED = Synergies(0.0, 0.0, 1.0)
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("teleop.launch.py", glove="none"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("teleop.launch.py", glove="none"))
 
 
 class TestTeleop(WearingTheGlove, GraphTestCase):

@@ -1,6 +1,6 @@
 """launch_testing: `teleop.launch.py hardware:=emulated glove:=none`: teleoperation over the drivers'
 hardware paths (prisma-hand-emulator's servos through dynamixel-sdk, its fingertip hub through
-pyserial; the servos homed at start), the test wearing the glove (test/support/operator_glove.py):
+pyserial; the servos homed at start), the test wearing the glove (test/support/prisma_testing/operator_glove.py):
 
 1. the operator closes to a fist: the hand closes on the ball and stops there, no pad's estimated
    force more than 0.15 N above max_pad_force (2 N), thumb and index at the limit; the operator
@@ -19,19 +19,12 @@ from pathlib import Path
 
 import pytest
 
-from operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
-from ros_harness import (
-    GraphTestCase,
-    assert_clean_shutdown,
-    include_launch,
-    require_ros,
-    stamp_ns,
-    wait_until_homed,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
+from prisma_testing.ros_harness import require_ros, stamp_ns, wait_until_homed
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -49,9 +42,8 @@ OVERSHOOT_N = 0.15
 @pytest.mark.launch_test
 def generate_test_description():
     EMULATOR_DIR.mkdir(exist_ok=True)
-    return launch.LaunchDescription([
-        include_launch("teleop.launch.py", hardware="emulated", glove="none", emulator_dir=str(EMULATOR_DIR)),
-        launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("teleop.launch.py", hardware="emulated", glove="none",
+                                           emulator_dir=str(EMULATOR_DIR)))
 
 
 class TestTeleopEmulated(WearingTheGlove, GraphTestCase):

@@ -25,14 +25,12 @@ import unittest
 
 import pytest
 
-from ros_harness import (
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import (
     SIM_STOPPED_RAD_S,
     STOPPED_RAD_S,
-    GraphTestCase,
     NodeProcess,
-    assert_clean_shutdown,
     goal_outcome,
-    include_launch,
     joint,
     require_ros,
     stamp_ns,
@@ -41,7 +39,6 @@ from ros_harness import (
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
@@ -60,8 +57,7 @@ CLOSED = {"fingers": 9.0, "thumb_flexion": 7.0}  # config/motor_driver.yaml max_
 
 @pytest.mark.launch_test
 def generate_test_description():
-    return launch.LaunchDescription([include_launch("hand.launch.py", sim="true"),
-                                     launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("hand.launch.py", sim="true"))
 
 
 # The glove a teleop node would be: a process of its own on the teleop node's rung (teleop.launch.py

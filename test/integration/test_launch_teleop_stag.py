@@ -22,11 +22,11 @@ from pathlib import Path
 
 import pytest
 
-from ros_harness import GraphTestCase, assert_clean_shutdown, include_launch, joint, require_ros, stamp_ns
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.ros_harness import joint, require_ros, stamp_ns
 
 require_ros()
 
-import launch  # noqa: E402
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
@@ -45,9 +45,8 @@ STARTED = re.compile(r"^(grasp|gripper) goal started: (?:GraspRequest\(grasp='(\
 @pytest.mark.launch_test
 def generate_test_description():
     write_session(SESSION_FILE, seed=0)
-    return launch.LaunchDescription([
-        include_launch("teleop.launch.py", input="stag", glove_backend="replay", replay_file=str(SESSION_FILE)),
-        launch_testing.actions.ReadyToTest()])
+    return graph_under_test(include_launch("teleop.launch.py", input="stag", glove_backend="replay",
+                                           replay_file=str(SESSION_FILE)))
 
 
 def started_goals(logs: list) -> list[tuple[str, float | None, int]]:

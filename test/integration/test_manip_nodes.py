@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ros_harness import SIM_STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
+from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
 
 require_ros()
 
@@ -37,8 +37,9 @@ from prisma_common.hand import (
 from prisma_common.messages import make_header, robot_types
 from prisma_common.parameters import ParameterError  # noqa: E402
 from prisma_force_estimator.ros_conversions import hand_wrench_to_msg  # noqa: E402
-from prisma_hand_sim.hand_world import OBJECTS, HandWorld, released  # noqa: E402
+from prisma_hand_sim.hand_world import HandWorld  # noqa: E402
 from prisma_hand_sim.pad_model import PadModel  # noqa: E402
+from prisma_hand_sim.sim_objects import OBJECTS, released  # noqa: E402
 from prisma_manipulation.manipulation_core import MOVE_LEASE_S, MOVE_REFRESH_S, GraspRequest  # noqa: E402
 from prisma_manipulation.manipulation_node import ManipulationNode  # noqa: E402
 from prisma_motor_driver.motor_driver_node import MotorDriverNode  # noqa: E402
@@ -887,6 +888,28 @@ def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
     size = len(serialize_message(final))
     assert size <= 4 + 4 + 28 * len(final.status_list)  # CDR: header, length, 28 bytes a goal (uuid, stamp, status)
     assert len(status) <= 2 * 130 + 10  # a status message as each goal starts and as each ends
+
+
+def test_the_manipulation_node_forgets_a_finished_goal_after_its_result_timeout(ros, monkeypatch):
+    """Each status change publishes every goal a server keeps, to each client: the manipulation node
+    forgets a finished goal RESULT_TIMEOUT_S after it ended (rclpy's default keeps it 15 minutes, and
+    a soak's goals slowed as the arrays grew). Here with the timeout at 3 s, on goals refused at once
+    (no motor driver: not_ready). (Wall time, as above.)"""
+    from prisma_manipulation import manipulation_node
+
+    monkeypatch.setattr(manipulation_node, "RESULT_TIMEOUT_S", 3)
+    manip = ros.node(ManipulationNode, namespace=NS)
+    server = manip._servers[[kind.name for kind in manipulation_node.GOAL_KINDS].index("grasp")]
+    grasp = ros.action_client(Grasp, f"{NS}/prisma/grasp")
+    first_ended = None
+    for _ in range(5):
+        assert ros.result(ros.send_goal(grasp, Grasp.Goal(grasp="pinch"))).status == GoalStatus.STATUS_ABORTED
+        first_ended = first_ended or time.monotonic()
+    assert len(server._goal_handles) == 5
+    assert ros.spin_until(lambda: len(server._goal_handles) < 5, 10.0)
+    # none before its 3 s (less the moment its result took to reach this client)
+    assert time.monotonic() - first_ended >= 2.9
+    assert ros.spin_until(lambda: not server._goal_handles, 10.0)  # all within seconds, not 15 minutes
 
 
 # ---- one controller per hand -------------------------------------------------------------------

@@ -18,8 +18,8 @@ import os
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG
-from ros_harness import require_ros, stamp_ns
+from prisma_testing.repo_paths import CONFIG
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 

@@ -13,7 +13,7 @@ from graphlib import CycleError, TopologicalSorter
 
 import pytest
 
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 SRC = ROOT / "src"
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").exists())
@@ -59,7 +59,7 @@ def workspace(found: dict[str, set[str]], package: str) -> dict[str, set[str]]:
 def test_packages_found():
     assert {"prisma_msgs", "prisma_common", "prisma_node_wiring", "prisma_hand_sim", "prisma_tactile_driver",
             "prisma_motor_driver", "prisma_force_estimator", "prisma_manipulation", "stag_glove",
-            "prisma_bringup"} <= set(PACKAGES)
+            "prisma_teleop", "prisma_hand_emulator", "prisma_sim", "prisma_bringup"} <= set(PACKAGES)
 
 
 @pytest.mark.parametrize("package", PYTHON_PACKAGES)
@@ -91,6 +91,14 @@ def test_declared_graph_is_acyclic():
     drivers = {"prisma_tactile_driver", "prisma_motor_driver", "stag_glove"}
     for driver in drivers:
         assert not declared(driver) & (drivers - {driver}), f"{driver} depends on another driver"
+    # the off-robot sessions run the cores of manipulation, teleop and the glove: above them, and
+    # nothing in the workspace depends on prisma_sim (the hand's launch files do not run it)
+    for package in ("prisma_manipulation", "prisma_teleop", "stag_glove"):
+        assert order.index(package) < order.index("prisma_sim")
+    assert not [p for p in PACKAGES if "prisma_sim" in declared(p)]
+    # the emulator stands in for the hardware the drivers talk to: below the launch files that start
+    # it, and no node package depends on it (the drivers reach it through their hardware backends)
+    assert [p for p in PACKAGES if "prisma_hand_emulator" in declared(p)] == ["prisma_bringup"]
 
 
 def test_the_ros_free_layers_are_at_the_bottom():

@@ -31,8 +31,8 @@ import pytest
 
 from prisma_common import share_data
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
-from repo_paths import BRINGUP, ROOT
-from ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
+from prisma_testing.repo_paths import BRINGUP, ROOT
+from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
 from stag_glove import paths as glove_paths
 
 SRC = ROOT / "src"
@@ -129,8 +129,13 @@ def test_every_third_party_import_is_declared(package):
     check_test_imports_declared(package)
 
 
-# The shared test helpers (test/support, on pytest's pythonpath) and the test runners.
-TEST_SUPPORT = {p.stem for p in (ROOT / "test" / "support").glob("*.py")}
+# The shared test helpers (the package prisma_testing in test/support/, installed by `pip install -e .`)
+# and the test runners.
+TEST_SUPPORT = {"prisma_testing"}
+# bench/'s scripts and its graph_bench package, which tests of bench/ import from that folder: part of
+# this repository, not something colcon or rosdep provides
+BENCH_MODULES = {path.stem for path in (ROOT / "bench").glob("*.py")} | {
+    path.parent.name for path in (ROOT / "bench").glob("*/__init__.py")}
 TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis", "setuptools": "python3-setuptools"}
 TEST_PIP_ONLY = {"mcap", "mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
 
@@ -156,7 +161,7 @@ def undeclared_test_imports(roots: set[str], declared: set[str], xml_text: str) 
     """What tests importing `roots` need and a package.xml (`declared`, its text `xml_text`) does not
     declare: the rosdep key of each third-party or ROS module, pip-only modules named in a comment."""
     missing = []
-    for module in sorted(roots - set(sys.stdlib_module_names) - TEST_SUPPORT - {"__future__"}):
+    for module in sorted(roots - set(sys.stdlib_module_names) - TEST_SUPPORT - BENCH_MODULES - {"__future__"}):
         if module in PIP_ONLY | TEST_PIP_ONLY:
             if module not in xml_text:
                 missing.append(f"{module} (pip only: say so in a comment)")
@@ -336,6 +341,7 @@ def wheel_names(tmp_path_factory) -> set[str]:
     tree = work / "tree"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
     shutil.copytree(SRC, tree / "src", ignore=ignore)
+    shutil.copytree(ROOT / "test" / "support", tree / "test" / "support", ignore=ignore)
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, tree / name)
     cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(work / "dist"), str(tree)]
@@ -358,6 +364,7 @@ def test_wheel_carries_bundles_layout_and_message_definitions(wheel_names):
             "config/glove/layout.yaml"} <= WHEEL_SHARE["share/prisma_bringup/"]
     assert {"msg/TaxelArray.msg", "action/Grasp.action"} <= WHEEL_SHARE["share/prisma_msgs/"]
     assert "prisma_common/share_data.py" in wheel_names
+    assert "prisma_testing/ros_harness.py" in wheel_names  # the test helpers, for tests and bench/ alike
     # the Apache-2.0 text in the wheel's metadata (setuptools picks LICENSE up by name)
     assert any(n.split("/")[0].endswith(".dist-info") and n.endswith("/LICENSE") for n in wheel_names)
 

@@ -10,7 +10,7 @@ import array
 import numpy as np
 import pytest
 
-from ros_harness import require_ros
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 PACKAGES = sorted([p.parent for p in (ROOT / "src").glob("*/package.xml")] + [ROOT / "test" / "integration"])
 # sha256 of https://www.apache.org/licenses/LICENSE-2.0.txt, as colcon and trio ship it

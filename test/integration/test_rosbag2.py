@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
+from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
 
 require_ros()
 
@@ -95,7 +95,7 @@ def median_period_ms(stamps: list[int]) -> float:
 @pytest.fixture(scope="module")
 def sim_bags(tmp_path_factory) -> Path:
     """prisma-sim's short configuration (as test_sim_runner runs it), once for the module: bags/<scenario>."""
-    from prisma_bringup.sim_cli import main
+    from prisma_sim.sim_cli import main
 
     out = tmp_path_factory.mktemp("prisma_sim")
     assert main(["--short", "--out", str(out)]) == 0

@@ -17,7 +17,7 @@ import os
 
 import pytest
 
-from ros_harness import require_ros, ros2_launch, stop_process
+from prisma_testing.ros_harness import require_ros, ros2_launch, stop_process
 
 require_ros()
 

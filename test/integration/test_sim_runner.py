@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from prisma_bringup.hand_session import goal_status
-from prisma_bringup.sim_cli import main
 from prisma_common.hand import FINGERS
 from prisma_common.typestore import get_typestore
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
-from repo_paths import CONFIG, ROOT
+from prisma_sim.hand_session import goal_status
+from prisma_sim.sim_cli import main
+from prisma_testing.repo_paths import CONFIG, ROOT
 
 NS = 1_000_000_000
 PERIOD_NS = 10_000_000  # 100 Hz: tactile scan, motor ticks, controller steps
@@ -334,10 +334,10 @@ def test_one_set_of_scenario_names_in_every_tool_and_launch_argument():
     """prisma-sim, prisma-manip-scenarios, the emulator's worlds (--world, `world` fault command,
     hand.launch.py sim_object:= with hardware:=emulated) and the scenarios themselves use the same
     names; the emulator's worlds start with the sim graph's objects (sim_object:= with sim:=true)."""
-    from prisma_bringup.hand_emulator import WORLDS
-    from prisma_bringup.hand_session import HAND_SCENARIOS
-    from prisma_bringup.sim_runner import HAND_SCENARIO_NAMES
+    from prisma_hand_emulator.settings import WORLDS
     from prisma_manipulation.scenarios import SCENARIO_NAMES
+    from prisma_sim.hand_session import HAND_SCENARIOS
+    from prisma_sim.sim_runner import HAND_SCENARIO_NAMES
 
     names = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
     assert HAND_SCENARIO_NAMES == tuple(HAND_SCENARIOS) == SCENARIO_NAMES == names
@@ -408,7 +408,7 @@ def test_ctrl_c_mid_run_leaves_no_output(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "summary.md").write_text("an earlier run")
-    code = "import sys; from prisma_bringup.sim_cli import main; sys.exit(main())"
+    code = "import sys; from prisma_sim.sim_cli import main; sys.exit(main())"
     proc = subprocess.Popen([sys.executable, "-c", code, "--scenarios", "vertical", "lateral_grasp", "--no-plots",
                              "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=tmp_path)

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 
-from goal_soak import node_pids, run_soak
-from load_harness import machine_load
-from ros_harness import require_ros, ros2_launch, stop_process
+from prisma_testing.goal_soak import node_pids, run_soak
+from prisma_testing.load_harness import machine_load
+from prisma_testing.ros_harness import require_ros, ros2_launch, stop_process
 
 require_ros()
 

@@ -36,9 +36,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
-from ros_harness import ROS_AVAILABLE, require_ros
-from topic_table import SHARED_TOPICS, TableRow, topic_table
+from prisma_testing.repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
+from prisma_testing.ros_harness import ROS_AVAILABLE, require_ros
+from prisma_testing.topic_table import SHARED_TOPICS, TableRow, topic_table
 
 # ------------------------------------------------------------------------------------------------
 # Sources: setup.py, launch files, config files, topic table
@@ -128,14 +128,18 @@ def _literal(node):
     return node.value if isinstance(node, ast.Constant) and isinstance(node.value, str) else None
 
 
+# prisma_bringup.launch_nodes' helper: a Node of the control path, named as its executable
+CONTROL_PATH_NODE = "control_path_node"
+
+
 def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
     tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
     found = []
     for call in ast.walk(tree):
         if not isinstance(call, ast.Call):
             continue
-        func = call.func
-        if getattr(func, "id", getattr(func, "attr", None)) not in ("Node", "LifecycleNode"):
+        func = getattr(call.func, "id", getattr(call.func, "attr", None))
+        if func not in ("Node", "LifecycleNode", CONTROL_PATH_NODE):
             continue
         keywords = {k.arg: k.value for k in call.keywords}
         files = tuple(
@@ -151,9 +155,10 @@ def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
                     except ValueError:
                         literal = _NOT_LITERAL
                     inline.append((_literal(key) or f"<not a literal at line {key.lineno}>", literal))
+        executable = _literal(keywords.get("executable"))
+        name = executable if func == CONTROL_PATH_NODE else _literal(keywords.get("name"))
         found.append(LaunchedNode(
-            launch_file.name, call.lineno, _literal(keywords.get("package")), _literal(keywords.get("executable")),
-            _literal(keywords.get("name")), files, tuple(inline)))
+            launch_file.name, call.lineno, _literal(keywords.get("package")), executable, name, files, tuple(inline)))
     return found
 
 
@@ -487,7 +492,8 @@ def test_every_launch_file_starts_something():
     assert {p.name for p in files} >= {"hand.launch.py", "glove.launch.py", "calibration.launch.py", "all.launch.py"}
     for path in files:
         tree = ast.parse(path.read_text())
-        assert _calls(tree, "Node") or _calls(tree, "IncludeLaunchDescription"), path.name
+        assert _calls(tree, "Node") or _calls(tree, CONTROL_PATH_NODE) or _calls(tree, "IncludeLaunchDescription"), \
+            path.name
 
 
 def test_console_scripts_point_at_modules_with_main():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from prisma_tactile_driver.protocol import FrameParser
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 SKETCH = ROOT / "firmware" / "prisma_fingertip_hub" / "prisma_fingertip_hub.ino"
 CXX = shutil.which("g++") or shutil.which("clang++")

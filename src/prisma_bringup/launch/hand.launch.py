@@ -66,8 +66,9 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
+from prisma_bringup.launch_nodes import control_path_env, control_path_node
 from prisma_common.hand_config import launch_hand_config
-from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY, NICE_ENV, RT_PRIORITY_ENV
+from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY
 
 
 def rviz_for_this_hand(context, config_dir: Substitution, namespace: Substitution, frame_prefix: Substitution) -> list:
@@ -99,22 +100,8 @@ class HandConfigDir(Substitution):
                                   self.simulated.perform(context) == "True")
 
 
-def generate_launch_description():
-    config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
-    sim = LaunchConfiguration("sim")
-    namespace = LaunchConfiguration("namespace")
-    hardware = LaunchConfiguration("hardware")
-    emulator_dir = LaunchConfiguration("emulator_dir")
-    parts = LaunchConfiguration("parts")
-    robot_side = ["'", parts, "' != 'workstation'"]
-    workstation_side = ["'", parts, "' != 'robot'"]
-    emulated = IfCondition(PythonExpression(["'", hardware, "' == 'emulated' and ", *robot_side]))
-    simulated = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'true' and ",
-                                              *robot_side]))
-    on_robot = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'false' and ",
-                                             *robot_side]))
-
-    declared_arguments = [
+def declared_arguments(config) -> list[DeclareLaunchArgument]:
+    return [
         DeclareLaunchArgument("sim", default_value="true", choices=["true", "false"],
                               description="Simulated motors and fingertip sensors instead of the hardware"),
         DeclareLaunchArgument("tactile_backend", default_value="serial", choices=["serial", "i2c", "sim"],
@@ -164,90 +151,75 @@ def generate_launch_description():
                               description="Niceness of the control path where real-time scheduling is not asked for "
                                           "or not permitted (-20..19; lower runs first)"),
     ]
-    # "auto" is resolved here, not in the argument's default: a default computed from another argument
-    # would leak from the first of two hands included in one launch file into the second
-    given_prefix = LaunchConfiguration("frame_prefix")
-    frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
-                                     "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
-    on_workstation = IfCondition(PythonExpression(workstation_side))
-    pad_frames = ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)
-    # read by each process at start, before its threads exist (prisma_common/scheduling.py)
-    priority = {RT_PRIORITY_ENV: LaunchConfiguration("rt_priority"), NICE_ENV: LaunchConfiguration("nice")}
-    home = ParameterValue(LaunchConfiguration("home"), value_type=bool)
-    hand_dir = ParameterValue(HandConfigDir(LaunchConfiguration("hand_config"), namespace, PythonExpression(
-        ["'", hardware, "' == 'emulated' or '", sim, "' == 'true'"])), value_type=str)
 
-    tactile_sim = Node(
-        package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
-        parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": "sim", "contact_source": "hand_world", "frame_id_format": pad_frames,
-                     "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str),
-                     "object_frame_id": ParameterValue([frame_prefix, "prisma_hand_base"], value_type=str)}],
-        condition=simulated,
-    )
-    tactile_hardware = Node(
-        package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
-        parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": LaunchConfiguration("tactile_backend"),
-                     "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str),
-                     "frame_id_format": pad_frames}],
-        condition=on_robot,
-    )
-    motors_sim = Node(
-        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
-        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]), {"backend": "sim", "hand_config": hand_dir}],
-        condition=simulated,
-    )
-    motors_hardware = Node(
-        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
-        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
-                    {"backend": LaunchConfiguration("motor_backend"), "hand_config": hand_dir, "home_at_start": home,
-                     "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}],
-        condition=on_robot,
-    )
+
+def simulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:
+    """sim:=true: the drivers' sim backends, the pads' contacts from the hand's world."""
+    return [
+        control_path_node(
+            package="prisma_tactile_driver", executable="tactile_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
+                        {"backend": "sim", "contact_source": "hand_world",
+                         "frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str),
+                         "sim_object": ParameterValue(LaunchConfiguration("sim_object"), value_type=str),
+                         "object_frame_id": ParameterValue([frame_prefix, "prisma_hand_base"], value_type=str)}]),
+        control_path_node(
+            package="prisma_motor_driver", executable="motor_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
+                        {"backend": "sim", "hand_config": hand_dir}]),
+    ]
+
+
+def robot_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:
+    """sim:=false: the drivers on the hand's links, tactile_backend / motor_backend on their ports."""
+    return [
+        control_path_node(
+            package="prisma_tactile_driver", executable="tactile_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
+                        {"backend": LaunchConfiguration("tactile_backend"),
+                         "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str),
+                         "frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}]),
+        control_path_node(
+            package="prisma_motor_driver", executable="motor_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
+                        {"backend": LaunchConfiguration("motor_backend"), "hand_config": hand_dir,
+                         "home_at_start": ParameterValue(LaunchConfiguration("home"), value_type=bool),
+                         "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}]),
+    ]
+
+
+def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:
+    """hardware:=emulated: prisma-hand-emulator, then the drivers' hardware paths on its devices."""
+    emulator_dir = LaunchConfiguration("emulator_dir")
     emulator = ExecuteProcess(
-        cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_bringup"), "lib", "prisma_bringup",
+        cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_hand_emulator"), "lib", "prisma_hand_emulator",
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("sim_object"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
-        name="hand_emulator", output="screen", additional_env=priority, condition=emulated,
+        name="hand_emulator", output="screen", additional_env=control_path_env(), condition=condition,
     )
-    tactile_emulated = Node(
-        package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="tactile_driver",
-        parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
-                    {"backend": LaunchConfiguration("tactile_backend"),
-                     "port": ParameterValue(PathJoinSubstitution([emulator_dir, "hub"]), value_type=str),
-                     "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]), value_type=str),
-                     "frame_id_format": pad_frames}],
-        condition=emulated,
-    )
-    motors_emulated = Node(
-        package="prisma_motor_driver", executable="motor_driver", name="motor_driver",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="motor_driver",
-        parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
-                    {"backend": "dynamixel", "hand_config": hand_dir, "home_at_start": home,
-                     "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}],
-        condition=emulated,
-    )
-    force_estimator = Node(
-        package="prisma_force_estimator", executable="force_estimator", name="force_estimator",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="force_estimator",
-        parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
-                    {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str),
-                     "hand_config": hand_dir}],
-        condition=on_workstation,
-    )
-    manipulation = Node(
-        package="prisma_manipulation", executable="manipulation", name="manipulation",
-        namespace=namespace, output="screen", additional_env=priority, exec_name="manipulation",
-        parameters=[PathJoinSubstitution([config, "manipulation.yaml"]), {"frame_id_format": pad_frames}],
-        condition=on_workstation,
-    )
+    return [
+        emulator,
+        control_path_node(
+            package="prisma_tactile_driver", executable="tactile_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
+                        {"backend": LaunchConfiguration("tactile_backend"),
+                         "port": ParameterValue(PathJoinSubstitution([emulator_dir, "hub"]), value_type=str),
+                         "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]),
+                                                      value_type=str),
+                         "frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}]),
+        control_path_node(
+            package="prisma_motor_driver", executable="motor_driver", namespace=namespace, condition=condition,
+            parameters=[PathJoinSubstitution([config, "motor_driver.yaml"]),
+                        {"backend": "dynamixel", "hand_config": hand_dir,
+                         "home_at_start": ParameterValue(LaunchConfiguration("home"), value_type=bool),
+                         "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}]),
+    ]
+
+
+def beside_the_hand(config, namespace, frame_prefix, robot_side: list, workstation_side: list) -> list:
+    """robot_state_publisher and tendon_stretch (robot side: with the workstation away the fingers
+    follow the motors), tactile_markers and RViz with rviz:=true (workstation side)."""
     description = ParameterValue(
         Command(["xacro ", PathJoinSubstitution([FindPackageShare("prisma_description"), "urdf",
                                                   "prisma_hand.urdf.xacro"])]), value_type=str)
@@ -259,7 +231,6 @@ def generate_launch_description():
         remappings=[("joint_states", "prisma/model_joint_states")],
         condition=IfCondition(PythonExpression(robot_side)),
     )
-    # beside robot_state_publisher (robot side): with the workstation away the fingers follow the motors
     tendon_stretch = Node(
         package="prisma_visualization", executable="tendon_stretch", name="tendon_stretch",
         namespace=namespace, output="screen",
@@ -270,13 +241,49 @@ def generate_launch_description():
         package="prisma_visualization", executable="tactile_markers", name="tactile_markers",
         namespace=namespace, output="screen",
         parameters=[PathJoinSubstitution([config, "tactile_markers.yaml"])],
-        condition=on_workstation,
+        condition=IfCondition(PythonExpression(workstation_side)),
     )
     rviz = OpaqueFunction(function=rviz_for_this_hand, args=[config, namespace, frame_prefix],
                           condition=IfCondition(PythonExpression(["'", LaunchConfiguration("rviz"), "' == 'true' and ",
                                                                   *workstation_side])))
+    return [robot_state_publisher, tendon_stretch, tactile_markers, rviz]
 
-    nodes = [tactile_sim, tactile_hardware, motors_sim, motors_hardware,
-             emulator, tactile_emulated, motors_emulated, force_estimator, manipulation,
-             robot_state_publisher, tendon_stretch, tactile_markers, rviz]
-    return LaunchDescription(declared_arguments + nodes)
+
+def generate_launch_description():
+    config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
+    sim = LaunchConfiguration("sim")
+    namespace = LaunchConfiguration("namespace")
+    hardware = LaunchConfiguration("hardware")
+    parts = LaunchConfiguration("parts")
+    robot_side = ["'", parts, "' != 'workstation'"]
+    workstation_side = ["'", parts, "' != 'robot'"]
+    emulated = IfCondition(PythonExpression(["'", hardware, "' == 'emulated' and ", *robot_side]))
+    simulated = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'true' and ",
+                                              *robot_side]))
+    on_robot = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'false' and ",
+                                             *robot_side]))
+    # "auto" is resolved here, not in the argument's default: a default computed from another argument
+    # would leak from the first of two hands included in one launch file into the second
+    given_prefix = LaunchConfiguration("frame_prefix")
+    frame_prefix = PythonExpression(["(('", namespace, "'.strip('/') + '/') if '", namespace, "'.strip('/') else '') "
+                                     "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
+    on_workstation = IfCondition(PythonExpression(workstation_side))
+    hand_dir = ParameterValue(HandConfigDir(LaunchConfiguration("hand_config"), namespace, PythonExpression(
+        ["'", hardware, "' == 'emulated' or '", sim, "' == 'true'"])), value_type=str)
+
+    force_estimator = control_path_node(
+        package="prisma_force_estimator", executable="force_estimator", namespace=namespace, condition=on_workstation,
+        parameters=[PathJoinSubstitution([config, "force_estimator.yaml"]),
+                    {"model_bundle": ParameterValue(LaunchConfiguration("model_bundle"), value_type=str),
+                     "hand_config": hand_dir}])
+    manipulation = control_path_node(
+        package="prisma_manipulation", executable="manipulation", namespace=namespace, condition=on_workstation,
+        parameters=[PathJoinSubstitution([config, "manipulation.yaml"]),
+                    {"frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}])
+    return LaunchDescription(
+        declared_arguments(config)
+        + simulated_hardware(config, namespace, frame_prefix, hand_dir, simulated)
+        + robot_hardware(config, namespace, frame_prefix, hand_dir, on_robot)
+        + emulated_hardware(config, namespace, frame_prefix, hand_dir, emulated)
+        + [force_estimator, manipulation]
+        + beside_the_hand(config, namespace, frame_prefix, robot_side, workstation_side))

@@ -19,22 +19,15 @@ from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.conditions import IfCondition
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
-from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
-from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY, NICE_ENV, RT_PRIORITY_ENV
+from prisma_bringup.launch_nodes import control_path_node
+from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY
 
 
-def generate_launch_description():
-    launch_dir = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "launch"])
-    config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
-    teleop_input = LaunchConfiguration("input")
-    hardware = LaunchConfiguration("hardware")
-    glove = LaunchConfiguration("glove")
-    namespace = LaunchConfiguration("namespace")
-
-    declared_arguments = [
+def declared_arguments() -> list[DeclareLaunchArgument]:
+    return [
         DeclareLaunchArgument("input", default_value="joint_states", choices=["joint_states", "stag"],
                               description="joint_states: a hand-pose glove's joint angles; stag: the STAG glove's "
                                           "hand poses and pressure"),
@@ -71,10 +64,15 @@ def generate_launch_description():
                               description="Niceness of the control path where real-time scheduling is not asked for "
                                           "or not permitted"),
     ]
-    # the glove's targets drive the hand now: held up behind a busy process they would end the goal
-    # input_stale, so the glove and the teleop node run on the control path's rung (prisma_common/scheduling.py)
-    priority = {RT_PRIORITY_ENV: LaunchConfiguration("rt_priority"), NICE_ENV: LaunchConfiguration("nice")}
-    emulated = PythonExpression(["'", hardware, "' == 'emulated'"])
+
+
+def generate_launch_description():
+    launch_dir = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "launch"])
+    config = PathJoinSubstitution([FindPackageShare("prisma_bringup"), "config"])
+    teleop_input = LaunchConfiguration("input")
+    glove = LaunchConfiguration("glove")
+    namespace = LaunchConfiguration("namespace")
+    emulated = PythonExpression(["'", LaunchConfiguration("hardware"), "' == 'emulated'"])
     hand = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
         launch_arguments={"sim": "true",
@@ -95,19 +93,17 @@ def generate_launch_description():
                           "namespace": namespace}.items(),
         condition=IfCondition(PythonExpression(["'", teleop_input, "' == 'stag' and '", glove, "' != 'none'"])),
     )
-    synthetic_glove = Node(
-        package="prisma_teleop", executable="synthetic_glove", name="synthetic_glove",
-        namespace=namespace, output="screen", additional_env=priority,
+    # the glove's targets drive the hand now: held up behind a busy process they would end the goal
+    # input_stale, so the glove and the teleop node run on the control path's rung
+    synthetic_glove = control_path_node(
+        package="prisma_teleop", executable="synthetic_glove", namespace=namespace,
         parameters=[PathJoinSubstitution([config, "synthetic_glove.yaml"])],
         condition=IfCondition(PythonExpression(["'", teleop_input, "' == 'joint_states' and '", glove,
-                                                "' != 'none'"])),
-    )
-    teleop = Node(
-        package="prisma_teleop", executable="teleop", name="teleop", namespace=namespace, output="screen",
-        additional_env=priority,
+                                                "' != 'none'"])))
+    teleop = control_path_node(
+        package="prisma_teleop", executable="teleop", namespace=namespace,
         parameters=[PathJoinSubstitution([config, "teleop.yaml"]),
                     {"input": teleop_input,
                      "engage_at_start": ParameterValue(LaunchConfiguration("engage"), value_type=bool),
-                     "calibration_file": ParameterValue(LaunchConfiguration("calibration_file"), value_type=str)}],
-    )
-    return LaunchDescription(declared_arguments + [hand, stag_glove, synthetic_glove, teleop])
+                     "calibration_file": ParameterValue(LaunchConfiguration("calibration_file"), value_type=str)}])
+    return LaunchDescription(declared_arguments() + [hand, stag_glove, synthetic_glove, teleop])

@@ -1,1 +1,1 @@
-"""Launch files, off-robot closed-loop simulation runner and bag tools."""
+"""Launch files, node configuration and model bundles, and prisma-doctor (the bring-up check)."""

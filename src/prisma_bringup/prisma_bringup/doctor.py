@@ -34,11 +34,9 @@ import argparse
 
 from prisma_common.cli_args import ArgumentParser, UserError, command, positive_float
 
-from .doctor_checks import (
-    SAMPLE_SECONDS,
-    exit_status,
-    run_checks,
-)
+from .doctor_checks import run_checks
+from .doctor_facts import SAMPLE_SECONDS
+from .doctor_result import exit_status
 
 
 def _namespace(text: str) -> str:

@@ -20,7 +20,7 @@ from rclpy.qos import qos_profile_sensor_data
 from prisma_common.diagnostics import diagnostics_from_msg, of_namespace
 from prisma_common.hand import FINGERS
 
-from .doctor_checks import (
+from .doctor_facts import (
     HAND_NODES,
     SAMPLE_SECONDS,
     HandFacts,

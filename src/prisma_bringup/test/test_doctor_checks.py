@@ -7,15 +7,9 @@ import os
 
 import pytest
 
-from prisma_bringup.doctor_checks import (
-    CheckResult,
-    HandFacts,
-    PortFacts,
-    TaxelSample,
-    exit_status,
-    port_facts,
-    run_checks,
-)
+from prisma_bringup.doctor_checks import run_checks
+from prisma_bringup.doctor_facts import HandFacts, PortFacts, TaxelSample, port_facts
+from prisma_bringup.doctor_result import CheckResult, exit_status
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 

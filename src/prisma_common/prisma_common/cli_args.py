@@ -36,6 +36,7 @@ import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from .atomic import OutputError, staging_dir
 
@@ -67,40 +68,33 @@ def _number(text: str, kind: type, what: str):
     return value
 
 
-def positive_int(text: str) -> int:
-    value = _number(text, int, "a whole number; give one >= 1")
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}")
+def _bounded(text: str, kind: type, what: str, accept: Callable[[float], bool], must: str) -> Any:
+    value = _number(text, kind, what)
+    if not accept(value):
+        raise argparse.ArgumentTypeError(f"must be {must}, got {text!r}")
     return value
+
+
+def positive_int(text: str) -> int:
+    return _bounded(text, int, "a whole number; give one >= 1", lambda v: v >= 1, "a whole number >= 1")
 
 
 def non_negative_int(text: str) -> int:
-    value = _number(text, int, "a whole number; give one >= 0")
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}")
-    return value
+    return _bounded(text, int, "a whole number; give one >= 0", lambda v: v >= 0, "a whole number >= 0")
 
 
 def positive_float(text: str) -> float:
-    value = _number(text, float, "a number; give one > 0")
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
+    return _bounded(text, float, "a number; give one > 0", lambda v: v > 0, "> 0")
 
 
 def non_negative_float(text: str) -> float:
-    value = _number(text, float, "a number; give one >= 0")
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
-    return value
+    return _bounded(text, float, "a number; give one >= 0", lambda v: v >= 0, ">= 0")
 
 
 def fraction(text: str) -> float:
     """A number strictly between 0 and 1."""
-    value = _number(text, float, "a number; give one between 0 and 1, e.g. 0.2")
-    if not 0 < value < 1:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (exclusive), e.g. 0.2, got {text!r}")
-    return value
+    return _bounded(text, float, "a number; give one between 0 and 1, e.g. 0.2", lambda v: 0 < v < 1,
+                    "between 0 and 1 (exclusive), e.g. 0.2")
 
 
 def unit_interval(text: str) -> float:

@@ -4,7 +4,7 @@ emulated hardware).
 
 Why not niceness alone: the Linux fair scheduler gives a process at nice -5 about three times the
 CPU of one at nice 0, but still lets every runnable process run its slice before a woken node is
-served. With a CPU hog per core and a memory hog beside the graph (test/support/load_harness.py),
+served. With a CPU hog per core and a memory hog beside the graph (test/support/prisma_testing/load_harness.py),
 ten pinch grasps at nice -5 ended `sensor_stale` two to ten times (a stream 101-198 ms old): the
 nodes were ready and waiting for a core. SCHED_FIFO runs a woken node at once, ahead of every
 ordinary process; the control path uses about a third of one core and blocks between samples, so it

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import require_ros
-from urdf_kinematics import link_poses
+from prisma_testing.ros_harness import require_ros
+from prisma_testing.urdf_kinematics import link_poses
 
 require_ros()
 
@@ -19,8 +19,9 @@ import xacro  # noqa: E402
 from urdf_parser_py.urdf import URDF  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES, TAXEL_PITCH_M  # noqa: E402
-from prisma_hand_sim.hand_world import OBJECTS, HandWorldParams  # noqa: E402
+from prisma_hand_sim.hand_world import HandWorldParams  # noqa: E402
 from prisma_hand_sim.pad_model import PadParams  # noqa: E402
+from prisma_hand_sim.sim_objects import OBJECTS  # noqa: E402
 from prisma_motor_driver.backend import DEFAULT_MAX_POSITIONS, DEFAULT_MIN_POSITIONS  # noqa: E402
 
 URDF_XACRO = Path(__file__).resolve().parents[1] / "urdf" / "prisma_hand.urdf.xacro"

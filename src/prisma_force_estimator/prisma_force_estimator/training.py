@@ -112,6 +112,108 @@ def weighted_mse(pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor
     return torch.mean(weights * (pred - target) ** 2)
 
 
+@dataclass
+class NormalisedSplit:
+    """The split's tensors in normalised units, with the normalisers fitted on its training part."""
+    input_normaliser: Normaliser
+    output_normaliser: Normaliser
+    x_train: torch.Tensor
+    y_train: torch.Tensor
+    x_val: torch.Tensor
+    y_val: torch.Tensor
+    y_val_physical: np.ndarray  # validation targets in physical units, for the per-axis MSE
+
+    @classmethod
+    def of(cls, dataset: ForceDataset, split: Split, axes: list[str]) -> NormalisedSplit:
+        x_train_raw = dataset.voltages[split.train]
+        y_train_raw = dataset.targets(axes)[split.train]
+        in_norm = Normaliser.fit(x_train_raw)
+        out_norm = Normaliser.fit(y_train_raw)
+        y_val_physical = dataset.targets(axes)[split.validation].astype(np.float64)
+        return cls(
+            in_norm, out_norm,
+            x_train=taxel_image(torch.from_numpy(in_norm.apply(x_train_raw))),
+            y_train=torch.from_numpy(out_norm.apply(y_train_raw)),
+            x_val=taxel_image(torch.from_numpy(in_norm.apply(dataset.voltages[split.validation]))),
+            y_val=torch.from_numpy(out_norm.apply(y_val_physical)),
+            y_val_physical=y_val_physical)
+
+
+def normalised_axis_weights(config: TrainConfig) -> torch.Tensor | None:
+    """The loss's axis weights scaled to mean 1 (so the loss stays comparable with the unweighted
+    one), or None where every axis weighs 1."""
+    raw_weights = config.axis_weights()
+    if all(w == 1.0 for w in raw_weights):
+        return None
+    return torch.tensor(raw_weights, dtype=torch.float32) * len(raw_weights) / sum(raw_weights)
+
+
+def epoch_learning_rate(config: TrainConfig, epoch: int) -> float:
+    if config.lr_schedule == "cosine":
+        return 0.5 * config.learning_rate * (1 + math.cos(math.pi * (epoch - 1) / config.epochs))
+    return config.learning_rate
+
+
+class Trainer:
+    """One model's optimiser, optional weight average and shuffling, stepped an epoch at a time."""
+
+    def __init__(self, config: TrainConfig, data: NormalisedSplit) -> None:
+        self.config = config
+        self.data = data
+        self.model = build_model(config.model_kind)
+        self.optimiser: torch.optim.Optimizer
+        if config.weight_decay:
+            self.optimiser = torch.optim.AdamW(
+                self.model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+        else:
+            self.optimiser = torch.optim.Adam(self.model.parameters(), lr=config.learning_rate)
+        # The averaged copy is what gets validated and saved; the raw weights keep training.
+        self.ema = (torch.optim.swa_utils.AveragedModel(
+            self.model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema_decay))
+            if config.ema_decay else None)
+        self.evaluated = self.ema.module if self.ema is not None else self.model
+        self.weights = normalised_axis_weights(config)
+        self.shuffle = torch.Generator().manual_seed(config.seed)
+        # noise in volts, per taxel in normalised units
+        self.noise_scale = torch.from_numpy(
+            (config.input_noise / data.input_normaliser.std).astype(np.float32)).reshape(1, 1, 3, 3)
+        self.steps = math.ceil(len(data.x_train) / config.batch)
+        if config.max_steps_per_epoch:
+            self.steps = min(self.steps, config.max_steps_per_epoch)
+
+    def train_epoch(self, lr: float) -> float:
+        """One epoch (or `max_steps_per_epoch` batches) at `lr`; returns the mean batch loss."""
+        for group in self.optimiser.param_groups:
+            group["lr"] = lr
+        self.model.train()
+        order = torch.randperm(len(self.data.x_train), generator=self.shuffle)
+        batch = self.config.batch
+        total = 0.0
+        for step in range(self.steps):
+            index = order[step * batch:(step + 1) * batch]
+            self.optimiser.zero_grad(set_to_none=True)
+            x = self.data.x_train[index]
+            if self.config.input_noise:
+                x = x + self.noise_scale * torch.randn(x.shape, generator=self.shuffle)
+            loss = weighted_mse(self.model(x), self.data.y_train[index], self.weights)
+            loss.backward()
+            self.optimiser.step()
+            if self.ema is not None:
+                self.ema.update_parameters(self.model)
+            total += loss.item()
+        return total / self.steps
+
+    def validate(self, axes: list[str]) -> tuple[float, dict[str, float]]:
+        """The evaluated network's weighted normalised loss and per-axis MSE in physical units."""
+        self.model.eval()
+        self.evaluated.eval()
+        pred = predict_normalised(self.evaluated, self.data.x_val)
+        val_loss = float(weighted_mse(pred, self.data.y_val, self.weights))
+        physical = self.data.output_normaliser.invert(pred.numpy())
+        truth = self.data.y_val_physical
+        return val_loss, {a: float(np.mean((physical[:, i] - truth[:, i]) ** 2)) for i, a in enumerate(axes)}
+
+
 def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], None] | None = print,
           split: Split | None = None, clock: Callable[[], float] = time.perf_counter) -> TrainResult:
     """Train `config.model_kind` on `dataset`; returns the best-validation model and its metadata."""
@@ -122,77 +224,24 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
     split = split or contiguous_block_split(dataset.block, config.val_fraction, seed=config.seed)
     if len(split.train) == 0 or len(split.validation) == 0:
         raise ValueError(f"split left {len(split.train)} training and {len(split.validation)} validation samples")
-
-    x_train_raw = dataset.voltages[split.train]
-    y_train_raw = dataset.targets(axes)[split.train]
-    in_norm = Normaliser.fit(x_train_raw)
-    out_norm = Normaliser.fit(y_train_raw)
-    x_train = taxel_image(torch.from_numpy(in_norm.apply(x_train_raw)))
-    y_train = torch.from_numpy(out_norm.apply(y_train_raw))
-    x_val = taxel_image(torch.from_numpy(in_norm.apply(dataset.voltages[split.validation])))
-    y_val_raw = dataset.targets(axes)[split.validation].astype(np.float64)
-    y_val = torch.from_numpy(out_norm.apply(y_val_raw))
-
-    model = build_model(config.model_kind)
-    optimiser: torch.optim.Optimizer
-    if config.weight_decay:
-        optimiser = torch.optim.AdamW(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
-    else:
-        optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
-    # The averaged copy is what gets validated and saved; the raw weights keep training.
-    ema = (torch.optim.swa_utils.AveragedModel(
-        model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema_decay))
-        if config.ema_decay else None)
-    evaluated = ema.module if ema is not None else model
-    raw_weights = config.axis_weights()
-    # Scaled to mean 1 so the loss stays comparable with the unweighted one.
-    weights = (None if all(w == 1.0 for w in raw_weights)
-               else torch.tensor(raw_weights, dtype=torch.float32) * len(raw_weights) / sum(raw_weights))
-    shuffle = torch.Generator().manual_seed(config.seed)
-    # noise in volts, per taxel in normalised units
-    noise_scale = torch.from_numpy((config.input_noise / in_norm.std).astype(np.float32)).reshape(1, 1, 3, 3)
-    steps = math.ceil(len(x_train) / config.batch)
-    if config.max_steps_per_epoch:
-        steps = min(steps, config.max_steps_per_epoch)
+    data = NormalisedSplit.of(dataset, split, axes)
+    trainer = Trainer(config, data)
 
     history: list[EpochRecord] = []
-    best_loss, best_epoch, best_state = math.inf, 0, copy.deepcopy(evaluated.state_dict())
+    best_loss, best_epoch, best_state = math.inf, 0, copy.deepcopy(trainer.evaluated.state_dict())
     stopped_early = False
     start = clock()
     for epoch in range(1, config.epochs + 1):
-        lr = config.learning_rate
-        if config.lr_schedule == "cosine":
-            lr = 0.5 * config.learning_rate * (1 + math.cos(math.pi * (epoch - 1) / config.epochs))
-        for group in optimiser.param_groups:
-            group["lr"] = lr
+        lr = epoch_learning_rate(config, epoch)
         epoch_start = clock()
-        model.train()
-        order = torch.randperm(len(x_train), generator=shuffle)
-        total = 0.0
-        for step in range(steps):
-            index = order[step * config.batch:(step + 1) * config.batch]
-            optimiser.zero_grad(set_to_none=True)
-            x = x_train[index]
-            if config.input_noise:
-                x = x + noise_scale * torch.randn(x.shape, generator=shuffle)
-            loss = weighted_mse(model(x), y_train[index], weights)
-            loss.backward()
-            optimiser.step()
-            if ema is not None:
-                ema.update_parameters(model)
-            total += loss.item()
-        model.eval()
-        evaluated.eval()
-        pred = predict_normalised(evaluated, x_val)
-        val_loss = float(weighted_mse(pred, y_val, weights))
-        physical = out_norm.invert(pred.numpy())
-        val_mse = {a: float(np.mean((physical[:, i] - y_val_raw[:, i]) ** 2)) for i, a in enumerate(axes)}
-        record = EpochRecord(epoch, total / steps, val_loss, val_mse, clock() - epoch_start, lr)
+        train_loss = trainer.train_epoch(lr)
+        val_loss, val_mse = trainer.validate(axes)
+        record = EpochRecord(epoch, train_loss, val_loss, val_mse, clock() - epoch_start, lr)
         history.append(record)
         if progress:
             progress(format_epoch(record, config.epochs, axes))
         if val_loss < best_loss:
-            best_loss, best_epoch, best_state = val_loss, epoch, copy.deepcopy(evaluated.state_dict())
+            best_loss, best_epoch, best_state = val_loss, epoch, copy.deepcopy(trainer.evaluated.state_dict())
         elif config.patience and epoch - best_epoch >= config.patience:
             stopped_early = True
             if progress:
@@ -201,33 +250,36 @@ def train(dataset: ForceDataset, config: TrainConfig, progress: Callable[[str], 
             break
     seconds = clock() - start
     # With EMA this is the averaged copy (a plain network; the AveragedModel wrapper is dropped).
-    model = evaluated
+    model = trainer.evaluated
     model.load_state_dict(best_state)
     model.eval()
-    best = history[best_epoch - 1]
+    run = {"data": dataset.source, "samples_train": int(len(split.train)),
+           "samples_validation": int(len(split.validation)), "samples_guard_dropped": int(split.dropped),
+           "split": "contiguous blocks (whole trajectories / recording chunks)",
+           "epochs_run": len(history), "best_epoch": best_epoch, "stopped_early": stopped_early,
+           "seconds": round(seconds, 1)}
     metadata = BundleMetadata(
         model_kind=config.model_kind,
         axes=axes,
-        input_normaliser=in_norm,
-        output_normaliser=out_norm,
-        training={
-            **asdict(config),
-            "optimiser": "AdamW" if config.weight_decay else "Adam",
-            "loss": ("MSE on normalised outputs" if weights is None else
-                     "weighted MSE on normalised outputs, axis weights "
-                     + ", ".join(f"{a} {w:g}" for a, w in zip(axes, raw_weights))),
-            "weight_averaging": f"EMA, decay {config.ema_decay:g} per step" if ema is not None else "none",
-            "data": dataset.source,
-            "samples_train": int(len(split.train)),
-            "samples_validation": int(len(split.validation)),
-            "samples_guard_dropped": int(split.dropped),
-            "split": "contiguous blocks (whole trajectories / recording chunks)",
-            "epochs_run": len(history),
-            "best_epoch": best_epoch,
-            "stopped_early": stopped_early,
-            "seconds": round(seconds, 1),
-            "torch_version": torch.__version__,
-        },
-        validation_mse={a: best.val_mse[a] for a in axes},
+        input_normaliser=data.input_normaliser,
+        output_normaliser=data.output_normaliser,
+        training=training_record(config, axes, run),
+        validation_mse={a: history[best_epoch - 1].val_mse[a] for a in axes},
     )
     return TrainResult(model, metadata, history, best_epoch, stopped_early, seconds)
+
+
+def training_record(config: TrainConfig, axes: list[str], run: dict[str, object]) -> dict[str, object]:
+    """The bundle's record of how it was trained: the config, the optimiser, loss and averaging in
+    words, then the run's facts (`run`: data, samples, split, epochs, timing)."""
+    weighted = normalised_axis_weights(config) is not None
+    return {
+        **asdict(config),
+        "optimiser": "AdamW" if config.weight_decay else "Adam",
+        "loss": ("weighted MSE on normalised outputs, axis weights "
+                 + ", ".join(f"{a} {w:g}" for a, w in zip(axes, config.axis_weights()))
+                 if weighted else "MSE on normalised outputs"),
+        "weight_averaging": f"EMA, decay {config.ema_decay:g} per step" if config.ema_decay else "none",
+        **run,
+        "torch_version": torch.__version__,
+    }

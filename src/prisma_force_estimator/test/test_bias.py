@@ -8,7 +8,7 @@ from prisma_force_estimator.bias import WrenchBias
 from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_hand_sim.pad_model import PadContact, PadModel, PadParams
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 
 BUNDLE = CONFIG / "models" / "cnn2"
 REST = np.array(PadParams().rest_volts, dtype=np.float32)  # an untouched pad: mean 0.436 V

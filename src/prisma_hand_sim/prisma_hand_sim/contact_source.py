@@ -1,8 +1,8 @@
 """Contact sources: who decides what touches each fingertip pad in simulation.
 
 The sim backend asks a ContactSource for every finger at every sample stamp. The scripted source
-below makes the node publish meaningful data on its own; the hand/world model of the
-manipulation package implements the same protocol.
+makes the node publish meaningful data on its own; `HandWorldContactSource` takes the contacts from
+the hand/world model (`hand_world`), fed with the motors' /joint_states.
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from typing import Protocol, runtime_checkable
 
 from prisma_common.hand import FINGERS, check_finger
 
+from .hand_world import HandWorld
 from .pad_model import PadContact
 
 
@@ -75,3 +76,31 @@ class ScriptedContactSource:
             f = self.rolling_resistance * n
             return PadContact(x, y, n, f * tx, f * ty)
         return PadContact(-r, 0.0, n * (1.0 - _smoothstep(t - 5.5)))
+
+
+class HandWorldContactSource:
+    """ContactSource for the tactile driver's sim backend (contracts: constructed with no arguments,
+    fed with /joint_states through `update_joints`)."""
+
+    def __init__(self, world: HandWorld | None = None) -> None:
+        self.world = world or HandWorld()
+        self._last_ns: int | None = None
+
+    def update_joints(self, names: list[str], positions: list[float], stamp_ns: int) -> bool:
+        """Take a /joint_states sample; False (nothing changes) for one that is not the hand's.
+
+        Other publishers share /joint_states (an arm driver, joint_state_publisher, a message with
+        names but no positions): their samples must neither move the world nor set its time.
+        """
+        if len(names) != len(positions) or not set(names) & set(self.world.positions):
+            return False
+        self.world.update_joints(dict(zip(names, positions)), stamp_ns)
+        self._last_ns = stamp_ns
+        return True
+
+    def contact(self, finger: str, stamp_ns: int) -> PadContact | None:
+        if self._last_ns is None or stamp_ns > self._last_ns:
+            self.world.advance(stamp_ns)  # disturbances and the support release keep time
+            self._last_ns = stamp_ns
+        return self.world.contact(finger)
+

@@ -6,7 +6,7 @@ What it models, along the grasp axis z (fingers push +z, the thumb pushes -z):
   object it moves with the motor; after contact the elastic tendon stretches instead, so the pad
   stays on the object and the normal force grows with the closure beyond contact:
   F = k * (s - contact position), k = the series stiffness of tendon and object.
-- A compliant ball (or card) between thumb and fingers. It is presented by a compliant support (the
+- A compliant ball (or card) between thumb and fingers (`sim_objects`). It is presented by a compliant support (the
   experimenter's hand or a stand, `fixture_n_per_mm`) that can let go once the hand holds the object.
   The object's position along z is the static balance of pad forces, support and external force.
 - Contact location on every pad. Pads slide tangentially as they close (an arc: `*_slide_per_mm` of
@@ -32,50 +32,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES, check_finger
 
 from .pad_model import PadContact, PadParams
+from .sim_objects import OBJECTS, ObjectParams
 
 FINGER_PADS = FINGERS[1:]  # index, middle, ring, little (driven by the "fingers" motor)
 # the motor whose tendon closes each finger
 TENDON_MOTOR: dict[str, str] = {"thumb": "thumb_flexion", **dict.fromkeys(FINGER_PADS, "fingers")}
 
 
-@dataclass(frozen=True)
-class ObjectParams:
-    name: str
-    # motor angle (rad) at which each pad first touches the object in its presented pose;
-    # a finger absent from the map, or the thumb at None, never touches it
-    finger_contact_rad: Mapping[str, float]
-    thumb_contact_rad: float | None
-    stiffness_n_per_mm: float  # object compliance (foam ball ~0.4)
-    fixture_n_per_mm: float = 1.0  # support presenting the object
-    release_force_n: float | None = None  # support lets go once thumb and partner press this hard...
-    release_hold_s: float = 0.5  # ...for this long,
-    release_tau_s: float = 0.2  # fading with this time constant,
-    residual_fixture_n_per_mm: float = 0.01  # down to this (keeps the balance well posed)
-    released: bool = False  # start already released (object held by the hand alone)
-    # its shape for a display: "sphere" (size = its diameter three times) or "box" (size x, y along
-    # the thumb pad's x and y, z along the grasp axis); "" = no object
-    shape: str = "sphere"
-    size_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-
-OBJECTS: dict[str, ObjectParams] = {
-    # 30 mm foam ball, thumb-index tip pinch; the experimenter lets go once the pinch holds it
-    "pinch_ball": ObjectParams("pinch_ball", {"index": 3.0}, 2.5, 0.4, release_force_n=0.6, size_mm=(30.0,) * 3),
-    # 70 mm foam ball touched by all four fingers
-    "power_ball": ObjectParams("power_ball", {"index": 2.6, "middle": 2.5, "ring": 2.7, "little": 2.9},
-                               2.0, 0.4, fixture_n_per_mm=2.0, size_mm=(70.0,) * 3),
-    # card pressed by the thumb pad against the side of the flexed index (no sensor there: the
-    # index side acts as a stiff support); an ID-1 card (ISO/IEC 7810), 85.60 x 53.98 x 0.76 mm
-    "lateral_card": ObjectParams("lateral_card", {}, 3.5, 2.0, fixture_n_per_mm=5.0, shape="box",
-                                 size_mm=(85.60, 53.98, 0.76)),
-    # an empty hand: no pad ever touches anything (a gripper closing on nothing)
-    "none": ObjectParams("none", {}, None, 0.4, shape=""),
-}
 
 
 @dataclass(frozen=True)
@@ -399,36 +367,3 @@ class HandWorld:
         if abs(x) > half or abs(y) > half:
             return None  # the object has slipped off the pad
         return PadContact(x, y, force)
-
-
-class HandWorldContactSource:
-    """ContactSource for the tactile driver's sim backend (contracts: constructed with no arguments,
-    fed with /joint_states through `update_joints`)."""
-
-    def __init__(self, world: HandWorld | None = None) -> None:
-        self.world = world or HandWorld()
-        self._last_ns: int | None = None
-
-    def update_joints(self, names: list[str], positions: list[float], stamp_ns: int) -> bool:
-        """Take a /joint_states sample; False (nothing changes) for one that is not the hand's.
-
-        Other publishers share /joint_states (an arm driver, joint_state_publisher, a message with
-        names but no positions): their samples must neither move the world nor set its time.
-        """
-        if len(names) != len(positions) or not set(names) & set(self.world.positions):
-            return False
-        self.world.update_joints(dict(zip(names, positions)), stamp_ns)
-        self._last_ns = stamp_ns
-        return True
-
-    def contact(self, finger: str, stamp_ns: int) -> PadContact | None:
-        if self._last_ns is None or stamp_ns > self._last_ns:
-            self.world.advance(stamp_ns)  # disturbances and the support release keep time
-            self._last_ns = stamp_ns
-        return self.world.contact(finger)
-
-
-def released(obj: ObjectParams | str) -> ObjectParams:
-    """The object already held by the hand alone (manipulation scenarios start from a pinch)."""
-    base = OBJECTS[obj] if isinstance(obj, str) else obj
-    return replace(base, released=True)

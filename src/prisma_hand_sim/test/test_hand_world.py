@@ -4,16 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from prisma_hand_sim.contact_source import ContactSource
-from prisma_hand_sim.hand_world import (
-    OBJECTS,
-    Disturbance,
-    HandWorld,
-    HandWorldContactSource,
-    HandWorldParams,
-    ObjectPose,
-    released,
-)
+from prisma_hand_sim.contact_source import ContactSource, HandWorldContactSource
+from prisma_hand_sim.hand_world import Disturbance, HandWorld, HandWorldParams, ObjectPose
+from prisma_hand_sim.sim_objects import OBJECTS, released
 
 MS = 1_000_000
 

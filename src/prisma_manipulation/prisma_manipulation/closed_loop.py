@@ -28,7 +28,8 @@ import numpy as np
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_force_estimator.force_estimator_core import TaxelSample, WrenchPipeline
 from prisma_force_estimator.node_config import ForceEstimatorConfig
-from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
+from prisma_hand_sim.contact_source import HandWorldContactSource
+from prisma_hand_sim.hand_world import HandWorld
 from prisma_hand_sim.pad_model import PadParams
 from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.motor_driver_core import MotorDriverCore

@@ -104,7 +104,7 @@ class GoalRefused(ValueError):
 class MoveLease:
     """The MoveMotors goals that carry one velocity command: sent with a `lease_s` timeout, re-sent
     every `refresh_s` while the command holds, so the motor driver stops the motors on its own when
-    the sender is gone. The off-robot recorder (prisma_bringup.hand_session) runs the same decisions."""
+    the sender is gone. The off-robot recorder (prisma_sim.hand_session) runs the same decisions."""
 
     def __init__(self, lease_s: float = MOVE_LEASE_S, refresh_s: float = MOVE_REFRESH_S) -> None:
         if not 0 < refresh_s < lease_s:

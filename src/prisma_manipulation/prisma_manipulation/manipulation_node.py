@@ -64,6 +64,9 @@ from .ros_conversions import (
 )
 
 GOAL_ACTIONS = tuple(kind.action for kind in GOAL_KINDS)
+# finished goals kept a minute for their results, not rclpy's 15: each status change sends every kept goal to
+# each client, and longer arrays slowed a soak's goals (docs/performance.md "Soak")
+RESULT_TIMEOUT_S = 60
 
 
 class ManipulationNode(Node):
@@ -103,7 +106,8 @@ class ManipulationNode(Node):
         # one server per kind, each on the generic path; every goal is accepted (rclpy's default goal
         # callback): _execute aborts a refused one at once
         self._servers = [ActionServer(self, get_action(kind.action_type), kind.action, self._executor(kind),
-                                      cancel_callback=self._on_cancel, callback_group=group) for kind in GOAL_KINDS]
+                                      cancel_callback=self._on_cancel, callback_group=group,
+                                      result_timeout=RESULT_TIMEOUT_S) for kind in GOAL_KINDS]
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
                                f"stale after {self.config.stale_timeout * 1e3:.0f} ms")

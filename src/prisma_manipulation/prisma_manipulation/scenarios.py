@@ -24,7 +24,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from prisma_hand_sim.hand_world import OBJECTS, Disturbance, HandWorld, released
+from prisma_hand_sim.hand_world import Disturbance, HandWorld
+from prisma_hand_sim.sim_objects import OBJECTS, released
 
 from .closed_loop import ClosedLoop, Trace
 from .contact_monitor import DEFAULT_K

@@ -9,7 +9,7 @@ import pytest
 from prisma_common.hand import MOTOR_NAMES
 from prisma_manipulation.contact_monitor import first_lost_index
 from prisma_manipulation.scenarios import DEFAULT_K, build
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 
 BUNDLE = CONFIG / "models" / "cnn2"
 THUMB = 0  # FINGERS index

@@ -7,7 +7,7 @@ import yaml
 
 from prisma_manipulation.node_config import ManipulationConfig
 from prisma_motor_driver.node_config import MotorDriverConfig
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 
 
 @pytest.mark.parametrize("cls, path, node", [

@@ -1,6 +1,6 @@
 """What the motor_driver node does each tick, without ROS: read the bus, supervise the MoveMotors
-goal and the homing, reconnect a lost bus with exponential backoff, and summarise health for
-/diagnostics.
+goal and the homing (`homing_job`), reconnect a lost bus with exponential backoff, and summarise
+health for /diagnostics.
 
 The servos' own safety is watched here too: a Bus Watchdog that fired (the driver or the bus held up
 longer than its period: the servo stopped itself) ends the running goal, and is cleared and armed
@@ -9,15 +9,14 @@ again with the motors still; a servo that powered up again while the bus was ope
 its servo powered up takes no MoveMotors goal (`not_homed`) until the homing found its zero."""
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_HOMED, NOT_READY, Refusal
 
 from .backend import BusError, MotorBus, MotorState
 from .control_table import decode_hardware_error
-from .homing import HomingRun, HomingSettings
+from .homing_job import HomingFeedback, HomingJob, HomingResult
 from .motor_goals import (
     GoalStartError,
     MoveFeedback,
@@ -28,11 +27,6 @@ from .motor_goals import (
     validate_goal,
 )
 from .node_config import MotorDriverConfig
-
-# A homing at start that something interrupted (a fired watchdog, the bus lost or failing under its
-# start) goes again, this many times in all: the hand must come up homed without an operator, and a
-# fault that persists must not keep the motors turning toward their end stops.
-HOMING_AT_START_TRIES = 3
 
 
 def make_bus(config: MotorDriverConfig, start_ns: int | None = 0, zeros: dict[str, int] | None = None) -> MotorBus:
@@ -56,28 +50,6 @@ class StartOutcome:
 
 
 @dataclass
-class HomingFeedback:
-    motors: list[str]
-    positions: list[float]  # rad from where each started
-    currents: list[float]  # mA
-    homed: list[bool]
-
-
-@dataclass
-class HomingResult:
-    success: bool
-    reason: str
-    motors: list[str] = field(default_factory=list)
-    zero_ticks: list[int] = field(default_factory=list)
-    travel_rad: list[float] = field(default_factory=list)
-    stall_current_ma: list[float] = field(default_factory=list)
-
-    def zeros(self) -> dict[str, int]:
-        """The zeros found, by motor (what the node saves in the hand's directory)."""
-        return dict(zip(self.motors, self.zero_ticks))
-
-
-@dataclass
 class TickResult:
     states: dict[str, MotorState] | None  # None while the bus is down
     feedback: MoveFeedback | None = None
@@ -94,17 +66,9 @@ class MotorDriverCore:
         # zeros this driver can vouch for: read from the hand's directory, or found by its homing; a
         # servo's LED alone (lit by some homing) does not say which zero that homing found
         self.known_zeros = dict(zeros or {})
-        self.homing: HomingRun | None = None
-        self.homing_wanted = config.home_at_start  # home as soon as the bus is open
-        self._homing_at_start = False  # the running homing is the one asked for at start
-        self._homing_at_start_tries = HOMING_AT_START_TRIES
+        self.homing = HomingJob(self.bus, config, self.known_zeros, self._note_error)
         self.watchdog_firings = 0
         self.servo_resets = 0
-        self._homing_zeros: dict[str, int] = {}
-        # after the end stops: where each homed motor goes before the homing ends (0 rad: the hand open,
-        # the thumb centred), and by when it must be there
-        self._homing_return: dict[str, float] = {}
-        self._homing_return_deadline_ns = 0
         self.runner = MoveGoalRunner(self.bus, config.position_profile_rpm, config.position_tolerance)
         self.connected = False
         self.last_error = ""
@@ -120,7 +84,7 @@ class MotorDriverCore:
         next goal, the position tolerance from the next tick."""
         self.runner.profile_rpm = config.position_profile_rpm
         self.runner.position_tolerance_rad = config.position_tolerance
-        self.config = config
+        self.config = self.homing.config = config
 
     def connect(self, now_ns: int) -> str | None:
         """Try to open the bus when the backoff allows; returns the error text or None."""
@@ -174,8 +138,8 @@ class MotorDriverCore:
         busy = self.runner.busy_reason(goal, now_ns)
         if busy:
             return Refusal(BUSY, busy)
-        if self.homing is not None:
-            return Refusal(NOT_HOMED, f"homing {', '.join(self.homing.motors)}: send it when the homing has ended")
+        if self.homing.run is not None:
+            return Refusal(NOT_HOMED, f"homing {', '.join(self.homing.run.motors)}: send it when the homing has ended")
         unhomed = self.unhomed(goal.motors)
         if unhomed:
             return Refusal(NOT_HOMED, f"{self._named(unhomed)} not homed since the servo powered up (the zero may be "
@@ -193,8 +157,8 @@ class MotorDriverCore:
         unknown = [m for m in motors if m not in self.bus.motors]
         if unknown:
             return Refusal(INVALID, f"unknown motor(s) {unknown}; configured: {sorted(self.bus.motors)}")
-        if self.homing is not None:
-            return Refusal(BUSY, f"already homing {', '.join(self.homing.motors)}")
+        if self.homing.run is not None:
+            return Refusal(BUSY, f"already homing {', '.join(self.homing.run.motors)}")
         faulted = [m for m in (motors or list(self.bus.motors)) if self.runner.faults.get(m)]
         if faulted:
             return Refusal(NOT_READY, f"{self._named(faulted)} in hardware error: clear it (power cycle) first")
@@ -204,111 +168,18 @@ class MotorDriverCore:
         """Home `motors` (empty = all; validated by validate_homing). Returns the running MoveMotors
         goal's result (it ends: homing takes the motors) and, when the homing is over at once (the sim's
         motors need none, or the bus failed), its result."""
-        names = list(motors) or list(self.bus.motors)
         preempted = self.runner.abort("preempted: homing") if self.runner.active else None
-        if not self.bus.needs_homing:
-            return preempted, HomingResult(True, "homed: the sim motors start at their zero, nothing to find", names,
-                                           [self.bus.motors[m].zero_ticks for m in names], [0.0] * len(names),
-                                           [0.0] * len(names))
-        c = self.config
-        # a lost turn and a little more beyond the range: further, and the open end has no stop
-        max_travel = {m: self.bus.motors[m].max_position_rad - self.bus.motors[m].min_position_rad + 2 * math.pi + 0.5
-                      for m in names}
-        settings = HomingSettings(c.homing_rpm, c.homing_current_ma, c.homing_timeout, max_travel)
-        try:
-            self.bus.start_homing(names, c.homing_rpm, c.homing_current_ma)
-        except (BusError, ValueError) as exc:
-            try:
-                self.bus.abort_homing(names)
-            except BusError:
-                pass
-            return preempted, HomingResult(False, f"homing_failed: {exc}", names)
-        self.homing = HomingRun(names, settings, now_ns)
-        self._homing_at_start = False
-        self._homing_zeros, self._homing_return = {}, {}
-        return preempted, None
+        return preempted, self.homing.start(list(motors) or list(self.bus.motors), now_ns)
 
     def cancel_homing(self) -> HomingResult | None:
-        if self.homing is None:
-            return None
-        self.homing.fail_all("canceled")
-        try:
-            self.bus.abort_homing([m for m in self.homing.motors if m not in self._homing_zeros])
-        except BusError as exc:
-            self._note_error(str(exc))
-        return self._end_homing()
+        return self.homing.cancel()
 
     def _step_homing(self, states: dict[str, MotorState], now_ns: int) -> TickResult:
-        run = self.homing
-        assert run is not None
-        feedback = HomingFeedback(list(run.motors), [run.motors[m].travel_rad for m in run.motors],
-                                  [states[m].current_ma for m in run.motors],
-                                  [m in self._homing_zeros for m in run.motors])
-        if self._homing_return:
-            return TickResult(states, homing_feedback=feedback, homing_result=self._step_return(states, now_ns))
-        step = run.step(states, now_ns)
         try:
-            for name in step.found:
-                self._homing_zeros[name] = self.bus.finish_homing(name)
-                self.known_zeros[name] = self._homing_zeros[name]
-            if step.failed:
-                self.bus.abort_homing(step.failed)
-            if step.finished and self._homing_zeros:
-                # a motor whose open end is not its 0 (the thumb's rotation: -3 rad) goes to 0 first
-                c = self.bus.motors
-                self._homing_return = {m: c[m].clamp(0.0) for m in self._homing_zeros}
-                distance = max(abs(self._homing_return[m] - states[m].position_rad) for m in self._homing_return)
-                speed_rad_s = self.config.position_profile_rpm * 2 * math.pi / 60
-                self._homing_return_deadline_ns = now_ns + int((distance / speed_rad_s + 2.0) * 1e9)
-                self.bus.set_positions(self._homing_return, self.config.position_profile_rpm)
-                return TickResult(states, homing_feedback=feedback)
+            feedback, result = self.homing.step(states, now_ns)
         except BusError as exc:
             return self._lost(exc, now_ns)
-        return TickResult(states, homing_feedback=feedback, homing_result=self._end_homing() if step.finished else None)
-
-    def _step_return(self, states: dict[str, MotorState], now_ns: int) -> HomingResult | None:
-        errors = {m: abs(states[m].position_rad - target) for m, target in self._homing_return.items()}
-        if max(errors.values()) <= self.config.position_tolerance:
-            return self._end_homing()
-        if now_ns >= self._homing_return_deadline_ns:
-            assert self.homing is not None
-            for name, error in errors.items():
-                if error > self.config.position_tolerance:
-                    self.homing.fail(name, f"homed, but stopped {error:.2f} rad short of 0 rad on the way back")
-            return self._end_homing()
-        return None
-
-    def _interrupt_homing(self, reason: str, bus_open: bool) -> HomingResult | None:
-        """The running homing (if any) ends with `reason` for every motor still homing, those motors back
-        in velocity mode where the bus is open. A homing asked for at start goes again (at most
-        HOMING_AT_START_TRIES in all): an interruption (a fired watchdog, the bus lost) says nothing
-        about the end stops, unlike a motor that found none."""
-        if self.homing is None:
-            return None
-        self._retry_homing_at_start()
-        self.homing.fail_all(reason)
-        if bus_open:
-            try:
-                self.bus.abort_homing([m for m in self.homing.motors if m not in self._homing_zeros])
-            except BusError as exc:
-                self._note_error(str(exc))
-        return self._end_homing()
-
-    def _retry_homing_at_start(self) -> None:
-        if self._homing_at_start and self._homing_at_start_tries > 0:
-            self.homing_wanted = True
-
-    def _end_homing(self) -> HomingResult:
-        run = self.homing
-        assert run is not None
-        self.homing = None
-        self._homing_return = {}
-        if run.success:
-            self._homing_at_start = False  # done: a later fault asks for a homing of its own
-        found = [m for m in run.motors if m in self._homing_zeros]
-        return HomingResult(run.success, run.reason(), found, [self._homing_zeros[m] for m in found],
-                            [run.motors[m].travel_rad for m in found],
-                            [run.motors[m].stall_current_ma for m in found])
+        return TickResult(states, homing_feedback=feedback, homing_result=result)
 
     def start(self, goal: MoveGoal, now_ns: int) -> StartOutcome:
         """Start a goal (ValueError on an invalid one: nothing changes). Whatever the bus does, a
@@ -339,19 +210,12 @@ class MotorDriverCore:
         if stopped:
             result = self.runner.abort(stopped)
             # the servos were made safe again above: the ones still homing go back to velocity mode
-            homing = self._interrupt_homing(stopped, bus_open=True)
+            homing = self.homing.interrupt(stopped, bus_open=True)
             return TickResult(states, None, result, homing_result=homing)
-        if self.homing is not None:
+        if self.homing.run is not None:
             return self._step_homing(states, now_ns)
-        if self.homing_wanted and not self.runner.active:
-            self.homing_wanted = False
-            self._homing_at_start_tries -= 1
-            preempted, done = self.start_homing([], now_ns)
-            self._homing_at_start = True
-            if done is not None and not done.success:
-                self._retry_homing_at_start()  # the bus failed under it: as an interruption
-            self._homing_at_start = done is None
-            return TickResult(states, None, preempted, homing_result=done)
+        if self.homing.wanted and not self.runner.active:
+            return TickResult(states, homing_result=self.homing.start_wanted(now_ns))
         feedback, result = self.runner.tick(states, now_ns)
         return TickResult(states, feedback, result)
 
@@ -385,7 +249,7 @@ class MotorDriverCore:
         result = self.runner.communication_failure(exc)
         # the servos may power up again with the bus: a homing asked for at start is tried again once
         # it reopens
-        homing = self._interrupt_homing(f"motor bus lost: {exc}", bus_open=False)
+        homing = self.homing.interrupt(f"motor bus lost: {exc}", bus_open=False)
         self.connected = False
         self.reconnects += 1
         try:
@@ -413,7 +277,7 @@ class MotorDriverCore:
             level, message = OK, "ok"
         values = {"backend": self.config.backend, "baud": self.config.baud, "reads": stats.reads,
                   "writes": stats.writes, "watchdog_firings": self.watchdog_firings,
-                  "servo_resets": self.servo_resets, "homing": bool(self.homing),
+                  "servo_resets": self.servo_resets, "homing": self.homing.run is not None,
                   "retries": stats.retries, "dropped_status": stats.dropped_status,
                   "corrupt_status": stats.corrupt_status, "comm_failures": stats.comm_failures,
                   "hardware_errors": stats.hardware_errors, "mode_changes": stats.mode_changes,
@@ -426,7 +290,7 @@ class MotorDriverCore:
             s = self._last_states.get(name)
             error = self.runner.faults.get(name, 0)
             # homed once its homing is over (the motors back at 0 rad), not when its end stop is found
-            homed = self.bus.homed.get(name, False) and self.homing is None
+            homed = self.bus.homed.get(name, False) and self.homing.run is None
             m_level = ERROR if error else OK if homed or not self.connected else WARN
             m_message = ("hardware error " + ", ".join(decode_hardware_error(error)) if error
                          else "ok" if homed or not self.connected else "not homed since the servo powered up")

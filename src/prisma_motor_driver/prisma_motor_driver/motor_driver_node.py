@@ -31,7 +31,8 @@ from prisma_node_wiring.sample_streams import stream_publisher
 from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 
 from .backend import BusError
-from .motor_driver_core import HomingResult, MotorDriverCore, make_bus
+from .homing_job import HomingResult
+from .motor_driver_core import MotorDriverCore, make_bus
 from .motor_goals import MoveResult
 from .node_config import MotorDriverConfig
 from .ros_conversions import (

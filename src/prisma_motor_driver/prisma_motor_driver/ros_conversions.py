@@ -20,7 +20,7 @@ from prisma_common.messages import Types, make_header, ns_from_stamp, sequence_f
 
 from .backend import MotorState
 from .control_table import rpm_to_rad_s
-from .motor_driver_core import HomingFeedback, HomingResult
+from .homing_job import HomingFeedback, HomingResult
 from .motor_goals import MoveFeedback, MoveGoal, MoveResult
 
 

@@ -13,7 +13,8 @@ from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.backend import BusError, MotorMap
 from prisma_motor_driver.dynamixel_backend import DynamixelBus
 from prisma_motor_driver.dynamixel_emulator import DynamixelEmulator, ManualClock
-from prisma_motor_driver.motor_driver_core import HOMING_AT_START_TRIES, MotorDriverCore, TickResult
+from prisma_motor_driver.homing_job import HOMING_AT_START_TRIES
+from prisma_motor_driver.motor_driver_core import MotorDriverCore, TickResult
 from prisma_motor_driver.motor_goals import MoveGoal
 from prisma_motor_driver.node_config import MotorDriverConfig
 
@@ -199,7 +200,7 @@ def test_a_homing_at_start_that_the_watchdog_interrupted_goes_again(hand):
     core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", home_at_start=True), bus=bus)
     assert core.connect(0) is None
     run(core, emu, clock, 0.5)  # homing: the fingers on their way to the open stop
-    assert core.homing is not None
+    assert core.homing.run is not None
     clock.advance(0.5)  # the driver held up past its watchdog mid-homing
     tick = core.tick(round(clock.now_s * 1e9))
     assert tick.homing_result is not None and not tick.homing_result.success
@@ -242,7 +243,7 @@ def test_a_homing_at_start_whose_start_the_bus_failed_goes_again_a_bounded_numbe
     # every try failed at its start; the tries stop after HOMING_AT_START_TRIES, nothing moved
     assert starts.calls == len(results) == HOMING_AT_START_TRIES
     assert all(r.reason.startswith("homing_failed: write 0 to address 65") for r in results)
-    assert not core.homing_wanted and core.homing is None
+    assert not core.homing.wanted and core.homing.run is None
     assert {s.read_int(ct.ADDR_OPERATING_MODE, 1) for s in emu.servos.values()} == {ct.MODE_VELOCITY}
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from ros_harness import require_ros
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

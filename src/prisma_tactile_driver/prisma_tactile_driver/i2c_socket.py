@@ -19,17 +19,14 @@ One request is one I2C_RDWR transaction and gets one reply; a connection carries
 them, one at a time. A malformed request is answered EPROTO (the length prefix keeps the stream
 in step); a frame longer than MAX_BODY ends the connection.
 
-Paths are the user's to name, so the server never replaces or deletes what it did not create:
-`start()` takes a free path or a stale socket (one nobody listens on: connect is refused) and
-refuses anything else with FileExistsError; `close()` removes the socket only while it is still
-the one this server bound (same inode and device).
+Paths are the user's to name: `start()` takes a free path or a stale socket and nothing else, and
+`close()` removes only the socket this server bound (`prisma_common.unix_socket`).
 """
 from __future__ import annotations
 
 import errno
 import os
 import socket
-import stat
 import struct
 import threading
 from pathlib import Path
@@ -37,13 +34,12 @@ from typing import Any
 
 import smbus2
 
-from prisma_common.os_errors import describe_os_error
+from prisma_common.unix_socket import bind_unix_socket, check_path_length, release_unix_socket
 
 from .i2c_emulator import EmulatedI2CBus, Messages, check_messages, i2c_rdwr_ioctl, route_ioctl, unroute_ioctl
 
 VERSION = 1
 MAX_BODY = 1 << 20  # > 42 messages of 8192 bytes: the largest transaction i2c-dev accepts
-MAX_PATH_BYTES = 107  # sockaddr_un.sun_path is 108 bytes with the terminating NUL
 TIMEOUT_S = 1.0  # like an I2C adapter's default timeout: past it a transfer fails with ETIMEDOUT
 
 _FRAME = struct.Struct("<I")
@@ -54,15 +50,6 @@ _REPLY = struct.Struct("<BH")
 
 class FramingError(ValueError):
     """Bytes on the socket that are not a frame of this protocol."""
-
-
-def check_path_length(path: str | Path) -> None:
-    """OSError(ENAMETOOLONG) naming `path` when it does not fit a Unix socket address (connect
-    and bind would only say 'AF_UNIX path too long', without the path)."""
-    size = len(os.fsencode(path))
-    if size > MAX_PATH_BYTES:
-        raise OSError(errno.ENAMETOOLONG, f"{os.strerror(errno.ENAMETOOLONG)}: {path} has {size} bytes, a Unix "
-                                          f"socket path at most {MAX_PATH_BYTES}: choose a shorter path")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -173,79 +160,6 @@ def recv_frame(sock: socket.socket) -> bytes | None:
 # Server
 
 
-def _probe(path: Path) -> str | None:
-    """None for a stale socket (connect refused); else what the socket at `path` is."""
-    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    probe.settimeout(TIMEOUT_S)  # a live server with a full backlog would block connect
-    try:
-        probe.connect(str(path))
-    except ConnectionRefusedError:
-        return None
-    except OSError as exc:
-        return f"a socket that does not take a connection ({describe_os_error(exc)})"
-    finally:
-        probe.close()
-    return "a live socket (a process is serving it)"
-
-
-def check_socket_path(path: str | Path) -> os.stat_result | None:
-    """The stat of a stale socket at `path` that `start()` may replace, None when the path is free;
-    FileExistsError naming the path and what is there otherwise."""
-    path = Path(path)
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
-        return None
-    mode = st.st_mode
-    if stat.S_ISSOCK(mode):
-        what = _probe(path)
-        if what is None:
-            return st
-    elif stat.S_ISLNK(mode):
-        what = f"a symlink to {os.readlink(path)}"
-    elif stat.S_ISDIR(mode):
-        what = "a directory"
-    elif stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        what = "a device"
-    elif stat.S_ISFIFO(mode):
-        what = "a named pipe"
-    else:
-        what = "an existing file"
-    raise FileExistsError(f"{path} is {what}; an emulator replaces nothing there but a stale socket "
-                          f"(one nobody listens on): stop whatever serves it or choose another socket path")
-
-
-def bind_unix_socket(path: Path) -> tuple[socket.socket, tuple[int, int]]:
-    """A Unix stream socket bound at `path` (not yet listening) and the (inode, device) it made
-    there. Only a free path or a stale socket is taken; FileExistsError otherwise, also for
-    anything that appears there between the check and the bind (bind never replaces)."""
-    check_path_length(path)
-    stale = check_socket_path(path)
-    if stale is not None:
-        release_unix_socket(path, (stale.st_ino, stale.st_dev))
-    listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    try:
-        listener.bind(str(path))  # EADDRINUSE if anything is there
-        st = os.lstat(path)
-    except OSError as exc:
-        listener.close()
-        if exc.errno == errno.EADDRINUSE:
-            raise FileExistsError(f"{path} appeared while the emulator was about to serve there; it is left "
-                                  f"alone: choose another socket path") from None
-        raise OSError(exc.errno, f"cannot serve at {path}: {exc.strerror or exc}") from None
-    return listener, (st.st_ino, st.st_dev)
-
-
-def release_unix_socket(path: Path, identity: tuple[int, int] | None) -> None:
-    """Remove the socket at `path` only while it is the one with that (inode, device)."""
-    if identity is None:
-        return
-    try:
-        now = os.lstat(path)
-    except FileNotFoundError:
-        return
-    if stat.S_ISSOCK(now.st_mode) and (now.st_ino, now.st_dev) == identity:
-        os.unlink(path)
 
 
 class I2CSocketServer:

@@ -30,7 +30,8 @@ from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
-from prisma_hand_sim.hand_world import HandWorld, HandWorldContactSource
+from prisma_hand_sim.contact_source import HandWorldContactSource
+from prisma_hand_sim.hand_world import HandWorld
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import publish_if_subscribed, stream_publisher, stream_subscription

@@ -16,7 +16,7 @@ from prisma_tactile_driver.protocol import encode_frame
 from prisma_tactile_driver.pty_hub import PtyHubPort
 from prisma_tactile_driver.serial_backend import SerialHubBackend
 from prisma_tactile_driver.tactile_driver_core import TactileHub
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 MS = 1_000_000
 PERIOD = 10 * MS

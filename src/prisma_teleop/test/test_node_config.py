@@ -8,7 +8,7 @@ from prisma_common.hand import MOTOR_NAMES
 from prisma_common.parameters import ParameterError
 from prisma_teleop import retargeting
 from prisma_teleop.node_config import SyntheticGloveConfig, TeleopConfig
-from repo_paths import CONFIG, ROOT, node_parameters
+from prisma_testing.repo_paths import CONFIG, ROOT, node_parameters
 
 
 def test_defaults_validate():

@@ -15,7 +15,7 @@ from prisma_teleop.stag_poses import (
     PoseMapper,
     PoseMapping,
 )
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 
 PRESSED = 30.0  # a grasp's total pressure: 0.4 + (30 - 5) / 60 x 1.6 = 1.067 N
 

@@ -7,7 +7,7 @@ import numpy as np
 from prisma_teleop.cli import stag_session_main
 from prisma_teleop.stag_poses import GraspCommand, OpenCommand, PoseMapper
 from prisma_teleop.stag_session import SESSION, stag_session
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 from stag_glove.bundle import load_bundle
 from stag_glove.glove_perception_core import GlovePerception
 from stag_glove.processing import normalise

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from ros_harness import require_ros, stamp_ns
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
@@ -28,7 +28,7 @@ from prisma_teleop.retargeting import nominal_calibration  # noqa: E402
 from prisma_teleop.ros_conversions import hand_pose_to_msg, open_goal_to_msg  # noqa: E402
 from prisma_teleop.synthetic_glove_core import Synergies, hand_pose  # noqa: E402
 from prisma_teleop.teleop_node import TeleopNode  # noqa: E402
-from repo_paths import CONFIG  # noqa: E402
+from prisma_testing.repo_paths import CONFIG  # noqa: E402
 
 PARAMS = CONFIG / "teleop.yaml"
 TYPES = robot_types(get_message, get_action)

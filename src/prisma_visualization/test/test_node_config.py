@@ -5,7 +5,7 @@ import pytest
 from prisma_visualization.node_config import TactileMarkersConfig, TendonStretchConfig
 
 from prisma_common.parameters import ParameterError
-from repo_paths import CONFIG, node_parameters
+from prisma_testing.repo_paths import CONFIG, node_parameters
 
 
 def test_defaults_are_the_shipped_parameter_file():

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG
-from ros_harness import require_ros
+from prisma_testing.repo_paths import CONFIG
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

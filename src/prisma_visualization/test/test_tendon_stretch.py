@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ros_harness import require_ros
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
@@ -20,7 +20,8 @@ from prisma_visualization.tendon_stretch_core import TendonStretch, forces_at  #
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 from prisma_common.kinematics import RobotModel  # noqa: E402
-from prisma_hand_sim.hand_world import OBJECTS, HandWorld, HandWorldParams  # noqa: E402
+from prisma_hand_sim.hand_world import HandWorld, HandWorldParams  # noqa: E402
+from prisma_hand_sim.sim_objects import OBJECTS  # noqa: E402
 
 URDF_XACRO = Path(__file__).resolve().parents[2] / "prisma_description" / "urdf" / "prisma_hand.urdf.xacro"
 PINCH = {"fingers": OBJECTS["pinch_ball"].finger_contact_rad["index"],
@@ -129,7 +130,7 @@ def test_the_kinematics_are_robot_state_publishers(model):
     joint named in the positions wins over its mimic rule (robot_state_publisher 3.3's insert)."""
     from urdf_parser_py.urdf import URDF
 
-    from urdf_kinematics import link_poses
+    from prisma_testing.urdf_kinematics import link_poses
     robot = URDF.from_xml_string(xacro.process_file(str(URDF_XACRO)).toxml())
     motors = {"fingers": 2.7, "thumb_flexion": 1.9, "thumb_rotation": -0.8}
     expected = link_poses(robot, motors)

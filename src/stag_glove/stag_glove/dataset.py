@@ -84,6 +84,19 @@ class GloveDataset:
                             {k: v[index] for k, v in self.extras.items()})
 
 
+def balance_mask(object_id: np.ndarray, split: np.ndarray, valid: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """isBalanced: per split, the same number of valid frames for every class (random subset)."""
+    balanced = np.zeros(len(object_id), bool)
+    for s in np.unique(split):
+        counts = [np.sum(valid & (split == s) & (object_id == k)) for k in np.unique(object_id)]
+        keep = min(c for c in counts if c > 0) if any(counts) else 0
+        for k in np.unique(object_id):
+            idx = np.nonzero(valid & (split == s) & (object_id == k))[0]
+            if idx.size:
+                balanced[rng.choice(idx, size=min(keep, idx.size), replace=False)] = True
+    return balanced
+
+
 # ---------------------------------------------------------------------------------------- reading
 def load_dataset(path: str | Path) -> GloveDataset:
     """Read metadata.mat (MATLAB v5 or v7.3) or our HDF5 (.h5/.hdf5).

@@ -69,6 +69,52 @@ class ObjectResults:
         return float(np.mean(values)) if values else float("nan")
 
 
+class TupleDrawer:
+    """Draws N-frame tuples around anchor frames: at random, or one frame per k-means cluster of the
+    anchor's recording (the clusters computed once per N over the whole pool, then reused)."""
+
+    def __init__(self, ds: GloveDataset, frames: np.ndarray, pool: np.ndarray, progress: Progress | None) -> None:
+        self.ds = ds
+        self.frames = frames
+        self.pool = pool
+        self.progress = progress
+        self.clusters: dict[int, np.ndarray] = {}
+
+    def draw(self, selection: str, n: int, anchors: np.ndarray, pool_mask: np.ndarray,
+             rng: np.random.Generator) -> np.ndarray:
+        recordings = self.ds.recording_id
+        if selection == "random" or n == 1:
+            return random_tuples(anchors, pool_mask, recordings, n, rng)
+        if n not in self.clusters:
+            started = time.perf_counter()
+            self.clusters[n] = cluster_ids(self.frames, recordings, self.pool, n, seed=n)
+            _log(self.progress, f"  k-means with k={n} on {len(np.unique(recordings[self.pool]))} recordings "
+                                f"({time.perf_counter() - started:.1f} s)")
+        return cluster_tuples(anchors, pool_mask, recordings, self.clusters[n], n, rng)
+
+
+@dataclass
+class ObjectRun:
+    """What every network of one object experiment shares: the data, its split and how to train."""
+
+    ds: GloveDataset
+    frames: torch.Tensor
+    split: Split
+    tuples: TupleDrawer
+    mode: str
+    head_epochs: int
+    finetune_epochs: int
+    progress: Progress | None
+
+    @property
+    def labels(self) -> np.ndarray:
+        return self.ds.object_id
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.ds.objects)
+
+
 def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1),
                       selections=("random", "cluster"), config: TrainConfig = TrainConfig(),
                       mode: str = "head", head_epochs: int = 15, finetune_epochs: int = 2,
@@ -88,38 +134,14 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
     if n_values[0] < 1:
         raise ValueError(f"N must be >= 1, got {n_values}")
     frames = frames_tensor(ds)
-    frames_np = frames.numpy()
     split = Split.of(ds)
-    labels = ds.object_id
-    n_classes = len(ds.objects)
-    pool = split.train_pool | split.test_pool
+    run = ObjectRun(ds, frames, split, TupleDrawer(ds, frames.numpy(), split.train_pool | split.test_pool, progress),
+                    mode, head_epochs, finetune_epochs, progress)
     results = ObjectResults()
     keep_models = keep_models or set()
-    clusters: dict[int, np.ndarray] = {}
-
-    def tuples_for(selection: str, n: int, anchors: np.ndarray, pool_mask: np.ndarray, rng) -> np.ndarray:
-        if selection == "random" or n == 1:
-            return random_tuples(anchors, pool_mask, ds.recording_id, n, rng)
-        if n not in clusters:
-            started = time.perf_counter()
-            clusters[n] = cluster_ids(frames_np, ds.recording_id, pool, n, seed=n)
-            _log(progress, f"  k-means with k={n} on {len(np.unique(ds.recording_id[pool]))} recordings "
-                           f"({time.perf_counter() - started:.1f} s)")
-        return cluster_tuples(anchors, pool_mask, ds.recording_id, clusters[n], n, rng)
-
     for seed in seeds:
         cfg = TrainConfig(**{**config.__dict__, "seed": seed})
-        torch.manual_seed(seed)
-        single = TouchNet(n_classes, 1, cfg.width, cfg.dropout)
-        test1 = split.test_anchors[:, None]
-        _log(progress, f"[seed {seed}] N=1: training the {cfg.width}-wide trunk end to end "
-                       f"on {len(split.train_anchors)} frames, testing on {len(test1)} held-out-session frames")
-        # (the evaluation lambdas below run inside train_classifier, within the iteration that defines them)
-        hist = train_classifier(single, frames, lambda e: (split.train_anchors[:, None], labels[split.train_anchors]),
-                                cfg, progress,
-                                lambda m: evaluate_classifier(m, frames, test1, labels[split.test_anchors]),  # noqa: B023
-                                label=f"[seed {seed} N=1] ")
-        ev = evaluate_classifier(single, frames, test1, labels[split.test_anchors])
+        single, hist, ev = _train_single_frame(run, cfg)
         results.histories[(seed, "any", 1)] = hist
         _record(results, seed, "any", 1, ev, mode, cfg, keep_models, single)
         features = trunk_features(single, frames) if mode == "head" else None
@@ -128,47 +150,65 @@ def object_experiment(ds: GloveDataset, n_values=tuple(range(1, 9)), seeds=(0, 1
                 if n == 1:
                     continue
                 started = time.perf_counter()
-                test_rng = np.random.default_rng(10_000 + 97 * seed + n)
-                test_tuples = tuples_for(selection, n, split.test_anchors, split.test_pool, test_rng)
-                test_labels = labels[split.test_anchors]
-                train_rng = np.random.default_rng(20_000 + 97 * seed + n)
-
-                def make(epoch, selection=selection, n=n, rng=train_rng):
-                    return (tuples_for(selection, n, split.train_anchors, split.train_pool, rng),
-                            labels[split.train_anchors])
-
-                net = TouchNet(n_classes, n, cfg.width, cfg.dropout)
                 tag = f"[seed {seed} {selection} N={n}] "
-                if mode == "scratch":
-                    hist = train_classifier(net, frames, make, cfg, progress,
-                                            lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
-                                            tag)
-                    ev = evaluate_classifier(net, frames, test_tuples, test_labels)
-                else:
-                    init_combination_from_single(net, single)
-                    if features is not None:  # the warm start alone (branches averaged), for reference
-                        warm = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    if features is not None and head_epochs == 0:  # mode "head", the warm start alone
-                        hist = []
-                        ev = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, n_classes)
-                    elif features is not None:  # mode "head"
-                        head_cfg = TrainConfig(**{**cfg.__dict__, "epochs": head_epochs, "noise_std": 0.0})
-                        hist = train_head(net, features, make, head_cfg, progress, None, tag)
-                        probs = head_proba(net, features, test_tuples)
-                        ev = _eval_from_probs(probs, test_labels, n_classes)
-                    else:
-                        ft_cfg = TrainConfig(**{**cfg.__dict__, "epochs": finetune_epochs})
-                        hist = train_classifier(net, frames, make, ft_cfg, progress,
-                                                lambda m: evaluate_classifier(m, frames, test_tuples, test_labels),  # noqa: B023
-                                                tag)
-                        ev = evaluate_classifier(net, frames, test_tuples, test_labels)
+                net, hist, ev, warm = _train_n_frames(run, cfg, selection, n, single, features, tag)
                 results.histories[(seed, selection, n)] = hist
                 _record(results, seed, selection, n, ev, mode, cfg, keep_models, net)
-                if features is not None:
+                if warm is not None:
                     results.rows[-1].update(warm_top1=warm.top1, warm_top3=warm.top3)
                 _log(progress, f"{tag}held-out top-1 {100 * ev.top1:.1f}% top-3 {100 * ev.top3:.1f}% "
                                f"({time.perf_counter() - started:.1f} s)")
     return results
+
+
+def _train_single_frame(run: ObjectRun, cfg: TrainConfig) -> tuple[TouchNet, list[dict], ClassifierEval]:
+    """The 1-frame network, trained end to end: the N=1 point and the trunk the others start from."""
+    split, labels = run.split, run.labels
+    torch.manual_seed(cfg.seed)
+    single = TouchNet(run.n_classes, 1, cfg.width, cfg.dropout)
+    test1 = split.test_anchors[:, None]
+    _log(run.progress, f"[seed {cfg.seed}] N=1: training the {cfg.width}-wide trunk end to end "
+                       f"on {len(split.train_anchors)} frames, testing on {len(test1)} held-out-session frames")
+    hist = train_classifier(single, run.frames, lambda e: (split.train_anchors[:, None], labels[split.train_anchors]),
+                            cfg, run.progress,
+                            lambda m: evaluate_classifier(m, run.frames, test1, labels[split.test_anchors]),
+                            label=f"[seed {cfg.seed} N=1] ")
+    return single, hist, evaluate_classifier(single, run.frames, test1, labels[split.test_anchors])
+
+
+def _train_n_frames(run: ObjectRun, cfg: TrainConfig, selection: str, n: int, single: TouchNet,
+                    features: torch.Tensor | None, tag: str
+                    ) -> tuple[TouchNet, list[dict], ClassifierEval, ClassifierEval | None]:
+    """One N-frame network in the run's mode; returns it, its history, its held-out evaluation and,
+    in mode 'head', the warm start's evaluation (branches averaged, before training)."""
+    split, labels, frames = run.split, run.labels, run.frames
+    test_tuples = run.tuples.draw(selection, n, split.test_anchors, split.test_pool,
+                                  np.random.default_rng(10_000 + 97 * cfg.seed + n))
+    test_labels = labels[split.test_anchors]
+    train_rng = np.random.default_rng(20_000 + 97 * cfg.seed + n)
+
+    def make(epoch: int) -> tuple[np.ndarray, np.ndarray]:
+        tuples = run.tuples.draw(selection, n, split.train_anchors, split.train_pool, train_rng)
+        return tuples, labels[split.train_anchors]
+
+    def evaluate(m: TouchNet) -> ClassifierEval:
+        return evaluate_classifier(m, frames, test_tuples, test_labels)
+
+    net = TouchNet(run.n_classes, n, cfg.width, cfg.dropout)
+    if run.mode == "scratch":
+        hist = train_classifier(net, frames, make, cfg, run.progress, evaluate, tag)
+        return net, hist, evaluate(net), None
+    init_combination_from_single(net, single)
+    if features is None:  # mode "finetune"
+        ft_cfg = TrainConfig(**{**cfg.__dict__, "epochs": run.finetune_epochs})
+        hist = train_classifier(net, frames, make, ft_cfg, run.progress, evaluate, tag)
+        return net, hist, evaluate(net), None
+    warm = _eval_from_probs(head_proba(net, features, test_tuples), test_labels, run.n_classes)
+    if run.head_epochs == 0:  # the warm start alone
+        return net, [], warm, warm
+    head_cfg = TrainConfig(**{**cfg.__dict__, "epochs": run.head_epochs, "noise_std": 0.0})
+    hist = train_head(net, features, make, head_cfg, run.progress, None, tag)
+    return net, hist, _eval_from_probs(head_proba(net, features, test_tuples), test_labels, run.n_classes), warm
 
 
 def _record(results: ObjectResults, seed, selection, n, ev: ClassifierEval, mode, cfg, keep, model) -> None:

@@ -4,11 +4,11 @@ What it models, and why each part is there (the real data has all of it):
 - Hand layout: the 548 sensors with their hand regions (config/glove/layout.yaml).
 - Hand pose (proprioception): bending a finger presses the glove onto the joint creases, so every
   frame carries a posture signal even without an object. Posture = flexion of the five fingers.
-- Objects share grasp types. A library of grasp primitives (pinch, tripod, lateral, power, hook,
-  spherical, flat...) says which regions touch and how the fingers bend. Each object uses a few
-  modes drawn from the primitives that fit its size, perturbed per object, plus an object-specific
-  contact texture (shape class: sphere blobs, cylinder bands, box edges, thin tip contact, soft
-  irregular). So one frame of object A often looks like a frame of object B held the same way;
+- Objects share grasp types (`synthetic_objects`): a library of grasp primitives (pinch, tripod,
+  lateral, power, hook, spherical, flat...) says which regions touch and how the fingers bend. Each
+  object uses a few modes drawn from the primitives that fit its size, perturbed per object, plus an
+  object-specific contact texture (shape class: sphere blobs, cylinder bands, box edges, thin tip
+  contact, soft irregular). So one frame of object A often looks like a frame of object B held the same way;
   the set of modes seen over several frames is what tells them apart. That is why N=1 is hard and
   more frames help.
 - Grasp events: the hand closes (ramp), holds with a fluctuating grip, opens, pauses; each event
@@ -40,41 +40,12 @@ from scipy import ndimage
 
 from prisma_common.hand import FINGERS
 
-from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset
+from .dataset import SPLIT_TEST, SPLIT_TRAIN, GloveDataset, balance_mask
 from .layout import GloveLayout, load_layout
+from .synthetic_objects import ObjectSpec, make_objects, region_vector
 
-SHAPES = ("sphere", "cylinder", "box", "thin", "soft")
 EMPTY_HAND = "empty_hand"
 
-# Grasp primitives: region contact strengths (by region name prefix) and finger flexion
-# (thumb, index, middle, ring, little). Sizes say which object sizes (0 small .. 1 large) use them.
-_ALL_FINGERS = ("index", "middle", "ring", "little")
-PRIMITIVES: dict[str, dict] = {
-    "pinch": dict(contact={"thumb_distal": 1.0, "index_distal": 1.0},
-                  flexion=(0.6, 0.6, 0.3, 0.3, 0.3), size=0.15),
-    "tripod": dict(contact={"thumb_distal": 1.0, "index_distal": 0.9, "middle_distal": 0.8},
-                   flexion=(0.6, 0.55, 0.55, 0.35, 0.35), size=0.3),
-    "lateral": dict(contact={"thumb_distal": 1.0, "index_middle": 0.8, "index_distal": 0.4},
-                    flexion=(0.4, 0.8, 0.75, 0.75, 0.75), size=0.2),
-    "tip": dict(contact={"thumb_distal": 1.0, **{f"{f}_distal": 0.8 for f in _ALL_FINGERS}},
-                flexion=(0.5, 0.5, 0.5, 0.5, 0.5), size=0.45),
-    "power": dict(contact={"palm": 0.8, "thumb_distal": 0.6, "thumb_proximal": 0.7,
-                           **{f"{f}_{p}": 0.8 for f in _ALL_FINGERS for p in ("distal", "middle", "proximal")}},
-                  flexion=(0.7, 0.75, 0.75, 0.75, 0.75), size=0.7),
-    "spherical": dict(contact={"palm": 0.5, "thumb_distal": 1.0,
-                               **{f"{f}_distal": 1.0 for f in _ALL_FINGERS},
-                               **{f"{f}_middle": 0.5 for f in _ALL_FINGERS}},
-                      flexion=(0.5, 0.55, 0.55, 0.55, 0.55), size=0.8),
-    "hook": dict(contact={f"{f}_{p}": 0.9 for f in _ALL_FINGERS for p in ("middle", "proximal")},
-                 flexion=(0.2, 0.8, 0.8, 0.8, 0.8), size=0.6),
-    "flat": dict(contact={"palm": 1.0, **{f"{f}_proximal": 0.5 for f in _ALL_FINGERS}},
-                 flexion=(0.15, 0.15, 0.15, 0.15, 0.15), size=0.9),
-    "disc": dict(contact={"thumb_distal": 1.0, "index_distal": 0.8, "middle_distal": 0.8,
-                          "ring_distal": 0.6, "index_middle": 0.3, "middle_middle": 0.3},
-                 flexion=(0.45, 0.4, 0.4, 0.4, 0.45), size=0.5),
-    "scissor": dict(contact={"index_middle": 0.9, "middle_middle": 0.9, "index_distal": 0.4},
-                    flexion=(0.3, 0.3, 0.3, 0.7, 0.7), size=0.1),
-}
 # Hand-pose classes (the paper's 7 grasps + empty hand); self-contact where fingers touch.
 POSES: dict[str, dict] = {
     "empty": dict(flexion=(0.15, 0.2, 0.2, 0.2, 0.2), contact={}),
@@ -133,25 +104,6 @@ class SyntheticConfig:
             raise ValueError(f"test_sessions {self.test_sessions} must index sessions 0..{self.sessions - 1}")
 
 
-@dataclass
-class GraspMode:
-    primitive: str
-    strength: np.ndarray   # [regions] contact strength
-    flexion: np.ndarray    # [5]
-    probability: float
-
-
-@dataclass
-class ObjectSpec:
-    name: str
-    weight_g: float
-    size: float
-    shape: str
-    modes: list[GraspMode]
-    texture: np.ndarray    # [rows, cols] in 0..1
-    grip: float            # typical grip intensity
-    friction: float = 0.8  # skin-object friction coefficient: how hard a lift must squeeze
-
 
 @dataclass
 class Session:
@@ -191,17 +143,11 @@ class SyntheticGlove:
         # recording after them, among them the object and pose sets the shipped bundles learned from
         lift_rng = np.random.default_rng([config.seed, 1])
         self.objects = [replace(o, friction=float(config.friction[0] * np.exp(lift_rng.normal(0, config.friction[1]))))
-                        for o in self._make_objects()]
+                        for o in make_objects(config, self.layout, self.region_masks, self.rng)]
         rows = np.arange(self.shape[0])[:, None] / (self.shape[0] - 1)
         self._load_profile = np.broadcast_to(0.3 + 0.7 * rows, self.shape)  # more load toward the palm
 
     # ------------------------------------------------------------------------------ building
-    def _region_vector(self, contact: dict[str, float]) -> np.ndarray:
-        vector = np.zeros(len(self.region_names))
-        for name, value in contact.items():
-            vector[self.region_names.index(name)] = value
-        return vector
-
     def _crease_maps(self) -> np.ndarray:
         """[5, rows, cols]: where bending each finger presses the glove (joint creases)."""
         index = self.layout.region_index
@@ -225,72 +171,6 @@ class SyntheticGlove:
             maps[k] = ndimage.gaussian_filter(maps[k], 0.5) * self.mask
             maps[k] /= maps[k].max()
         return maps
-
-    def _texture(self, shape: str, size: float) -> np.ndarray:
-        """Object-specific contact texture in 0..1 over the grid."""
-        rows, cols = self.shape
-        rr, cc = np.mgrid[0:rows, 0:cols].astype(float)
-        rng = self.rng
-        if shape == "sphere":  # a blob per region, size-dependent radius
-            field_ = np.zeros(self.shape)
-            for i in range(len(self.region_names)):
-                r0, c0 = self.layout.centroid(self.region_names[i])
-                r0 += rng.normal(0, 1.0)
-                c0 += rng.normal(0, 0.8)
-                radius = 1.0 + 2.5 * size
-                field_ = np.maximum(field_, np.exp(-((rr - r0) ** 2 + (cc - c0) ** 2) / (2 * radius ** 2)))
-        elif shape == "cylinder":  # bands across the fingers
-            period = rng.uniform(3.0, 6.0)
-            phase = rng.uniform(0, 2 * np.pi)
-            field_ = 0.25 + 0.75 * np.cos(2 * np.pi * rr / period + phase) ** 2
-        elif shape == "box":  # edges along columns
-            period = rng.uniform(2.5, 4.5)
-            phase = rng.uniform(0, 2 * np.pi)
-            field_ = 0.2 + 0.8 * (np.cos(2 * np.pi * cc / period + phase) > 0.3)
-        elif shape == "thin":  # toward the fingertip end of each phalanx
-            slope = rng.uniform(0.3, 0.8)
-            field_ = np.zeros(self.shape)
-            for i in range(len(self.region_names)):
-                m = self.region_masks[i]
-                r_top = rr[m].min()
-                field_[m] = np.exp(-slope * (rr[m] - r_top))
-        else:  # soft / irregular
-            field_ = ndimage.gaussian_filter(rng.random(self.shape), 1.5)
-            field_ = (field_ - field_.min()) / (np.ptp(field_) + 1e-9)
-        detail = ndimage.gaussian_filter(rng.random(self.shape), 1.0)
-        detail = (detail - detail.min()) / (np.ptp(detail) + 1e-9)
-        field_ = field_ * (0.6 + 0.4 * detail)
-        return (field_ / field_.max()).astype(np.float32)
-
-    def _make_objects(self) -> list[ObjectSpec]:
-        cfg, rng = self.config, self.rng
-        # generic names: these are not the paper's objects (weights, sizes and shapes are random),
-        # so borrowing real names would mislead
-        names = [f"object_{i:02d}" for i in range(cfg.n_objects)]
-        lo, hi = np.log(cfg.weight_range_g[0]), np.log(cfg.weight_range_g[1])
-        primitives = list(PRIMITIVES)
-        sizes = np.array([PRIMITIVES[p]["size"] for p in primitives])
-        objects = []
-        for i in range(cfg.n_objects):
-            size = rng.uniform(0.0, 1.0)
-            weight = float(np.exp(rng.uniform(lo, hi)))
-            shape = SHAPES[rng.integers(len(SHAPES))]
-            affinity = np.exp(-((sizes - size) ** 2) / (2 * 0.25 ** 2))
-            n_modes = int(rng.integers(cfg.modes_per_object[0], cfg.modes_per_object[1] + 1))
-            chosen = rng.choice(len(primitives), size=n_modes, replace=False, p=affinity / affinity.sum())
-            usage = rng.dirichlet(np.full(n_modes, 2.0))
-            modes = []
-            for j, p in enumerate(chosen):
-                prim = PRIMITIVES[primitives[p]]
-                strength = self._region_vector(prim["contact"])
-                strength = np.clip(strength * np.exp(rng.normal(0, cfg.mode_perturbation, strength.shape)), 0, 1.3)
-                if rng.random() < 0.3:  # an extra, weak contact particular to this object
-                    strength[rng.integers(len(strength))] += rng.uniform(0.2, 0.5)
-                flexion = np.clip(np.array(prim["flexion"]) * (1.2 - 0.4 * size) + rng.normal(0, 0.05, 5), 0, 1)
-                modes.append(GraspMode(primitives[p], strength, flexion, float(usage[j])))
-            grip = 0.45 * (weight / 100.0) ** 0.25 * float(np.exp(rng.normal(0, 0.2)))
-            objects.append(ObjectSpec(names[i], weight, size, shape, modes, self._texture(shape, size), grip))
-        return objects
 
     def class_names(self) -> list[str]:
         names = [o.name for o in self.objects]
@@ -367,7 +247,7 @@ class SyntheticGlove:
                 target = np.array(spec["flexion"]) + session.flexion_offset + rng.normal(0, 0.08, 5)
                 if spec["contact"]:
                     grip = float(np.exp(rng.normal(0, 0.3)))
-                    base_field = self.contact_field(self._region_vector(spec["contact"]),
+                    base_field = self.contact_field(region_vector(self.region_names, spec["contact"]),
                                                     np.ones(self.shape, np.float32))
             else:  # empty hand: moving without an object
                 target = rng.uniform(0.0, 0.7, 5) + session.flexion_offset
@@ -508,19 +388,6 @@ class SyntheticGlove:
                 yield frame, classes[k], bool(touching)
             for frame in self.record(None, session, release_frames).raw:
                 yield frame, EMPTY_HAND, False
-
-
-def balance_mask(object_id: np.ndarray, split: np.ndarray, valid: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """isBalanced: per split, the same number of valid frames for every class (random subset)."""
-    balanced = np.zeros(len(object_id), bool)
-    for s in np.unique(split):
-        counts = [np.sum(valid & (split == s) & (object_id == k)) for k in np.unique(object_id)]
-        keep = min(c for c in counts if c > 0) if any(counts) else 0
-        for k in np.unique(object_id):
-            idx = np.nonzero(valid & (split == s) & (object_id == k))[0]
-            if idx.size:
-                balanced[rng.choice(idx, size=min(keep, idx.size), replace=False)] = True
-    return balanced
 
 
 def default_dataset(seed: int = 0, **overrides) -> GloveDataset:

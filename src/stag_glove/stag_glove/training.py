@@ -54,9 +54,36 @@ def _optimizer(params, config: TrainConfig):
     return optimizer, scheduler
 
 
+def _descend(optimizer: torch.optim.Optimizer, loss: torch.Tensor, samples: int) -> float:
+    """One optimiser step on `loss`; returns the loss summed over the batch's `samples`."""
+    optimizer.zero_grad()
+    loss.backward()
+    optimizer.step()
+    return loss.item() * samples
+
+
 def _print(progress: Progress | None, text: str) -> None:
     if progress is not None:
         progress(text)
+
+
+def _run_epochs(config: TrainConfig, scheduler: torch.optim.lr_scheduler.LRScheduler,
+                train_epoch: Callable[[int], dict], evaluate: Callable[[], dict] | None,
+                describe: Callable[[dict], str], progress: Progress | None, seconds_digits: int = 1) -> list[dict]:
+    """The epoch loop every training here shares: train one epoch (its row: loss and the like), step
+    the learning rate, add the held-out evaluation's fields, time it and report one line."""
+    history = []
+    for epoch in range(config.epochs):
+        started = time.perf_counter()
+        row = {"epoch": epoch + 1, **train_epoch(epoch)}
+        scheduler.step()
+        if evaluate is not None:
+            row.update(evaluate())
+        text = describe(row)
+        row["seconds"] = time.perf_counter() - started
+        _print(progress, f"{text} ({row['seconds']:.{seconds_digits}f} s)")
+        history.append(row)
+    return history
 
 
 # -------------------------------------------------------------------------------- classification
@@ -106,9 +133,8 @@ def train_classifier(model: TouchNet, frames: torch.Tensor, make_tuples: TupleMa
     generator = setup_torch(config)
     optimizer, scheduler = _optimizer(model.parameters(), config)
     loss_fn = nn.CrossEntropyLoss()
-    history = []
-    for epoch in range(config.epochs):
-        started = time.perf_counter()
+
+    def train_epoch(epoch: int) -> dict:
         tuples, labels = make_tuples(epoch)
         model.train()
         order = torch.randperm(len(tuples), generator=generator).numpy()
@@ -122,25 +148,33 @@ def train_classifier(model: TouchNet, frames: torch.Tensor, make_tuples: TupleMa
                 x = x + config.noise_std * torch.randn(x.shape, generator=generator)
             y = torch.from_numpy(labels[batch])
             logits = model(x)
-            loss = loss_fn(logits, y)
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            total += loss.item() * len(batch)
+            total += _descend(optimizer, loss_fn(logits, y), len(batch))
             correct += int((logits.argmax(1) == y).sum())
             seen += len(batch)
-        scheduler.step()
-        row = {"epoch": epoch + 1, "loss": total / max(seen, 1), "train_top1": correct / max(seen, 1)}
-        text = (f"{label}epoch {epoch + 1}/{config.epochs} loss {row['loss']:.3f} "
-                f"train top-1 {100 * row['train_top1']:.1f}%")
-        if evaluate is not None:
-            result = evaluate(model)
-            row.update(test_top1=result.top1, test_top3=result.top3)
-            text += f" test top-1 {100 * result.top1:.1f}% top-3 {100 * result.top3:.1f}%"
-        row["seconds"] = time.perf_counter() - started
-        _print(progress, text + f" ({row['seconds']:.1f} s)")
-        history.append(row)
-    return history
+        return {"loss": total / max(seen, 1), "train_top1": correct / max(seen, 1)}
+
+    def describe(row: dict) -> str:
+        return (f"{label}epoch {row['epoch']}/{config.epochs} loss {row['loss']:.3f} "
+                f"train top-1 {100 * row['train_top1']:.1f}%{_held_out_text(row)}")
+
+    return _run_epochs(config, scheduler, train_epoch, _held_out(model, evaluate), describe, progress)
+
+
+def _held_out(model: TouchNet, evaluate: Callable[[TouchNet], ClassifierEval] | None) -> Callable[[], dict] | None:
+    """The history fields of a classifier's held-out evaluation, where there is one."""
+    if evaluate is None:
+        return None
+
+    def fields() -> dict:
+        result = evaluate(model)
+        return {"test_top1": result.top1, "test_top3": result.top3}
+    return fields
+
+
+def _held_out_text(row: dict) -> str:
+    if "test_top1" not in row:
+        return ""
+    return f" test top-1 {100 * row['test_top1']:.1f}% top-3 {100 * row['test_top3']:.1f}%"
 
 
 @torch.no_grad()
@@ -169,9 +203,8 @@ def train_head(model: TouchNet, features: torch.Tensor, make_tuples: TupleMaker,
     params = list(model.combination.parameters()) + list(model.classifier.parameters())
     optimizer, scheduler = _optimizer(params, config)
     loss_fn = nn.CrossEntropyLoss()
-    history = []
-    for epoch in range(config.epochs):
-        started = time.perf_counter()
+
+    def train_epoch(epoch: int) -> dict:
         tuples, labels = make_tuples(epoch)
         model.eval()  # trunk BN/dropout frozen; the head has neither
         order = torch.randperm(len(tuples), generator=generator).numpy()
@@ -180,23 +213,15 @@ def train_head(model: TouchNet, features: torch.Tensor, make_tuples: TupleMaker,
             batch = order[start:start + config.batch_size]
             f = features[torch.from_numpy(tuples[batch])].flatten(1, 2)
             y = torch.from_numpy(labels[batch])
-            loss = loss_fn(model.head(f), y)
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            total += loss.item() * len(batch)
+            total += _descend(optimizer, loss_fn(model.head(f), y), len(batch))
             seen += len(batch)
-        scheduler.step()
-        row = {"epoch": epoch + 1, "loss": total / max(seen, 1)}
-        text = f"{label}head epoch {epoch + 1}/{config.epochs} loss {row['loss']:.3f}"
-        if evaluate is not None:
-            result = evaluate(model)
-            row.update(test_top1=result.top1, test_top3=result.top3)
-            text += f" test top-1 {100 * result.top1:.1f}% top-3 {100 * result.top3:.1f}%"
-        row["seconds"] = time.perf_counter() - started
-        _print(progress, text + f" ({row['seconds']:.2f} s)")
-        history.append(row)
-    return history
+        return {"loss": total / max(seen, 1)}
+
+    def describe(row: dict) -> str:
+        return f"{label}head epoch {row['epoch']}/{config.epochs} loss {row['loss']:.3f}{_held_out_text(row)}"
+
+    return _run_epochs(config, scheduler, train_epoch, _held_out(model, evaluate), describe, progress,
+                       seconds_digits=2)
 
 
 # -------------------------------------------------------------------------------- weight
@@ -219,9 +244,8 @@ def train_weight(model: WeightNet, frames: torch.Tensor, grams: np.ndarray, conf
     # start the output at the mean log weight so early epochs are not spent learning the offset
     with torch.no_grad():
         model.fc.bias.fill_(float(target.mean()))
-    history = []
-    for epoch in range(config.epochs):
-        started = time.perf_counter()
+
+    def train_epoch(epoch: int) -> dict:
         model.train()
         order = torch.randperm(len(frames), generator=generator)
         total, seen = 0.0, 0
@@ -232,22 +256,16 @@ def train_weight(model: WeightNet, frames: torch.Tensor, grams: np.ndarray, conf
             x = frames[batch].unsqueeze(1)
             if config.noise_std:
                 x = x + config.noise_std * torch.randn(x.shape, generator=generator)
-            loss = nn.functional.mse_loss(model(x), target[batch])
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            total += loss.item() * len(batch)
+            total += _descend(optimizer, nn.functional.mse_loss(model(x), target[batch]), len(batch))
             seen += len(batch)
-        scheduler.step()
-        row = {"epoch": epoch + 1, "loss": total / max(seen, 1)}
-        text = f"{label}epoch {epoch + 1}/{config.epochs} log-MSE {row['loss']:.4f}"
-        if evaluate is not None:
-            row["test_error_g"] = evaluate(model)
-            text += f" held-out mean error {row['test_error_g']:.1f} g"
-        row["seconds"] = time.perf_counter() - started
-        _print(progress, text + f" ({row['seconds']:.1f} s)")
-        history.append(row)
-    return history
+        return {"loss": total / max(seen, 1)}
+
+    def describe(row: dict) -> str:
+        held_out = f" held-out mean error {row['test_error_g']:.1f} g" if "test_error_g" in row else ""
+        return f"{label}epoch {row['epoch']}/{config.epochs} log-MSE {row['loss']:.4f}{held_out}"
+
+    held_out_error = (lambda: {"test_error_g": evaluate(model)}) if evaluate is not None else None
+    return _run_epochs(config, scheduler, train_epoch, held_out_error, describe, progress)
 
 
 @torch.no_grad()

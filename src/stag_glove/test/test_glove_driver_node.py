@@ -10,8 +10,14 @@ import os
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG, node_parameters
-from ros_harness import external_shutdown_command, require_ros, run_process, stamp_ns, start_and_interrupt
+from prisma_testing.repo_paths import CONFIG, node_parameters
+from prisma_testing.ros_harness import (
+    external_shutdown_command,
+    require_ros,
+    run_process,
+    stamp_ns,
+    start_and_interrupt,
+)
 
 require_ros()
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 from stag_glove.layout import load_layout
 from stag_glove.pressure_map import NO_SENSOR_RGB, OUTLINE_RGB, SHORTED_RGB, PressureMap, pressure_colours
 

@@ -5,7 +5,7 @@ import re
 from dataclasses import dataclass
 
 from prisma_common.hand import FINGERS
-from repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT
 
 SHARED_TOPICS = {"/diagnostics"}  # published by every driver
 

@@ -19,13 +19,14 @@ import signal
 import subprocess
 import threading
 import time
-import unittest
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import pytest
+
+from prisma_common.goal_refusal import NOT_READY, refusal_code
 
 ROS_SKIP_REASON = (
     "needs ROS 2 and the built workspace: source ../shared/ros2/setup.sh (or /opt/ros/jazzy), "
@@ -81,12 +82,12 @@ def result_reason(result: Any) -> str:
 
 
 def refusal_for_now(result: Any) -> str | None:
-    """The reason of a result that refused its goal for now (`not_ready: ...`, `busy: ...`: the same
-    goal may run when sent again), else None."""
-    from prisma_common.goal_refusal import RETRY_LATER, refusal_code
-
+    """The reason of a result that refused its goal because the graph is not ready yet (`not_ready:
+    ...`: a stream it needs not flowing yet, the motor driver not up): the one refusal a test sends
+    the same goal again for. Any other end (busy, sensor_stale, joint_limit, a timeout) is the
+    test's outcome, never a reason to send it again. None for those."""
     reason = result_reason(result)
-    return reason if refusal_code(reason) in RETRY_LATER else None
+    return reason if refusal_code(reason) == NOT_READY else None
 
 
 def stamp_ns(msg: Any) -> int:
@@ -310,12 +311,14 @@ class RosHarness:
             parameters=[Parameter(name, value=value).to_parameter_msg() for name, value in values.items()])
         return self.call(SetParameters, f"{node_name}/set_parameters", request).results
 
-    def action_client(self, action_type: type, name: str, wait_sec: float = 10.0):
+    def action_client(self, action_type: type, name: str, wait_sec: float | None = 10.0):
+        """An ActionClient of the probe, destroyed at shutdown; waits up to `wait_sec` for its server
+        (None: not at all, for a test that sends goals the moment the server appears)."""
         from rclpy.action import ActionClient
 
         client = ActionClient(self.probe, action_type, name)
         self._action_clients.append(client)
-        if not self.spin_until(client.server_is_ready, wait_sec):
+        if wait_sec is not None and not self.spin_until(client.server_is_ready, wait_sec):
             raise TimeoutError(f"action server {name} not available")
         return client
 
@@ -327,25 +330,43 @@ class RosHarness:
         return future.result()
 
     def send_until_started(self, client: Any, goal: Any, timeout_sec: float = 30.0, retry_sec: float = 0.2):
-        """Send `goal` again every `retry_sec` while the server refuses it for now: the hand's action
-        servers accept every goal and abort one they cannot run yet at once, with `not_ready: ...`
-        or `busy: ...` as its result's reason (prisma_common.goal_refusal). The ClientGoalHandle of
-        the goal that started (its first feedback came) or ended otherwise; AssertionError at the
-        timeout. GripperCommand results carry no reason: such a goal is returned as it ended."""
+        """The one way a test resends a goal: again every `retry_sec` while the server refuses it
+        `not_ready` (the graph coming up; `refusal_for_now`), until `timeout_sec`. The hand's action
+        servers accept every goal and abort one they cannot run yet at once, the reason in the
+        result (prisma_common.goal_refusal); GripperCommand's result has no text, so its refusal is
+        the manipulation node's log line (needs `capture_logs`). Returns the ClientGoalHandle of the
+        goal that started (its first feedback came) or ended any other way; AssertionError when it
+        is still refused at the timeout."""
         deadline = time.monotonic() + timeout_sec
         while True:
             feedback: list = []
+            logged = len(self._gripper_refusals()) if _has_no_reason(goal) else 0
             handle = self.send_goal(client, goal, feedback)
             if not handle.accepted:
                 raise AssertionError(f"{type(goal).__name__} rejected: the hand's servers accept every goal")
             result = handle.get_result_async()
             self.spin_until(lambda: bool(feedback) or result.done(), 10.0)  # noqa: B023 - runs now
-            reason = refusal_for_now(result.result().result) if result.done() else None
+            reason = self._not_ready(goal, result.result(), logged) if result.done() else None
             if reason is None:
                 return handle
             if time.monotonic() > deadline:
                 raise AssertionError(f"{type(goal).__name__} still refused after {timeout_sec} s: {reason}")
             self.spin_for(retry_sec)
+
+    def _not_ready(self, goal: Any, result: Any, logged: int) -> str | None:
+        """refusal_for_now of a goal's result; for a GripperCommand, of the refusal the node logged
+        for it (after the `logged` lines there were before it was sent)."""
+        if not _has_no_reason(goal):
+            return refusal_for_now(result.result)
+        if goal_status_name(result.status) != "ABORTED":
+            return None
+        self.spin_until(lambda: len(self._gripper_refusals()) > logged, 2.0)  # its line may come after the result
+        why = self._gripper_refusals()[logged:]
+        return why[-1] if why and refusal_code(why[-1]) == NOT_READY else None
+
+    def _gripper_refusals(self) -> list[str]:
+        prefix = "GripperCommand goal refused: "
+        return [line.split(prefix, 1)[1] for line in self.logs(name="manipulation", contains=prefix)]
 
     def message_at(self, received: list, seconds_from_now: float, timeout_sec: float = 10.0) -> Any:
         """The first message in `received` (a `collect` list) stamped `seconds_from_now` or later,
@@ -448,7 +469,10 @@ class NodeProcess:
     stderr collected: `wait_for_output` a line it prints, `interrupt` it as Ctrl-C in its terminal
     does (SIGINT to the whole process group: `ros2 run` and the node under it), `wait` for its exit.
     As a context manager it kills whatever still runs at the end. The environment is inherited
-    (the test process's ROS_DOMAIN_ID included), with unbuffered Python and uncoloured ROS logs."""
+    (the test process's ROS_DOMAIN_ID included), with unbuffered Python and uncoloured ROS logs.
+    Each one started is kept in `started` (its output for the file a failing test names, launch_case)."""
+
+    started: ClassVar[list[NodeProcess]] = []
 
     def __init__(self, args: Sequence[str], env: dict[str, str] | None = None, cwd: str | Path | None = None) -> None:
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "RCUTILS_COLORIZED_OUTPUT": "0", **(env or {})}
@@ -458,6 +482,7 @@ class NodeProcess:
         self._lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
+        NodeProcess.started.append(self)
 
     def _read(self) -> None:
         for line in self.proc.stdout:
@@ -587,84 +612,6 @@ def stop_process(proc: NodeProcess, timeout_sec: float = 30.0) -> ProcessResult:
     return ProcessResult(proc.proc.returncode, proc.output)
 
 
-# ---- launch_testing ----------------------------------------------------------------------------------
-def include_launch(launch_file: str, package: str = "prisma_bringup", **arguments: str):
-    """An installed launch file (`share/<package>/launch/<launch_file>`) with `name:=value` arguments,
-    for a launch test's generate_test_description, as `ros2 launch <package> <launch_file>` starts it."""
-    from launch.actions import IncludeLaunchDescription
-    from launch.launch_description_sources import PythonLaunchDescriptionSource
-    from launch.substitutions import PathJoinSubstitution
-    from launch_ros.substitutions import FindPackageShare
-
-    return IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(PathJoinSubstitution([FindPackageShare(package), "launch", launch_file])),
-        launch_arguments=arguments.items())
-
-
-def emulated_hand_launch(emulator_dir: Path, **arguments: str):
-    """generate_test_description's LaunchDescription for `hand.launch.py hardware:=emulated home:=true`
-    with its devices in `emulator_dir` (created here): the servos come up as real ones do, without
-    their turn count, and are homed at start (`wait_until_homed`)."""
-    import launch
-    import launch_testing.actions
-
-    emulator_dir.mkdir(exist_ok=True)
-    return launch.LaunchDescription([
-        include_launch("hand.launch.py", hardware="emulated", home="true", emulator_dir=str(emulator_dir),
-                       **arguments),
-        launch_testing.actions.ReadyToTest()])
-
-
-class GraphTestCase(unittest.TestCase):
-    """A launch test's class on one RosHarness: made (logs captured) before its tests, shut down after
-    them (with every client and subscription it made). `subscribe(ros)` adds what the class collects."""
-
-    ros: RosHarness
-
-    @classmethod
-    def setUpClass(cls) -> None:
-        ros = cls.ros = RosHarness()
-        try:
-            ros.capture_logs()
-            cls.subscribe(ros)
-        except BaseException:
-            ros.shutdown()
-            raise
-
-    @classmethod
-    def subscribe(cls, ros: RosHarness) -> None:
-        """Collections and clients of the class, as class attributes."""
-
-    @classmethod
-    def tearDownClass(cls) -> None:
-        cls.ros.shutdown()
-
-
-def process_outputs(proc_output: Any) -> dict[str, str]:
-    """A launch test's captured output, stdout and stderr together, per process name ('motor_driver-2')."""
-    texts: dict[str, list[str]] = {}
-    for event in proc_output:
-        texts.setdefault(event.process_name, []).append(event.text.decode(errors="replace"))
-    return {name: "".join(parts) for name, parts in texts.items()}
-
-
-def output_of(proc_output: Any, node: str) -> str:
-    """The captured output of the one process launched for `node` (named '<node>-<n>' by launch)."""
-    (text,) = [text for name, text in process_outputs(proc_output).items() if name.rsplit("-", 1)[0] == node]
-    return text
-
-
-def assert_clean_shutdown(proc_info: Any, proc_output: Any) -> None:
-    """Post-shutdown check of a launch test (launch stopped every process with SIGINT, as Ctrl-C on
-    `ros2 launch` does): every process exited 0 and none printed a Python traceback."""
-    import launch_testing.asserts
-
-    launch_testing.asserts.assertExitCodes(proc_info)
-    tracebacks = {name: text[text.index("Traceback"):][:2000]
-                  for name, text in process_outputs(proc_output).items() if "Traceback" in text}
-    assert not tracebacks, "tracebacks in the output of " + "; ".join(f"{n}:\n{t}" for n, t in tracebacks.items())
-
-
 def stamp_rate_hz(msgs: Iterable[Any], start_ns: int, end_ns: int) -> float:
     """Messages per second whose header stamp lies in [start_ns, end_ns)."""
     return sum(start_ns <= stamp_ns(m) < end_ns for m in msgs) / ((end_ns - start_ns) * 1e-9)
@@ -762,24 +709,9 @@ def gripper_goal(position: float, max_effort: float = 0.0) -> Any:
     return goal
 
 
-def run_gripper_goal(ros: RosHarness, client: Any, goal: Any, timeout_sec: float = 90.0):
-    """A GripperCommand goal's result, sent again while the manipulation node refuses it for now
-    (its result has no text: the node's log says `GripperCommand goal refused: not_ready|busy: ...`).
-    Needs `ros.capture_logs()`."""
-    deadline = time.monotonic() + timeout_sec
-    if not ros.spin_until(client.server_is_ready, timeout_sec):
-        raise AssertionError(f"no GripperCommand server after {timeout_sec} s")
-    while True:
-        refused = len(ros.logs(name="manipulation", contains="GripperCommand goal refused: "))
-        outcome = ros.result(ros.send_goal(client, goal), timeout_sec=30.0)
-        ros.spin_for(0.1)  # the node's log line about it
-        why = ros.logs(name="manipulation", contains="GripperCommand goal refused: ")[refused:]
-        if goal_status_name(outcome.status) == "ABORTED" and why and ("not_ready: " in why[-1] or "busy: " in why[-1]):
-            if time.monotonic() > deadline:
-                raise AssertionError(f"GripperCommand still refused after {timeout_sec} s: {why[-1]}")
-            ros.spin_for(0.2)
-            continue
-        return outcome
+def _has_no_reason(goal: Any) -> bool:
+    """A goal whose result carries no reason text (control_msgs GripperCommand)."""
+    return type(goal).__name__.startswith("GripperCommand")
 
 
 # /joint_states "stopped": every joint slower than this. On Dynamixel X-series motors (emulated

@@ -30,17 +30,9 @@ from prisma_common.cli_args import (
 from prisma_common.scheduling import apply_priority_from_env
 from prisma_motor_driver.dynamixel_emulator import stderr_log
 
-from .hand_emulator import (
-    DEFAULT_DIR,
-    DEFAULT_WORLD,
-    FAULTS,
-    REQUIRED,
-    TACTILE_LINKS,
-    WORLDS,
-    EmulatedHand,
-    EmulatorPaths,
-    EmulatorSettings,
-)
+from .fault_table import FAULTS, REQUIRED
+from .hand_emulator import EmulatedHand
+from .settings import DEFAULT_DIR, DEFAULT_WORLD, TACTILE_LINKS, WORLDS, EmulatorPaths, EmulatorSettings
 
 
 @command("prisma-hand-emulator")

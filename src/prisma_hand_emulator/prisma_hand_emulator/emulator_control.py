@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from prisma_tactile_driver.i2c_socket import bind_unix_socket, release_unix_socket
+from prisma_common.unix_socket import bind_unix_socket, release_unix_socket
 
 MAX_REQUEST_BYTES = 65536
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import yaml
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 BRINGUP = ROOT / "src" / "prisma_bringup"
 CONFIG = BRINGUP / "config"  # node parameter files, model bundles, glove layout
 LAUNCH = BRINGUP / "launch"

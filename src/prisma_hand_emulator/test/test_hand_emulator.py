@@ -1,4 +1,5 @@
-"""The emulated hand (prisma_bringup.hand_emulator, emulator_cli, emulator_control) without ROS.
+"""The emulated hand (prisma_hand_emulator: EmulatedHand, its servos, tactile links and fault table,
+emulator_cli, emulator_control) without ROS.
 
 One EmulatedHand per test in pytest's tmp_path, on a manual clock (ticks and servo motion are
 deterministic), reached through the real host-side driver code: DynamixelBus (dynamixel-sdk) on
@@ -27,17 +28,12 @@ import dynamixel_sdk as sdk
 import numpy as np
 import pytest
 
-from prisma_bringup.emulator_cli import fault_parser
-from prisma_bringup.hand_emulator import (
-    FAULTS,
-    FINGER_CHANNELS,
-    REQUIRED,
-    EmulatedHand,
-    EmulatorPaths,
-    EmulatorSettings,
-    FaultError,
-)
 from prisma_common.hand import FINGERS
+from prisma_hand_emulator.emulator_cli import fault_parser
+from prisma_hand_emulator.fault_table import FAULTS, REQUIRED, FaultError
+from prisma_hand_emulator.hand_emulator import EmulatedHand
+from prisma_hand_emulator.settings import EmulatorPaths, EmulatorSettings
+from prisma_hand_emulator.tactile_link import FINGER_CHANNELS
 from prisma_motor_driver import control_table as ct
 from prisma_motor_driver.backend import BusError, MotorMap
 from prisma_motor_driver.dynamixel_backend import DynamixelBus
@@ -46,7 +42,7 @@ from prisma_tactile_driver.i2c_backend import I2CHubBackend
 from prisma_tactile_driver.i2c_socket import SocketSMBus
 from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size
 from prisma_tactile_driver.serial_backend import SerialHubBackend
-from ros_harness import console_script
+from prisma_testing.ros_harness import console_script
 
 TICK_S = 0.01  # the emulator's 100 Hz scan period
 RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV
@@ -243,7 +239,7 @@ def test_motion_closes_the_grasp_and_loads_the_servos(rig):
     r = rig("pinch_grasp")
     bus = r.bus()
     bus.set_velocities({"fingers": 60.0, "thumb_flexion": 60.0})
-    r.hand.servos.sync()  # sync write has no status packet: let the servos take it before time moves
+    r.hand.servos.bus.sync()  # sync write has no status packet: let the servos take it before time moves
     r.tick(30, bus)  # 0.3 s at 2 pi rad/s: 1.9 rad, short of the thumb contact (2.5) and index (3.0)
     free, free_forces = bus.read_state(), r.hand.status()["forces_n"]
     assert free_forces["thumb"] == free_forces["index"] == 0.0
@@ -264,7 +260,7 @@ def test_motion_closes_the_grasp_and_loads_the_servos(rig):
     assert stalled.position_rad == pytest.approx(ct.ticks_to_rad(ct.rad_to_ticks(9.2)))
     assert stalled.velocity_rpm == 0.0 and stalled.current_ma == pytest.approx(status["current_limit_ma"], abs=0.1)
     assert status["peak_current_ma"] == status["current_limit_ma"] <= ct.current_units_to_ma(ct.CURRENT_LIMIT_MAX_UNITS)
-    assert any(line.startswith("servo 1: stalled at its hi end stop") for line in r.hand.servos.events)
+    assert any(line.startswith("servo 1: stalled at its hi end stop") for line in r.hand.servos.bus.events)
 
 
 # ---- hub faults -------------------------------------------------------------------------------
@@ -437,7 +433,7 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     bus = r.bus()
     assert bus.read_state()["fingers"].position_rad > 3.0
     bus.set_velocities({"fingers": 30.0})
-    r.hand.servos.sync()
+    r.hand.servos.bus.sync()
     assert r.hand.apply("world", name="pinch_grasp").startswith("world pinch_grasp")
     r.clock.advance(0.5)  # posed at rest: the goal velocity was zeroed
     assert all(s.position_rad == pytest.approx(0.0, abs=RAD_PER_TICK) for s in bus.read_state().values())
@@ -449,12 +445,12 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
 def test_the_emulator_places_the_sim_graphs_objects_too(rig):
     """One vocabulary for the simulated world (hand.launch.py sim_object:=): the emulated hand takes
     the objects the sim graph presents, an empty hand included, besides the scenarios' starts."""
-    from prisma_bringup.hand_emulator import WORLDS, world_for
+    from prisma_hand_emulator.settings import WORLDS, world_for
 
     assert WORLDS[:4] == ("pinch_ball", "power_ball", "lateral_card", "none")
     assert [world_for(name).obj.name for name in WORLDS[:4]] == list(WORLDS[:4])
     r = rig("none")
-    r.hand.servos.sync()
+    r.hand.servos.bus.sync()
     r.hand.apply("servo-place", motor="fingers", rad=8.0)  # closed on nothing
     r.hand.apply("servo-place", motor="thumb_flexion", rad=6.0)
     r.tick()

@@ -20,7 +20,7 @@ import time
 
 from prisma_common.hand import MOTOR_NAMES
 from prisma_teleop.synthetic_glove_core import Synergies
-from ros_harness import joint
+from prisma_testing.ros_harness import joint
 
 OPEN = Synergies(0.0, 0.0, 0.0)
 FIST = Synergies(1.0, 1.0, 0.0)

@@ -1,11 +1,11 @@
-"""The glove session's scripted wearer (prisma_bringup.glove_session.SessionGloveBackend) without ROS:
+"""The glove session's scripted wearer (prisma_sim.glove_session.SessionGloveBackend) without ROS:
 the empty hand, then per object grasps of it without a load (the object set's kind of recording:
 lifted frames in the buffer cost the object decision, docs/glove.md, "Weight") and a release."""
 from __future__ import annotations
 
 import numpy as np
 
-from prisma_bringup.glove_session import (
+from prisma_sim.glove_session import (
     EMPTY_FIRST_FRAMES,
     EPISODE_FRAMES,
     GRASP_FRAMES,

@@ -19,8 +19,8 @@ Requests (`op` and its fields) and what each answers:
   one stamped at or after until_ns (if given) has been received;
 - keeping_up(leader, follower, lag_s, checks, timeout_s): answers once the follower topic's newest
   stamp stays within lag_s of the leader's (both collected), an error at the timeout;
-- send_goal(action, type, goal, retry_s, wait_s): the goal sent, again while the server refuses it for
-  now (not_ready, busy: up to retry_s); {"id", "accepted_ns" (the server's GoalInfo stamp)} or
+- send_goal(action, type, goal, retry_s, wait_s): the goal sent, again while the server refuses it
+  not_ready (the graph coming up: up to retry_s); {"id", "accepted_ns" (the server's GoalInfo stamp)} or
   {"accepted": false, "refused"};
 - result(id, timeout_s): {"status": SUCCEEDED|ABORTED|CANCELED|..., "result": the result's fields};
 - trigger(service, timeout_s): a std_srvs/Trigger call; {"success", "message"};
@@ -39,7 +39,6 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 
@@ -51,7 +50,7 @@ class HostProbe:
         """rt_priority > 0: the probe runs at that SCHED_FIFO priority where the system permits it (an
         instrument above a graph at real-time priority that fills the machine still sees in time)."""
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "RCUTILS_COLORIZED_OUTPUT": "0", **(env or {})}
-        argv = [sys.executable, str(Path(__file__).resolve())]
+        argv = [sys.executable, "-m", "prisma_testing.host_probe"]
         if rt_priority > 0:
             argv += ["--rt-priority", str(rt_priority)]
         self.proc = subprocess.Popen(run(argv), stdin=subprocess.PIPE,
@@ -92,7 +91,7 @@ class HostProbe:
 # ---- the probe's end: runs inside the host --------------------------------------------------------
 class _Probe:
     def __init__(self) -> None:
-        from ros_harness import RosHarness
+        from prisma_testing.ros_harness import RosHarness
 
         self.ros = RosHarness()
         self.ros.capture_logs()
@@ -107,8 +106,14 @@ class _Probe:
             self.collected[topic] = self.ros.collect(get_message(type), topic)
         return {}
 
+    def stop_collecting(self, topic: str) -> dict:
+        """Stop taking `topic` (and forget what was taken): a probe at real-time priority that
+        keeps taking 100 Hz topics nobody reads any more takes that CPU from the graph it observes."""
+        self.ros.stop_collecting(self.collected.pop(topic))
+        return {}
+
     def stamped(self, topic: str, since_ns: int = 0, until_ns: int = 0, wait_s: float = 10.0) -> dict:
-        from ros_harness import stamp_ns
+        from prisma_testing.ros_harness import stamp_ns
 
         # a probe held up by a busy machine works through its queue first: up to a message stamped at
         # or after until_ns (one that was published by the time the test asked)
@@ -138,7 +143,7 @@ class _Probe:
     def goals(self, topic: str, since_ns: int = 0) -> dict:
         """The goals an action server's status topic (collected) listed as accepted after since_ns:
         [[accepted_ns, last status]], by acceptance."""
-        from ros_harness import goal_status_name
+        from prisma_testing.ros_harness import goal_status_name
 
         goals: dict[bytes, list] = {}
         for msg in self.collected[topic]:
@@ -170,7 +175,7 @@ class _Probe:
     def result(self, id: int, timeout_s: float = 60.0) -> dict:
         from rosidl_runtime_py.convert import message_to_ordereddict
 
-        from ros_harness import goal_status_name
+        from prisma_testing.ros_harness import goal_status_name
 
         future = self.pending[id]
         if not self.ros.spin_until(future, timeout_s):
@@ -214,7 +219,8 @@ class _Probe:
                 sys.stdout.flush()
 
 
-_OPS = ("collect", "stamped", "keeping_up", "goals", "send_goal", "result", "trigger", "logs", "ping")
+_OPS = ("collect", "stop_collecting", "stamped", "keeping_up", "goals", "send_goal", "result", "trigger", "logs",
+        "ping")
 
 
 def main() -> None:
@@ -223,7 +229,6 @@ def main() -> None:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(sys.argv[2])))
         except OSError as exc:
             print(f"host probe: real-time priority {sys.argv[2]} refused ({exc}): default priority", file=sys.stderr)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     probe = _Probe()
     try:
         probe.serve()

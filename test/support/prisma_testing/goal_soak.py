@@ -86,7 +86,7 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     from prisma_msgs.action import Grasp, Manipulate
     from std_srvs.srv import Trigger
 
-    from ros_harness import goal_outcome
+    from prisma_testing.ros_harness import goal_outcome
 
     clients = {"grasp": ros.action_client(Grasp, f"{namespace}/prisma/grasp", wait_sec=90.0),
                "manipulate": ros.action_client(Manipulate, f"{namespace}/prisma/manipulate", wait_sec=90.0),
@@ -112,8 +112,9 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     replace_object()
 
     def goal(name: str, client: str, message: Any, cancel_after_s: float | None = None) -> None:
-        t0 = time.monotonic()
+        # before the clock starts: a scan of every log line so far, longer with each goal
         ended = len(ros.logs(name="manipulation", contains="goal ended"))
+        t0 = time.monotonic()
         feedback: list = []
         handle = ros.send_goal(clients[client], message, feedback)
         assert handle.accepted, f"{name}: not accepted (the hand's servers accept every goal)"

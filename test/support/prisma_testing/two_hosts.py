@@ -26,7 +26,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from repo_paths import CONFIG
+from prisma_testing.repo_paths import CONFIG
 
 # subnet: ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET, Cyclone DDS discovering by multicast on the veth (no
 # route needed: Cyclone names the interface) with config/cyclonedds_hosts.xml (data unicast, so each

@@ -1,0 +1,182 @@
+"""What the launch tests share: the launch description a test starts, the test class on one
+RosHarness, the post-shutdown checks, and every launched process's full output kept in a file when a
+test fails.
+
+    @pytest.mark.launch_test
+    def generate_graph_under_test():
+        return graph_under_test(include_launch("hand.launch.py", sim="true"))
+
+    class TestHand(GraphTestCase):
+        @classmethod
+        def subscribe(cls, ros):
+            cls.joints = ros.collect(JointState, "/joint_states")
+            cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+
+Kept output: `graph_under_test` registers a handler for every process's stdout and stderr (RViz's
+included) of the launch; `ros2 launch` and other commands a plain pytest test starts are NodeProcesses
+(ros_harness), which keep their own. When a test fails, the root conftest.py writes all of it whole
+to `launch_log_path(<test id>)` and names the file in the failure message.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import unittest
+from pathlib import Path
+from typing import Any
+
+from prisma_testing.repo_paths import ROOT
+from prisma_testing.ros_harness import NodeProcess, RosHarness
+
+LOG_DIR_VARIABLE = "PRISMA_LAUNCH_LOG_DIR"
+
+# process name ('motor_driver-2') -> its output so far, and its exit code once it exited; filled by
+# the handlers graph_under_test registers, emptied by the conftest when a test file starts
+_launched_output: dict[str, list[str]] = {}
+_launched_exit: dict[str, int | None] = {}
+
+
+# ---- the launch description -------------------------------------------------------------------------
+def include_launch(launch_file: str, package: str = "prisma_bringup", **arguments: str):
+    """An installed launch file (`share/<package>/launch/<launch_file>`) with `name:=value` arguments,
+    for a launch test's generate_graph_under_test, as `ros2 launch <package> <launch_file>` starts it."""
+    from launch.actions import IncludeLaunchDescription
+    from launch.launch_description_sources import PythonLaunchDescriptionSource
+    from launch.substitutions import PathJoinSubstitution
+    from launch_ros.substitutions import FindPackageShare
+
+    return IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(PathJoinSubstitution([FindPackageShare(package), "launch", launch_file])),
+        launch_arguments=arguments.items())
+
+
+def graph_under_test(*actions: Any):
+    """generate_graph_under_test's LaunchDescription: `actions`, every process's output kept (for the
+    file a failing test names), then ReadyToTest."""
+    import launch
+    import launch_testing.actions
+    from launch.actions import RegisterEventHandler
+    from launch.event_handlers import OnProcessExit, OnProcessIO
+
+    def keep(event: Any) -> None:
+        _launched_output.setdefault(event.process_name, []).append(event.text.decode(errors="replace"))
+
+    def exited(event: Any, _context: Any) -> None:
+        _launched_exit[event.process_name] = event.returncode
+
+    return launch.LaunchDescription([
+        RegisterEventHandler(OnProcessIO(on_stdout=keep, on_stderr=keep)),
+        RegisterEventHandler(OnProcessExit(on_exit=exited)),
+        *actions,
+        launch_testing.actions.ReadyToTest()])
+
+
+def emulated_hand_launch(emulator_dir: Path, **arguments: str):
+    """generate_graph_under_test's LaunchDescription for `hand.launch.py hardware:=emulated home:=true`
+    with its devices in `emulator_dir` (created here): the servos come up as real ones do, without
+    their turn count, and are homed at start (`ros_harness.wait_until_homed`)."""
+    emulator_dir.mkdir(exist_ok=True)
+    return graph_under_test(include_launch("hand.launch.py", hardware="emulated", home="true",
+                                           emulator_dir=str(emulator_dir), **arguments))
+
+
+# ---- the test class -----------------------------------------------------------------------------------
+class GraphTestCase(unittest.TestCase):
+    """A launch test's class on one RosHarness: made (logs captured) before its tests, shut down after
+    them (with every client and subscription it made). `subscribe(ros)` adds what the class collects
+    and the clients it uses (ros.collect, ros.action_client), as class attributes."""
+
+    ros: RosHarness
+
+    @classmethod
+    def setUpClass(cls) -> None:
+        ros = cls.ros = RosHarness()
+        try:
+            ros.capture_logs()
+            cls.subscribe(ros)
+        except BaseException:
+            ros.shutdown()
+            raise
+
+    @classmethod
+    def subscribe(cls, ros: RosHarness) -> None:
+        """Collections and clients of the class, as class attributes."""
+
+    @classmethod
+    def tearDownClass(cls) -> None:
+        cls.ros.shutdown()
+
+
+# ---- after the launch ---------------------------------------------------------------------------------
+def process_outputs(proc_output: Any) -> dict[str, str]:
+    """A launch test's captured output, stdout and stderr together, per process name ('motor_driver-2')."""
+    texts: dict[str, list[str]] = {}
+    for event in proc_output:
+        texts.setdefault(event.process_name, []).append(event.text.decode(errors="replace"))
+    return {name: "".join(parts) for name, parts in texts.items()}
+
+
+def output_of(proc_output: Any, node: str) -> str:
+    """The captured output of the one process launched for `node` (named '<node>-<n>' by launch)."""
+    (text,) = [text for name, text in process_outputs(proc_output).items() if name.rsplit("-", 1)[0] == node]
+    return text
+
+
+def assert_clean_shutdown(proc_info: Any, proc_output: Any) -> None:
+    """Post-shutdown check of a launch test (launch stopped every process with SIGINT, as Ctrl-C on
+    `ros2 launch` does): every process exited 0 and none printed a Python traceback."""
+    import launch_testing.asserts
+
+    launch_testing.asserts.assertExitCodes(proc_info)
+    tracebacks = {name: text[text.index("Traceback"):][:2000]
+                  for name, text in process_outputs(proc_output).items() if "Traceback" in text}
+    assert not tracebacks, "tracebacks in the output of " + "; ".join(f"{n}:\n{t}" for n, t in tracebacks.items())
+
+
+# ---- the full output of a failed test -----------------------------------------------------------------
+def forget_launched_output() -> None:
+    """Start afresh (a new test file): what earlier launches and processes printed is not this test's."""
+    _launched_output.clear()
+    _launched_exit.clear()
+    NodeProcess.started.clear()
+
+
+def launched_output() -> dict[str, str]:
+    """Every process the current test file launched or started -> its exit code and full output so far."""
+    texts = {}
+    for name, parts in _launched_output.items():
+        texts[f"{name} (exit code {_launched_exit.get(name, 'none yet')})"] = "".join(parts)
+    for n, proc in enumerate(NodeProcess.started, 1):
+        texts[f"#{n} {' '.join(proc.args)} (exit code {proc.proc.poll()})"] = proc.output
+    return texts
+
+
+def launch_log_path(test_id: str) -> Path:
+    """Where a failed test's launched output goes: $PRISMA_LAUNCH_LOG_DIR, else test-results/launch-logs/
+    under the repository root; one file per test, named by its id."""
+    folder = Path(os.environ.get(LOG_DIR_VARIABLE) or ROOT / "test-results" / "launch-logs")
+    return folder / (re.sub(r"[^A-Za-z0-9_.-]+", "_", test_id).strip("_") + ".log")
+
+
+def write_launch_log(test_id: str, outputs: dict[str, str]) -> Path:
+    """Write `outputs` (title -> text) to launch_log_path(test_id), whole or not at all; its path."""
+    path = launch_log_path(test_id)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile("w", dir=path.parent, prefix=f".{path.name}.", delete=False) as out:
+        out.write(f"{test_id}: the full output of every process it launched or started\n")
+        for title, text in outputs.items():
+            out.write(f"\n===== {title} =====\n{text}")
+    os.chmod(out.name, 0o644)  # NamedTemporaryFile makes it 0600: readable as any other log
+    os.replace(out.name, path)
+    return path
+
+
+def failure_note(test_id: str) -> str | None:
+    """For a failed test: the launched output written to its file and the line naming the file; None
+    when the test launched nothing."""
+    texts = launched_output()
+    if not texts:
+        return None
+    path = write_launch_log(test_id, texts)
+    return f"the full output of every launched process ({len(texts)}): {path}"
