@@ -56,17 +56,20 @@ CHOICES = "one of: "
 
 
 def launched_node_names() -> set[str]:
-    """The `name=` of every Node(...) of this suite in the launch files (a node of a THIRD_PARTY
+    """The `name=` of every Node(...) and the `executable=` of every control_path_node(...) of this suite
+    in the launch files (a node of a THIRD_PARTY
     package is left out whatever its name)."""
     names = set()
     for launch_file in LAUNCH_FILES:
         for call in ast.walk(ast.parse((LAUNCH / launch_file).read_text())):
-            if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
+            helper = getattr(call, "func", None) is not None and getattr(call.func, "id", None) == "control_path_node"
+            if isinstance(call, ast.Call) and (getattr(call.func, "id", None) == "Node" or helper):
                 keywords = {k.arg: k.value for k in call.keywords}
                 package = keywords.get("package")
                 if isinstance(package, ast.Constant) and package.value in THIRD_PARTY:
                     continue
-                name = keywords.get("name")
+                # launch_nodes.control_path_node names a node as its executable
+                name = keywords.get("executable" if helper else "name")
                 assert isinstance(name, ast.Constant), f"{launch_file}:{call.lineno}: Node without a literal name"
                 names.add(name.value)
     return names

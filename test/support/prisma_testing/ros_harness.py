@@ -338,6 +338,10 @@ class RosHarness:
         goal that started (its first feedback came) or ended any other way; AssertionError when it
         is still refused at the timeout."""
         deadline = time.monotonic() + timeout_sec
+        # a client made without waiting (action_client(wait_sec=None)): a goal request sent before
+        # its server is discovered gets no answer, which is not a refusal
+        if not self.spin_until(client.server_is_ready, timeout_sec):
+            raise AssertionError(f"{type(goal).__name__}: its action server did not appear in {timeout_sec} s")
         while True:
             feedback: list = []
             logged = len(self._gripper_refusals()) if _has_no_reason(goal) else 0
