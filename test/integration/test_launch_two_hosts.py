@@ -81,8 +81,6 @@ class TwoHostGraph:
             self.robot.call("collect", topic=f"/{hand}/joint_states", type="sensor_msgs/msg/JointState")
             self.robot.call("collect", topic=f"/{hand}/prisma/motors/move/_action/status",
                             type="action_msgs/msg/GoalStatusArray")
-            self.workstation.call("collect", topic=f"/{hand}/joint_states", type="sensor_msgs/msg/JointState")
-            self.workstation.call("collect", topic=f"/{hand}/prisma/hand/wrench", type="prisma_msgs/msg/HandWrench")
         self.workstation.call("collect", topic="/stag/hand_pose", type="prisma_msgs/msg/ObjectEstimate")
         self.robot.call("collect", topic="/diagnostics", type="diagnostic_msgs/msg/DiagnosticArray")
 
@@ -194,6 +192,16 @@ def graph(hosts):
         # graph, its `down` came late (after the motors had stopped); set once the launches started
         # (they would inherit it)
         try_rt_priority(PROBE_RT_PRIORITY)
+        # the estimators load their networks before they take the real-time rung; the probes (above
+        # the graph) take no 100 Hz topic on the workstation until both have, or the rung's nodes and
+        # the probes fill both cores and the estimators never finish starting (1-2% of a core each)
+        deadline = time.monotonic() + 120.0
+        while len(started.workstation.call("logs", name="force_estimator", contains="scheduling:")["logs"]) < 2:
+            assert time.monotonic() < deadline, "the force estimators did not start within 120 s"
+            time.sleep(0.5)
+        for hand in HANDS:
+            started.workstation.call("collect", topic=f"/{hand}/joint_states", type="sensor_msgs/msg/JointState")
+            started.workstation.call("collect", topic=f"/{hand}/prisma/hand/wrench", type="prisma_msgs/msg/HandWrench")
         for hand in HANDS:  # the estimators keep pace with the motors (warmed up)
             started.workstation.call("keeping_up", leader=f"/{hand}/joint_states",
                                      follower=f"/{hand}/prisma/hand/wrench", lag_s=0.05, checks=10, timeout_s=120.0)
