@@ -17,12 +17,12 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
 from __future__ import annotations
 
-import ast
 import unittest
 
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_files import launched_nodes
 from prisma_testing.repo_paths import LAUNCH
 from prisma_testing.ros_harness import require_ros
 
@@ -56,22 +56,15 @@ CHOICES = "one of: "
 
 
 def launched_node_names() -> set[str]:
-    """The `name=` of every Node(...) and the `executable=` of every control_path_node(...) of this suite
-    in the launch files (a node of a THIRD_PARTY
-    package is left out whatever its name)."""
+    """The name of every node of this suite the launch files start (a node of a THIRD_PARTY package
+    is left out whatever its name)."""
     names = set()
     for launch_file in LAUNCH_FILES:
-        for call in ast.walk(ast.parse((LAUNCH / launch_file).read_text())):
-            helper = getattr(call, "func", None) is not None and getattr(call.func, "id", None) == "control_path_node"
-            if isinstance(call, ast.Call) and (getattr(call.func, "id", None) == "Node" or helper):
-                keywords = {k.arg: k.value for k in call.keywords}
-                package = keywords.get("package")
-                if isinstance(package, ast.Constant) and package.value in THIRD_PARTY:
-                    continue
-                # launch_nodes.control_path_node names a node as its executable
-                name = keywords.get("executable" if helper else "name")
-                assert isinstance(name, ast.Constant), f"{launch_file}:{call.lineno}: Node without a literal name"
-                names.add(name.value)
+        for node in launched_nodes(LAUNCH / launch_file):
+            if node.package in THIRD_PARTY:
+                continue
+            assert node.name is not None, f"{launch_file}:{node.line}: Node without a literal name"
+            names.add(node.name)
     return names
 
 

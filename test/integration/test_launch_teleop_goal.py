@@ -25,7 +25,13 @@ import unittest
 
 import pytest
 
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    MotorPositions,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+)
 from prisma_testing.ros_harness import (
     SIM_STOPPED_RAD_S,
     STOPPED_RAD_S,
@@ -96,7 +102,7 @@ except (KeyboardInterrupt, ExternalShutdownException):
 """
 
 
-class TestTeleopGoal(GraphTestCase):
+class TestTeleopGoal(MotorPositions, GraphTestCase):
     @classmethod
     def subscribe(cls, ros) -> None:
         cls.joints = ros.collect(JointState, "/joint_states")
@@ -135,19 +141,6 @@ class TestTeleopGoal(GraphTestCase):
     def latest_feedback(self, handle):
         mine = [m.feedback for m in self.feedback if bytes(m.goal_id.uuid) == bytes(handle.goal_id.uuid)]
         return mine[-1] if mine else None
-
-    def positions(self) -> dict[str, float]:
-        """Where the motors stood in the first /joint_states published from now on."""
-        last = self.ros.message_at(self.joints, 0.0)
-        return {m: joint(last, m) for m in MOTOR_NAMES}
-
-    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
-        deadline = time.monotonic() + timeout_sec
-        while True:
-            at = self.positions()
-            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
-                return at
-            self.ros.spin_for(0.1)
 
     def test_1_closes_on_the_ball_and_stops_at_the_force_limit(self):
         ros = self.ros

@@ -36,6 +36,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from prisma_testing.launch_files import CONTROL_PATH_NODE, NOT_LITERAL, LaunchedNode, launched_nodes, string_literal
 from prisma_testing.repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
 from prisma_testing.ros_harness import ROS_AVAILABLE, require_ros
 from prisma_testing.topic_table import SHARED_TOPICS, TableRow, topic_table
@@ -110,58 +111,6 @@ def all_console_scripts() -> dict[tuple[str, str], ConsoleScript]:
     return scripts
 
 
-_NOT_LITERAL = object()  # an inline parameter value given by a substitution (LaunchConfiguration...)
-
-
-@dataclass(frozen=True)
-class LaunchedNode:
-    launch_file: str
-    line: int
-    package: str | None
-    executable: str | None
-    name: str | None
-    parameter_files: tuple[str, ...]
-    inline_parameters: tuple[tuple[str, object], ...] = ()  # (name, literal value or _NOT_LITERAL)
-
-
-def _literal(node):
-    return node.value if isinstance(node, ast.Constant) and isinstance(node.value, str) else None
-
-
-# prisma_bringup.launch_nodes' helper: a Node of the control path, named as its executable
-CONTROL_PATH_NODE = "control_path_node"
-
-
-def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
-    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
-    found = []
-    for call in ast.walk(tree):
-        if not isinstance(call, ast.Call):
-            continue
-        func = getattr(call.func, "id", getattr(call.func, "attr", None))
-        if func not in ("Node", "LifecycleNode", CONTROL_PATH_NODE):
-            continue
-        keywords = {k.arg: k.value for k in call.keywords}
-        files = tuple(
-            c.value for c in ast.walk(keywords["parameters"])
-            if isinstance(c, ast.Constant) and isinstance(c.value, str) and c.value.endswith((".yaml", ".yml"))
-        ) if "parameters" in keywords else ()
-        inline = []
-        for mapping in (ast.walk(keywords["parameters"]) if "parameters" in keywords else ()):
-            if isinstance(mapping, ast.Dict):
-                for key, value in zip(mapping.keys, mapping.values):
-                    try:
-                        literal = ast.literal_eval(value)
-                    except ValueError:
-                        literal = _NOT_LITERAL
-                    inline.append((_literal(key) or f"<not a literal at line {key.lineno}>", literal))
-        executable = _literal(keywords.get("executable"))
-        name = executable if func == CONTROL_PATH_NODE else _literal(keywords.get("name"))
-        found.append(LaunchedNode(
-            launch_file.name, call.lineno, _literal(keywords.get("package")), executable, name, files, tuple(inline)))
-    return found
-
-
 def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
     return [c for c in ast.walk(tree) if isinstance(c, ast.Call)
             and getattr(c.func, "id", getattr(c.func, "attr", None)) == name]
@@ -169,12 +118,14 @@ def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
 
 def declared_launch_arguments(launch_file: Path) -> set[str]:
     tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
-    return {_literal(c.args[0]) for c in _calls(tree, "DeclareLaunchArgument") if c.args and _literal(c.args[0])}
+    declared = _calls(tree, "DeclareLaunchArgument")
+    return {string_literal(c.args[0]) for c in declared if c.args and string_literal(c.args[0])}
 
 
 def used_launch_configurations(launch_file: Path) -> list[tuple[int, str | None]]:
     tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
-    return sorted((c.lineno, _literal(c.args[0]) if c.args else None) for c in _calls(tree, "LaunchConfiguration"))
+    used = _calls(tree, "LaunchConfiguration")
+    return sorted((c.lineno, string_literal(c.args[0]) if c.args else None) for c in used)
 
 
 @dataclass(frozen=True)
@@ -195,7 +146,7 @@ def launch_includes(launch_file: Path) -> list[Include]:
         for keyword in call.keywords:
             if keyword.arg == "launch_arguments":
                 mapping = next((d for d in ast.walk(keyword.value) if isinstance(d, ast.Dict)), None)
-                arguments = tuple(_literal(k) or "<not a literal>" for k in mapping.keys) if mapping else ()
+                arguments = tuple(string_literal(k) or "<not a literal>" for k in mapping.keys) if mapping else ()
         found.append(Include(launch_file.name, call.lineno, names[0] if len(names) == 1 else None, arguments))
     return found
 
@@ -451,11 +402,11 @@ def test_launched_inline_parameters_are_declared(nodes, entry: LaunchedNode):
     for name, value in entry.inline_parameters:
         if name not in info.parameters:
             problems.append(f"'{name}' is not declared by {info.class_name}")
-        elif value is not _NOT_LITERAL:
+        elif value is not NOT_LITERAL:
             problems += config_problems(info, {name: value})[:1] if Parameter.Type.from_parameter_value(value) \
                 != info.parameter_types[name] else []
     assert not problems, f"{entry.launch_file}:{entry.line}: " + "; ".join(problems)
-    literals = [(n, v) for n, v in entry.inline_parameters if v is not _NOT_LITERAL]
+    literals = [(n, v) for n, v in entry.inline_parameters if v is not NOT_LITERAL]
     if literals:  # the node starts with exactly these values (e.g. the sim backends of hand.launch.py)
         module = importlib.import_module(info.script.module)
         if rclpy.ok():
@@ -690,7 +641,7 @@ def test_checks_parse_setup_and_launch_sources(tmp_path):
     first, second = launched_nodes(tmp_path / "demo.launch.py")
     assert (first.package, first.executable, first.name, first.parameter_files) == (
         "demo_pkg", "talker", "chatty", ("talker.yaml",))
-    assert first.inline_parameters == (("rate", _NOT_LITERAL),)
+    assert first.inline_parameters == (("rate", NOT_LITERAL),)
     assert second.package is None  # not a literal: reported by the launch test
     assert used_launch_configurations(tmp_path / "demo.launch.py") == [(9, "rate"), (10, "pkg")]
     assert declared_launch_arguments(tmp_path / "demo.launch.py") == set()  # both undeclared: a test fails

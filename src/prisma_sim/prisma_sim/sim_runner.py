@@ -112,6 +112,14 @@ def _rel(path: Path, root: Path) -> str:
         return str(path)
 
 
+def _goal_rows(recording) -> list[dict]:
+    """Each goal the recorder saw, for summary.json: when it was accepted and ended (s), its status
+    and feedback count."""
+    return [{"action": g.action, "accepted_s": g.accepted_ns / NS,
+             "ended_s": None if g.ended_ns is None else g.ended_ns / NS, "status": g.status,
+             "feedback": g.feedback} for g in recording.goals]
+
+
 def force_errors(scenario, trace) -> dict[str, dict]:
     """Each force set point of the scenario and how far the force strayed from it (N).
 
@@ -193,9 +201,7 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
         "duration_s": (last_ns - first_ns) / NS,
         "bag": _rel(bag, root),
         "topics": dict(sorted(recording.counts.items())),
-        "goals": [{"action": g.action, "accepted_s": g.accepted_ns / NS,
-                   "ended_s": None if g.ended_ns is None else g.ended_ns / NS, "status": g.status,
-                   "feedback": g.feedback} for g in recording.goals],
+        "goals": _goal_rows(recording),
     })
     if options.plots:
         path = root / f"{name}.png"
@@ -239,9 +245,7 @@ def run_teleop(options: SimOptions, estimator, progress: Callable[[str], None], 
                     "topics": dict(sorted(recording.counts.items())),
                     "force_tolerance_n": options.force_tolerance_n,
                     "force_within_tolerance": summary["force_error_n"] <= options.force_tolerance_n,
-                    "goals": [{"action": g.action, "accepted_s": g.accepted_ns / NS,
-                               "ended_s": None if g.ended_ns is None else g.ended_ns / NS, "status": g.status,
-                               "feedback": g.feedback} for g in recording.goals]})
+                    "goals": _goal_rows(recording)})
     if options.plots:
         path = root / f"{TELEOP}.png"
         with atomic_output(path) as staged:

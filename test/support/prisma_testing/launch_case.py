@@ -22,12 +22,14 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+import time
 import unittest
 from pathlib import Path
 from typing import Any
 
+from prisma_common.hand import MOTOR_NAMES
 from prisma_testing.repo_paths import ROOT
-from prisma_testing.ros_harness import NodeProcess, RosHarness
+from prisma_testing.ros_harness import NodeProcess, RosHarness, joint
 
 LOG_DIR_VARIABLE = "PRISMA_LAUNCH_LOG_DIR"
 
@@ -106,6 +108,27 @@ class GraphTestCase(unittest.TestCase):
     @classmethod
     def tearDownClass(cls) -> None:
         cls.ros.shutdown()
+
+
+class MotorPositions:
+    """For a GraphTestCase whose subscribe() sets `cls.joints` (a /joint_states collection): where the
+    motors stand, and a wait until they stand at targets."""
+
+    JOINT_STATES_WAIT_S = 10.0  # for the next /joint_states
+
+    def positions(self) -> dict[str, float]:
+        """Where the motors stood in the first /joint_states published from now on."""
+        last = self.ros.message_at(self.joints, 0.0, timeout_sec=self.JOINT_STATES_WAIT_S)  # type: ignore[attr-defined]
+        return {m: joint(last, m) for m in MOTOR_NAMES}
+
+    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
+        """The motors' positions once each of `targets` is within `tolerance` (rad), or at the timeout."""
+        deadline = time.monotonic() + timeout_sec
+        while True:
+            at = self.positions()
+            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
+                return at
+            self.ros.spin_for(0.1)  # type: ignore[attr-defined]
 
 
 # ---- after the launch ---------------------------------------------------------------------------------

@@ -16,11 +16,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 
-from prisma_common.hand import MOTOR_NAMES
 from prisma_teleop.synthetic_glove_core import Synergies
-from prisma_testing.ros_harness import joint
+from prisma_testing.launch_case import MotorPositions
 
 OPEN = Synergies(0.0, 0.0, 0.0)
 FIST = Synergies(1.0, 1.0, 0.0)
@@ -120,25 +118,13 @@ class OperatorGlove:
             self.process.wait()
 
 
-class WearingTheGlove:
+class WearingTheGlove(MotorPositions):
     """For a GraphTestCase whose subscribe() sets `cls.glove` (an OperatorGlove) and `cls.joints` (a
     /joint_states collection): the glove closed with the graph, and where the motors stand."""
+
+    JOINT_STATES_WAIT_S = 30.0
 
     @classmethod
     def tearDownClass(cls) -> None:
         cls.glove.close()
         super().tearDownClass()  # type: ignore[misc]
-
-    def positions(self) -> dict[str, float]:
-        """Where the motors stood in the first /joint_states published from now on."""
-        last = self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)  # type: ignore[attr-defined]
-        return {m: joint(last, m) for m in MOTOR_NAMES}
-
-    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
-        """The motors' positions once each of `targets` is within `tolerance` (rad), or at the timeout."""
-        deadline = time.monotonic() + timeout_sec
-        while True:
-            at = self.positions()
-            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
-                return at
-            self.ros.spin_for(0.1)  # type: ignore[attr-defined]
