@@ -6,11 +6,11 @@ Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """
 from __future__ import annotations
 
-import ast
 import importlib.util
 
 import pytest
 
+from prisma_testing.launch_files import launched_nodes
 from prisma_testing.repo_paths import LAUNCH
 from prisma_testing.ros_harness import require_ros
 
@@ -43,24 +43,14 @@ def test_the_nodes_parameter_follows_the_argument(hand_launch, monkeypatch, tmp_
     assert value == expected.format(xdg=tmp_path / "xdg", tmp=tmp_path)
 
 
-def node_parameter_keys(launch_file: str) -> dict[str, list[set[str]]]:
-    """executable -> the literal keys of the parameter dicts of each of its Node(...) calls."""
-    found: dict[str, list[set[str]]] = {}
-    for call in ast.walk(ast.parse((LAUNCH / launch_file).read_text())):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", None) == "Node":
-            keywords = {k.arg: k.value for k in call.keywords}
-            name = keywords["name"].value if isinstance(keywords.get("name"), ast.Constant) else None
-            keys = {k.value for d in ast.walk(keywords.get("parameters", ast.List(elts=[])))
-                    if isinstance(d, ast.Dict) for k in d.keys if isinstance(k, ast.Constant)}
-            found.setdefault(name, []).append(keys)
-    return found
-
-
 def test_every_motor_driver_and_force_estimator_gets_it():
-    nodes = node_parameter_keys("hand.launch.py")
-    assert len(nodes["motor_driver"]) == 3  # sim, hardware, emulated
-    for name in ("motor_driver", "force_estimator"):
-        assert all("hand_config" in keys for keys in nodes[name]), name
+    nodes = launched_nodes(LAUNCH / "hand.launch.py")
+    motor_drivers = [n for n in nodes if n.name == "motor_driver"]
+    force_estimators = [n for n in nodes if n.name == "force_estimator"]
+    assert len(motor_drivers) == 3  # sim, hardware, emulated
+    assert len(force_estimators) == 1
+    for node in motor_drivers + force_estimators:
+        assert "hand_config" in dict(node.inline_parameters), (node.name, node.line)
 
 
 @pytest.mark.parametrize("launch_file, declared, handed_on", [

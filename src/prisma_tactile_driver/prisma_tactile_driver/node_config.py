@@ -14,6 +14,7 @@ from typing import Any
 
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
+from prisma_common.unix_socket import MAX_PATH_BYTES
 from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
 from prisma_hand_sim.sim_objects import OBJECTS
 
@@ -93,7 +94,6 @@ class TactileDriverConfig(Params):
             raise ParameterError("finger_channels", self.finger_channels, f"duplicate mux channel(s) {duplicates}")
 
     def _check_i2c_socket(self) -> None:
-        from prisma_common.unix_socket import MAX_PATH_BYTES
         path = self.i2c_socket
         if not isinstance(path, str) or "\0" in path or not path.startswith("/"):
             raise ParameterError("i2c_socket", path, "the absolute path of the emulator's Unix socket (the node "
