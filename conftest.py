@@ -65,6 +65,26 @@ def ros():
         harness.shutdown()
 
 
+def pytest_collection_modifyitems(config, items):
+    """launch_testing runs each launch in debug mode when pytest's verbosity is truthy, and the
+    README's `pytest -q` gives -1: asyncio's debug mode (every callback timed, every coroutine's
+    origin kept) and a DEBUG line per launch event, in the pytest process that also spins the test's
+    probes. On 2 cores beside a running graph that is CPU the graph needs, so debug mode here
+    follows -v only."""
+    debug = config.getoption("verbose") > 0
+    for item in items:
+        runner_cls = getattr(item, "runner_cls", None)
+        if runner_cls is not None:
+            item.runner_cls = _runner_with_debug(runner_cls, debug)
+
+
+def _runner_with_debug(runner_cls, debug: bool):
+    def make(*args, **kwargs):
+        kwargs["debug"] = debug
+        return runner_cls(*args, **kwargs)
+    return make
+
+
 _current_file: list = [None]
 
 
