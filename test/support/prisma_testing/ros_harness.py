@@ -446,7 +446,10 @@ class RosHarness:
             out.append(entry.msg)
         return out
 
-    def wait_for_log(self, timeout_sec: float = 5.0, **filters: Any) -> list[str]:
+    def wait_for_log(self, timeout_sec: float = 15.0, **filters: Any) -> list[str]:
+        """The logged messages that pass `filters` (see `logs`), once there is one or after
+        `timeout_sec`: /rosout reaches this process after discovery has matched the node's
+        publisher, which in CI beside other tests took longer than 5 s."""
         self.spin_until(lambda: bool(self.logs(**filters)), timeout_sec)
         return self.logs(**filters)
 
