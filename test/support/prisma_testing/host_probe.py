@@ -24,6 +24,8 @@ Requests (`op` and its fields) and what each answers:
   {"accepted": false, "refused"};
 - result(id, timeout_s): {"status": SUCCEEDED|ABORTED|CANCELED|..., "result": the result's fields};
 - trigger(service, timeout_s): a std_srvs/Trigger call; {"success", "message"};
+- set_parameters(node, values): the node's parameters set, as `ros2 param set` does; {"results":
+  [[successful, reason], ...]} in the order of `values`;
 - logs(name, contains): /rosout messages so far of that logger containing the text;
 - ping: {} once the process runs.
 An answer that failed is {"error": "..."}. The probe spins its executor between requests (every
@@ -190,6 +192,9 @@ class _Probe:
         answer = self.ros.call(Trigger, service, Trigger.Request(), timeout_sec=timeout_s)
         return {"success": answer.success, "message": answer.message}
 
+    def set_parameters(self, node: str, values: dict[str, Any]) -> dict:
+        return {"results": [[r.successful, r.reason] for r in self.ros.set_parameters(node, **values)]}
+
     def logs(self, name: str | None = None, contains: str | None = None) -> dict:
         return {"logs": self.ros.logs(name=name, contains=contains)}
 
@@ -219,8 +224,8 @@ class _Probe:
                 sys.stdout.flush()
 
 
-_OPS = ("collect", "stop_collecting", "stamped", "keeping_up", "goals", "send_goal", "result", "trigger", "logs",
-        "ping")
+_OPS = ("collect", "stop_collecting", "stamped", "keeping_up", "goals", "send_goal", "result", "trigger",
+        "set_parameters", "logs", "ping")
 
 
 def main() -> None:
