@@ -27,7 +27,10 @@ os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 import pytest  # noqa: E402
 
 from prisma_testing.launch_case import failure_note, forget_launched_output  # noqa: E402
+from prisma_testing.left_behind import mark_this_run, started_by_this_run, stop_left_behind  # noqa: E402
 from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402
+
+mark_this_run()  # before any test starts a process: they inherit it (left_behind.py)
 
 if ROS_AVAILABLE:
     # Before any rclpy.init and before launch tests start their processes (they inherit it).
@@ -86,6 +89,7 @@ def _runner_with_debug(runner_cls, debug: bool):
 
 
 _current_file: list = [None]
+_running_at_file_start: set[int] = set()
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -95,6 +99,20 @@ def pytest_runtest_setup(item):
     if item.path != _current_file[0]:
         _current_file[0] = item.path
         forget_launched_output()
+        _running_at_file_start.clear()
+        _running_at_file_start.update(started_by_this_run())
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    """The end of a test file (its fixtures torn down): a process it started and left running is
+    killed, and the file's last test fails naming it, instead of the later tests it would starve."""
+    yield
+    if nextitem is None or nextitem.path != item.path:
+        left = stop_left_behind(_running_at_file_start)
+        if left:
+            listed = "; ".join(f"{pid}: {command[:200]}" for pid, command in sorted(left.items()))
+            raise AssertionError(f"{item.path.name} left {len(left)} process(es) running, now killed: {listed}")
 
 
 @pytest.hookimpl(hookwrapper=True)
