@@ -3,6 +3,7 @@ launch_ros-style node name, what is missing after the timeout, memory of a live 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -15,7 +16,9 @@ CHILD = [sys.executable, "-c", "import time; time.sleep(30)", "--ros-args", "-r"
 
 
 def test_a_launched_child_is_found_by_executable_and_by_node_name_and_namespace():
-    shell = subprocess.Popen(["bash", "-c", " ".join(f"'{a}'" for a in CHILD) + " & wait"])
+    # a session of its own: the shell and its child go together (killed alone, the shell would leave
+    # the child running, reparented, out of reach of descendants())
+    shell = subprocess.Popen(["bash", "-c", " ".join(f"'{a}'" for a in CHILD) + " & wait"], start_new_session=True)
     try:
         found = launched_pids([shell.pid], {"by node": node_named("sleeper", "/left"),
                                             "by root node": node_named("sleeper"),
@@ -26,11 +29,8 @@ def test_a_launched_child_is_found_by_executable_and_by_node_name_and_namespace(
         assert pid in descendants(shell.pid) and cmdline(pid)[0].decode() == sys.executable
         assert rss_mb(pid) is not None and rss_mb(pid) > 1.0
     finally:
-        shell.kill()
+        os.killpg(shell.pid, signal.SIGKILL)
         shell.wait()
-        for pid in descendants(os.getpid()):
-            if b"__node:=sleeper" in cmdline(pid):
-                os.kill(pid, 9)
 
 
 def test_labels_not_found_are_left_out_after_the_timeout():
