@@ -958,3 +958,10 @@ def test_a_move_goal_of_a_second_controller_is_refused_busy_while_the_grasp_hold
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.reason == "force_reached"
     assert h.commands() == [{"fingers": 60.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0},
                             {"fingers": 0.0, "thumb_flexion": 60.0, "thumb_rotation": 0.0}]
+    # the grasp's result came once its MoveMotors goal had ended: the next command, sent the
+    # moment the result arrived, finds the motors free and opens the fingers to their stop
+    assert not h.motor.core.runner.active
+    opened = finish(ros, send(ros, f"{NS}/prisma/motors/move", MoveMotors,
+                              MoveMotors.Goal(motors=["fingers"], mode="velocity", targets=[-30.0],
+                                              controller="/other_controller")))
+    assert (opened.status, opened.result.reason) == (GoalStatus.STATUS_SUCCEEDED, "joint_limit")

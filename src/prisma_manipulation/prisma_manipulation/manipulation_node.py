@@ -67,6 +67,10 @@ GOAL_ACTIONS = tuple(kind.action for kind in GOAL_KINDS)
 # finished goals kept a minute for their results, not rclpy's 15: each status change sends every kept goal to
 # each client, and longer arrays slowed a soak's goals (docs/performance.md "Soak")
 RESULT_TIMEOUT_S = 60
+# a goal's result waits until the MoveMotors goal it stopped has ended on the motor driver, so that a
+# client's next command finds the motors free (not `busy`, held by the ending goal); at most this
+# long: a motor driver that does not answer (the link down) has stopped them by the goal's lease
+RELEASE_WAIT_S = 0.5
 
 
 class ManipulationNode(Node):
@@ -83,6 +87,8 @@ class ManipulationNode(Node):
         self._goal = None  # ServerGoalHandle of the running goal (any kind)
         self._goal_done: Future | None = None
         self._move_handle = None  # ClientGoalHandle of our current MoveMotors goal
+        self._move_result: Future | None = None  # its result's future
+        self._releasing: Future | None = None  # the result of the MoveMotors goal last stopped
         self._move_seq = 0  # increments with every MoveMotors goal we send or stop
         group = ReentrantCallbackGroup()
 
@@ -232,12 +238,13 @@ class ManipulationNode(Node):
             self._apply(self.core.on_move_result("motor_fault: MoveMotors goal rejected", self._now_ns()))
             return
         self._move_handle = handle
-        handle.get_result_async().add_done_callback(lambda f, s=seq: self._on_move_result(f, s))
+        self._move_result = handle.get_result_async()
+        self._move_result.add_done_callback(lambda f, s=seq: self._on_move_result(f, s))
 
     def _on_move_result(self, future, seq: int) -> None:
         if seq != self._move_seq:
             return  # preempted by our own newer goal (a refresh or a new command)
-        self._move_handle = None
+        self._move_handle = self._move_result = None
         result = move_result_from_msg(future.result().result)
         if result.reason == "timeout" and self.core.busy:
             self.get_logger().warning("MoveMotors goal expired before its refresh (the motors stopped): re-sending")
@@ -247,13 +254,32 @@ class ManipulationNode(Node):
         self._move_seq += 1  # an answer still on its way is cancelled on arrival
         if self._move_handle is not None:
             self._move_handle.cancel_goal_async()
-            self._move_handle = None
+            self._releasing = self._move_result
+            self._move_handle = self._move_result = None
 
     def _finish(self, done: Finished) -> None:
         handle, future = self._goal, self._goal_done
         self._goal, self._goal_done = None, None
         if handle is None:
             return
+        releasing, self._releasing = self._releasing, None
+        if releasing is None or releasing.done():
+            self._report(done, handle, future)
+            return
+        reported: list[bool] = []
+
+        def report_once() -> None:
+            if not reported:
+                reported.append(True)
+                timer.cancel()
+                self.destroy_timer(timer)
+                self._report(done, handle, future)
+
+        timer = self.create_timer(RELEASE_WAIT_S, report_once)
+        releasing.add_done_callback(lambda _: report_once())
+
+    def _report(self, done: Finished, handle: Any, future: Future) -> None:
+        """The goal's end to its client, and the log line."""
         if done.reason == "canceled":
             handle.canceled()
         elif done.success:
