@@ -91,6 +91,9 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
         self.assertGreater(at["fingers"], 3.0)  # past first touch (3 rad)
         self.assertLess(at["fingers"], 8.5)  # stopped on the ball, short of the operator's fist
         self.assertTrue(stopped(self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)))
+        # the pads' five 100 Hz wrench streams are this test's only use of them: without them this
+        # process (default priority, beside the graph at real-time priority) keeps up with the rest
+        self.ros.stop_collecting(*self.wrenches.values())
 
     def test_2_the_operator_opens_and_the_hand_opens(self):
         self.glove.move(OPEN, 1.5)
@@ -102,15 +105,27 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
 
     def test_3_the_glove_falling_silent_mid_closing_stops_the_motors_within_0_3_s(self):
         ros, glove = self.ros, self.glove
-        glove.move(FIST, 1.5)
-        # mid-closing: the fingers close toward the ball (first touch at 3 rad)
-        self.assertTrue(ros.spin_until(lambda: joint(self.joints[-1], "fingers", "velocity") > 2.0, 10.0))
-        last_ns = glove.stop()
+        # silent mid-closing, 0.35 s into the operator's 1.5 s fist: the fingers close at their speed
+        # cap toward the ball (first touch at 3 rad, about 0.8 s in). Timed by the glove's process,
+        # not by when this one sees the fingers move: /joint_states reached it late enough in CI
+        # that the glove fell silent after the fingers had stopped on the ball
+        last_ns = glove.move_and_fall_silent(FIST, 1.5, silent_after_s=0.35)
         self.assertTrue(ros.wait_for_log(name="teleop", contains="goal ended: input_stale", timeout_sec=10.0))
-        ros.spin_for(0.5)
+        # every /joint_states up to 1 s after the glove's last sample: this process may receive them
+        # late on a loaded machine, so wait for one stamped then, not for a time
+        self.assertTrue(ros.spin_until(lambda: self.joints and stamp_ns(self.joints[-1]) > last_ns + 1_000_000_000,
+                                       30.0), "no /joint_states 1 s after the glove fell silent")
         after = [m for m in self.joints if stamp_ns(m) >= last_ns]
         moving = [i for i, m in enumerate(after) if not stopped(m)]
-        self.assertTrue(moving and moving[-1] < len(after) - 1, "still moving at the end")
+        before = [round(joint(m, "fingers", "velocity"), 2) for m in self.joints
+                  if last_ns - 500_000_000 <= stamp_ns(m) < last_ns]
+        self.assertTrue(moving and moving[-1] < len(after) - 1,
+                        f"not moving when the glove fell silent, or still moving at the end: fingers at "
+                        f"{[round(joint(m, 'fingers', 'velocity'), 2) for m in after[:3]]} ... "
+                        f"{[round(joint(m, 'fingers', 'velocity'), 2) for m in after[-2:]]} rad/s after, "
+                        f"every 5th of the 0.5 s before: {before[::5]}; {len(self.joints)} /joint_states in all, "
+                        f"the last stamped {(stamp_ns(self.joints[-1]) - last_ns) * 1e-9:+.3f} s from the "
+                        f"glove's last sample, now {(time.time_ns() - last_ns) * 1e-9:+.3f} s")
         stop_s = (stamp_ns(after[moving[-1] + 1]) - last_ns) * 1e-9
         speed = abs(joint(after[0], "fingers", "velocity"))
         (ended,) = ros.logs(name="teleop", contains="goal ended: input_stale")[-1:]

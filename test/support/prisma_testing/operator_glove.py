@@ -40,7 +40,7 @@ publisher = node.create_publisher(JointState, sys.argv[1], 10)
 calibration = nominal_calibration()
 lock = threading.Lock()
 state = {"on": False, "from": Synergies(0.0, 0.0, 0.0), "to": Synergies(0.0, 0.0, 0.0), "start": 0.0,
-         "seconds": 1e-9, "published": 0}
+         "seconds": 1e-9, "published": 0, "silent_at": None}
 
 
 def at(now):
@@ -59,7 +59,8 @@ def commands():
                 now = time.monotonic()
                 target = Synergies(*map(float, words[1:4]))
                 state.update({"from": at(now) if state["on"] else target, "to": target, "start": now,
-                              "seconds": max(float(words[4]), 1e-9), "on": True})
+                              "seconds": max(float(words[4]), 1e-9), "on": True,
+                              "silent_at": now + float(words[5]) if len(words) > 5 else None})
             elif words[0] == "stop":
                 state["on"] = False
                 print(f"stopped {state['published']}", flush=True)
@@ -71,6 +72,9 @@ print("ready", flush=True)
 next_s = time.monotonic()
 while not state.get("quit"):
     with lock:
+        if state["on"] and state["silent_at"] is not None and time.monotonic() >= state["silent_at"]:
+            state["on"] = False
+            print(f"stopped {state['published']}", flush=True)
         if state["on"]:
             angles = hand_pose(at(time.monotonic()), calibration)
             now_ns = time.time_ns()
@@ -101,9 +105,19 @@ class OperatorGlove:
         """From where the operator's hand is now to `to` in `seconds`, then held; publishing (again)."""
         self._say(f"move {to.fingers} {to.thumb} {to.opposition} {seconds}")
 
+    def move_and_fall_silent(self, to: Synergies, seconds: float, silent_after_s: float) -> int:
+        """`move(to, seconds)` that stops publishing `silent_after_s` into the move, timed by the
+        glove's own process on its real-time rung (the test's process, at the default priority on a
+        loaded machine, could say "stop" late); when the last sample went out (ns)."""
+        self._say(f"move {to.fingers} {to.thumb} {to.opposition} {seconds} {silent_after_s}")
+        return self._stopped()
+
     def stop(self) -> int:
         """Stop publishing; when the last sample went out (ns)."""
         self._say("stop")
+        return self._stopped()
+
+    def _stopped(self) -> int:
         words = self.process.stdout.readline().split()
         if words[:1] != ["stopped"]:
             raise RuntimeError(f"the test's glove answered {words!r} to stop")
