@@ -82,3 +82,7 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
                 if rclpy.ok():
                     raise
         rclpy.try_shutdown()
+        # stopping now: a terminal's Ctrl-C reaches every process of a launch and launch forwards one
+        # more, and a SIGINT that lands while Python finalises (which puts a handler back to the
+        # default, never an ignored signal) would kill the node by the signal (exit -2)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

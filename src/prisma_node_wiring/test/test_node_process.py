@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -60,3 +62,37 @@ def test_a_node_is_built_at_its_niceness_and_runs_on_the_real_time_rung():
     # built time-shared at nice -5; then every thread (DDS's, the executor's) at SCHED_FIFO
     assert lines == [f"building {os.SCHED_OTHER} -5", f"built {os.SCHED_FIFO} True"]
     assert "scheduling: real-time scheduling (SCHED_FIFO 20)" in out.stderr
+
+
+QUIET_NODE = """
+from rclpy.node import Node
+from prisma_node_wiring.node_process import run_node
+
+class Quiet(Node):
+    def __init__(self):
+        super().__init__("sigint_burst")
+        print("built", flush=True)
+
+run_node(Quiet, "sigint_burst", ())
+"""
+
+
+def test_ctrl_c_again_and_again_while_the_node_exits_still_ends_it_with_0():
+    """A terminal's Ctrl-C reaches every process of a launch, and launch forwards one more: a node
+    gets SIGINT twice or more, the later ones while it exits. One that lands as Python finalises
+    (its handlers back at the default) used to kill the node by the signal (exit -2, `process has
+    died` in the launch's log)."""
+    env = {**os.environ, "ROS_DOMAIN_ID": "232"}
+    node = subprocess.Popen([sys.executable, "-c", QUIET_NODE], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert node.stdout.readline().strip() == "built"
+        deadline = time.monotonic() + 20.0
+        while node.poll() is None and time.monotonic() < deadline:
+            node.send_signal(signal.SIGINT)
+            time.sleep(0.001)
+        assert node.wait(timeout=5.0) == 0, node.stderr.read()
+    finally:
+        if node.poll() is None:
+            node.kill()
+            node.wait()
