@@ -15,7 +15,7 @@ the probes and this process run at real-time priority 30, above the graph's 20, 
 see and when they act is not held up behind it, and the workstation's probe stops taking the 100 Hz
 topics it watched for the estimators' warm-up once they keep pace (at priority 30 it would take that
 CPU from the graph). Sharing the machine is also why the workstation's manipulation nodes watch
-their streams with a 400 ms window (WORKSTATION_STALE_TIMEOUT_S) instead of the default 100 ms.
+their streams with a 250 ms window (WORKSTATION_STALE_TIMEOUT_S) instead of the default 100 ms.
 Every goal is sent once: a goal refused `not_ready` (the streams not flowing yet)
 is sent again, nothing else.
 In order:
@@ -66,11 +66,12 @@ SLOW_GRASP = {"grasp": "pinch", "finger_force": 3.0, "thumb_force": 3.0, "speed_
 SLOW_HORIZONTAL = {"motion": "horizontal", "speed_rpm": 2.0}  # about 2.5 s to the edge
 # Two hands and the glove on the 2 cores both "hosts" share (a robot and a workstation would have
 # their own) deliver scans up to 150 ms apart (docs/performance.md, "Across two hosts"): past the
-# default 100 ms watchdog, which aborted goals sensor_stale with the link up (at 250 ms one run of
-# two still aborted an opening: a wrench 251 ms older than /joint_states). 400 ms is still inside
-# the outages made here (1 s; 0.6 s each when flapping): each ends its goal sensor_stale. The
-# robot's motors stop by their MoveMotors goal's own lease, which this does not touch.
-WORKSTATION_STALE_TIMEOUT_S = 0.4
+# default 100 ms watchdog, which aborted goals sensor_stale with the link up. The window must stay
+# below the MoveMotors lease (0.3 s): manipulation renews the lease until its watchdog fires, and at
+# 0.4 s a renewal the link held back started the fingers again when a flapping link came back
+# (0.66 s of motion in CI). 250 ms is still well inside the outages made here (1 s; 0.6 s each
+# when flapping): each ends its goal sensor_stale.
+WORKSTATION_STALE_TIMEOUT_S = 0.25
 FLAP_DOWN_S, FLAP_UP_S = 0.6, 0.2
 STALE_DETAIL = re.compile(r"goal ended: sensor_stale \((/joint_states|taxels/\w+|wrench/\w+) silent for \d+ ms\)")
 
