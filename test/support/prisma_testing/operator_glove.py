@@ -51,6 +51,11 @@ def at(now):
                                                        (b.fingers, b.thumb, b.opposition))))
 
 
+def fall_silent():
+    state["on"] = False
+    print(f"stopped {state['published']}", flush=True)
+
+
 def commands():
     for line in sys.stdin:
         words = line.split()
@@ -62,8 +67,7 @@ def commands():
                               "seconds": max(float(words[4]), 1e-9), "on": True,
                               "silent_at": now + float(words[5]) if len(words) > 5 else None})
             elif words[0] == "stop":
-                state["on"] = False
-                print(f"stopped {state['published']}", flush=True)
+                fall_silent()
     state["quit"] = True
 
 
@@ -73,8 +77,7 @@ next_s = time.monotonic()
 while not state.get("quit"):
     with lock:
         if state["on"] and state["silent_at"] is not None and time.monotonic() >= state["silent_at"]:
-            state["on"] = False
-            print(f"stopped {state['published']}", flush=True)
+            fall_silent()
         if state["on"]:
             angles = hand_pose(at(time.monotonic()), calibration)
             now_ns = time.time_ns()

@@ -377,15 +377,26 @@ class RosHarness:
         waiting for it. On a loaded machine this process receives a stream late: after a sleep,
         `received[-1]` can still be a message from before it (AssertionError at the timeout)."""
         at_ns = self.now_ns() + int(seconds_from_now * 1e9)
-        start = len(received)
-
-        def found() -> Any:
-            return next((m for m in received[start:] if stamp_ns(m) >= at_ns), None)
-
-        if not self.spin_until(lambda: found() is not None, timeout_sec + seconds_from_now):
-            newest = f"{(stamp_ns(received[-1]) - at_ns) * 1e-9:+.3f} s" if received else "none"
+        try:
+            return self.message_stamped(received, at_ns, timeout_sec + seconds_from_now)
+        except AssertionError as late:
             raise AssertionError(f"no message stamped {seconds_from_now} s from now within {timeout_sec} s "
-                                 f"(newest: {newest})")
+                                 f"({late})") from None
+
+    def message_stamped(self, received: list, at_ns: int, timeout_sec: float = 10.0) -> Any:
+        """The first message in `received` (a `collect` list, in stamp order) stamped `at_ns` or
+        later, waiting up to `timeout_sec` for it (AssertionError naming the newest stamp)."""
+        def found() -> Any:
+            first = None
+            for m in reversed(received):  # only the messages from at_ns on are walked
+                if stamp_ns(m) < at_ns:
+                    break
+                first = m
+            return first
+
+        if not self.spin_until(lambda: found() is not None, timeout_sec):
+            newest = f"{(stamp_ns(received[-1]) - at_ns) * 1e-9:+.3f} s" if received else "none"
+            raise AssertionError(f"newest: {newest}")
         return found()
 
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
@@ -446,10 +457,9 @@ class RosHarness:
             out.append(entry.msg)
         return out
 
-    def wait_for_log(self, timeout_sec: float = 15.0, **filters: Any) -> list[str]:
+    def wait_for_log(self, timeout_sec: float = 5.0, **filters: Any) -> list[str]:
         """The logged messages that pass `filters` (see `logs`), once there is one or after
-        `timeout_sec`: /rosout reaches this process after discovery has matched the node's
-        publisher, which in CI beside other tests took longer than 5 s."""
+        `timeout_sec`."""
         self.spin_until(lambda: bool(self.logs(**filters)), timeout_sec)
         return self.logs(**filters)
 
