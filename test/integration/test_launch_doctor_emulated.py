@@ -26,6 +26,7 @@ from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
 from prisma_testing.ros_harness import (
     NodeProcess,
     console_script,
+    diagnostic_values,
     hand_fault,
     require_ros,
     run_process,
@@ -39,7 +40,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import HomeMotors  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
 
-from prisma_common.hand import MOTOR_NAMES  # noqa: E402
+from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_doctor_hand_{os.getpid()}"
 DUPLICATE = ("import rclpy, sys; rclpy.init(); node = rclpy.create_node('manipulation'); "
@@ -128,6 +129,11 @@ class TestDoctorEmulated(GraphTestCase):
                         "no motor_driver /diagnostics")
         self.wait_for_taxels(30.0)
         wait_until_homed(self.ros, self.diagnostics, MOTOR_NAMES, timeout_sec=90.0)
+        # the estimator reports once its bundles loaded (torch: tens of seconds on a busy machine); the
+        # doctor rightly says "not answering" before
+        self.assertTrue(self.ros.spin_until(
+            lambda: all(diagnostic_values(self.diagnostics, f"force_estimator: {f}") for f in FINGERS), 120.0),
+            "force_estimator never reported on /diagnostics")
         lines = self.assert_fails_exactly(set())
         self.assertEqual(lines["port servos"], ("OK", f"{EMULATOR_DIR / 'servos'} present and writable"))
         self.assertTrue(lines["hub"][1].startswith(f"serial {EMULATOR_DIR / 'hub'}, "), lines["hub"])

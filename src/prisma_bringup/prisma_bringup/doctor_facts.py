@@ -45,10 +45,19 @@ class TaxelSample:
     seconds: float
     min_v: float = 0.0
     max_v: float = 0.0
+    # the driver's own rate, from the sample counter of two of its /diagnostics reports (None: fewer
+    # than two came): on a busy computer this process takes in fewer messages than the driver publishes
+    published_hz: float | None = None
 
     @property
     def rate_hz(self) -> float:
+        """The rate this process received the topic at."""
         return self.messages / self.seconds if self.seconds > 0 else 0.0
+
+    @property
+    def driver_hz(self) -> float:
+        """The rate the driver published at: its own count when known, else what arrived here."""
+        return self.rate_hz if self.published_hz is None else self.published_hz
 
 
 @dataclass

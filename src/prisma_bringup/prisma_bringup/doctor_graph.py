@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import replace
 from collections.abc import Sequence
 from typing import Any
 
@@ -36,6 +37,8 @@ MOTOR_PARAMS = ("backend", "port", "baud", "motor_names", "motor_ids")
 TACTILE_PARAMS = ("backend", "port", "baud", "fingers", "rate_hz", "vref", "i2c_socket")
 FORCE_PARAMS = ("fingers", "model_bundle")
 DISCOVERY_SETTLE_S = 0.5  # after every hand node is seen: a duplicate is discovered about as soon
+TACTILE_STATUS = "tactile_driver"  # its per-finger statuses are "tactile_driver: <finger>"
+MIN_COUNTED_NS = 900_000_000  # two reports of the 1 Hz /diagnostics, about a second apart
 
 
 class Gatherer:
@@ -53,13 +56,17 @@ class Gatherer:
         self.diagnostics: dict[tuple[str, str], Any] = {}
         self.samples: dict[str, list[tuple[int, float, float]]] = {f: [] for f in FINGERS}
         self.sampling = False
+        # finger -> (report stamp ns, the driver's sample count then): the first report and the latest
+        self.counted: dict[str, list[tuple[int, int]]] = {}
 
         def on_diagnostics(msg: Any) -> None:
             # every hand publishes on /diagnostics; a namespaced hand's statuses carry its namespace
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             for status in diagnostics_from_msg(msg):
                 ours = of_namespace(status, self.namespace)
                 if ours is not None:
                     self.diagnostics[(ours.name, ours.hardware_id)] = ours
+                    self._note_count(ours, stamp)
 
         def on_taxels(finger: str):
             def take(msg: Any) -> None:
@@ -73,6 +80,24 @@ class Gatherer:
         for finger in FINGERS:
             self.node.create_subscription(TaxelArray, node_path(self.namespace, f"prisma/{finger}/taxels"),
                                           on_taxels(finger), qos_profile_sensor_data)
+
+    def _note_count(self, status: Any, stamp_ns: int) -> None:
+        finger = status.name.removeprefix(f"{TACTILE_STATUS}: ")
+        if finger == status.name or finger not in FINGERS or not status.values.get("samples", "").isdigit():
+            return
+        report = (stamp_ns, int(status.values["samples"]))
+        if finger in self.counted:
+            self.counted[finger][1] = report
+        else:
+            self.counted[finger] = [report, report]
+
+    def published_hz(self, finger: str) -> float | None:
+        """The driver's publish rate for `finger` from its sample counter over the reports seen."""
+        counts = self.counted.get(finger, [])
+        if len(counts) < 2 or counts[1][0] - counts[0][0] < MIN_COUNTED_NS:
+            return None
+        (t0, n0), (t1, n1) = counts
+        return (n1 - n0) / ((t1 - t0) * 1e-9)
 
     def left(self) -> float:
         return max(0.0, self.deadline - time.monotonic())
@@ -126,8 +151,11 @@ class Gatherer:
         return {f: TaxelSample(len(v), _stamped_seconds(v, elapsed), min((lo for _, lo, _ in v), default=0.0),
                                max((hi for _, _, hi in v), default=0.0)) for f, v in self.samples.items()}
 
-    def wait_for_diagnostics(self, names: Sequence[str]) -> None:
-        while self.left() > 0 and not all(any(n == name for n, _ in self.diagnostics) for name in names):
+    def wait_for_diagnostics(self, names: Sequence[str], counted: Sequence[str] = ()) -> None:
+        """Until every status in `names` has come, and every finger in `counted` has two reports of its
+        sample counter far enough apart to give the driver's rate (or the deadline)."""
+        while self.left() > 0 and not (all(any(n == name for n, _ in self.diagnostics) for name in names)
+                                       and all(self.published_hz(f) is not None for f in counted)):
             self.spin_for(0.1)
 
     def close(self) -> None:
@@ -159,7 +187,9 @@ def gather(namespace: str, timeout: float) -> HandFacts:
         wanted = (["motor_driver: bus"] if motor is not None else []) \
             + (["tactile_driver: hub"] if tactile is not None else []) \
             + ([f"force_estimator: {f}" for f in force.get("fingers", FINGERS)] if force is not None else [])
-        gatherer.wait_for_diagnostics(wanted)
+        fingers = tactile.get("fingers", FINGERS) if tactile is not None else ()
+        gatherer.wait_for_diagnostics(wanted, fingers)
+        taxels = {f: replace(sample, published_hz=gatherer.published_hz(f)) for f, sample in taxels.items()}
         diagnostics = list(gatherer.diagnostics.values())  # this hand's only (on_diagnostics)
     finally:
         gatherer.close()

@@ -276,3 +276,14 @@ def test_port_facts_of_a_file_and_of_nothing(tmp_path):
     if os.geteuid() != 0:  # root writes whatever the mode says
         path.chmod(0o444)
         assert not port_facts(str(path)).writable
+
+
+def test_fingertip_rate_is_the_drivers_own_when_its_counters_came():
+    # a starved doctor took in 40 of the 100 messages a second the driver published: the driver is fine
+    busy = TaxelSample(40, 1.0, 0.4, 0.5, published_hz=99.6)
+    line = by_name(run_checks(healthy(taxels={**healthy().taxels, "ring": busy})))["fingertip ring"].line()
+    assert line == "OK fingertip ring: 100 Hz, 0.40-0.50 V (this check took in 40 Hz of it: the computer is busy)"
+    # the driver's own count falls behind: the line fails whatever arrived here
+    behind = TaxelSample(100, 1.0, 0.4, 0.5, published_hz=31.0)
+    bad = failing(healthy(taxels={**healthy().taxels, "ring": behind}))
+    assert bad["fingertip ring"].found.startswith("31 Hz on /prisma/ring/taxels, expected ~100 Hz")
