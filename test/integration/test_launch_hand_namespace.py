@@ -58,7 +58,7 @@ INLINE = {"tactile_driver": {"backend", "contact_source", "sim_object", "frame_i
           "manipulation": {"frame_id_format"}}
 # values unlike config/*.yaml, for every node (a node ignores those it does not declare)
 DECOYS = {"sim_seed": 7, "rate_hz": 50.0, "batch_window": 0.001, "torch_threads": 2,
-          "max_force_n": 2.0, "stale_timeout": 0.5, "position_tolerance": 0.05}
+          "max_force_n": 2.0, "stale_timeout": 0.25, "position_tolerance": 0.05}
 DECOY_FILE = Path(tempfile.gettempdir()) / f"prisma_namespace_decoys_{os.getpid()}.yaml"
 
 

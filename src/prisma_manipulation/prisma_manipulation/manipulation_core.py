@@ -24,12 +24,12 @@ and aborts a refused one at once with the refusal as its result's reason.
 
 Motors stop when this node is lost: every MoveMotors goal carries a short timeout (`MOVE_LEASE_S`)
 and, while the controller keeps the same velocity command, the goal is re-sent every
-`MOVE_REFRESH_S` (`MoveLease`). A node that dies or hangs stops refreshing, the motor driver's goal
-times out and the driver stops the motors.
+`MOVE_REFRESH_S` (`MoveLease`, move_lease.py). A node that dies or hangs stops refreshing, the motor
+driver's goal times out and the driver stops the motors. Each goal's lease counts from when the
+oldest input the watchdog watches arrived, so no command outlives its data by more than a lease.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +55,7 @@ from .goal_kinds import Feedback, Finished, GoalContext, GoalKind, Streams
 from .grasp_goal import GRASP_GOAL, GraspRequest, GraspStatus
 from .gripper_goal import GRIPPER_GOAL, GripperRequest, GripperStatus
 from .manipulate_goal import MANIPULATE_GOAL, MOTIONS, ManipulateRequest, ManipulateStatus
+from .move_lease import MOVE_LEASE_S, MOVE_REFRESH_S, MoveLease, SendMove, StopMotors
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
 from .teleop_goal import TELEOP_GOAL
@@ -64,26 +65,9 @@ from .watchdog import SensorWatchdog
 GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL, TELEOP_GOAL)
 GRASP, MANIPULATE, GRIPPER = GRASP_GOAL.name, MANIPULATE_GOAL.name, GRIPPER_GOAL.name
 
-__all__ = ["GOAL_KINDS", "MOTIONS", "Feedback", "Finished", "GraspRequest", "GraspStatus", "GripperRequest",
-           "GripperStatus", "ManipulateRequest", "ManipulateStatus"]  # the kinds' data, for the core's users
-
-# MoveMotors goals last this long on the motor driver unless re-sent: the motors stop within it (+ one
-# driver tick) when this node dies. Re-sent every MOVE_REFRESH_S, so two refreshes may be late (a busy
-# executor) before the motors stop under a live controller.
-MOVE_LEASE_S = 0.3
-MOVE_REFRESH_S = 0.1
-
-
-@dataclass(frozen=True)
-class SendMove:
-    velocities_rpm: dict[str, float]
-    timeout_s: float
-
-
-@dataclass(frozen=True)
-class StopMotors:
-    pass
-
+__all__ = ["GOAL_KINDS", "MOTIONS", "MOVE_LEASE_S", "MOVE_REFRESH_S", "Feedback", "Finished", "GraspRequest",
+           "GraspStatus", "GripperRequest", "GripperStatus", "ManipulateRequest", "ManipulateStatus", "MoveLease",
+           "SendMove", "StopMotors"]  # the kinds' data and the lease's decisions, for the core's users
 
 @dataclass(frozen=True)
 class Ignored:
@@ -99,46 +83,6 @@ class GoalRefused(ValueError):
     def __init__(self, refusal: Refusal) -> None:
         super().__init__(str(refusal))
         self.refusal = refusal
-
-
-class MoveLease:
-    """The MoveMotors goals that carry one velocity command: sent with a `lease_s` timeout, re-sent
-    every `refresh_s` while the command holds, so the motor driver stops the motors on its own when
-    the sender is gone. The off-robot recorder (prisma_sim.hand_session) runs the same decisions."""
-
-    def __init__(self, lease_s: float = MOVE_LEASE_S, refresh_s: float = MOVE_REFRESH_S) -> None:
-        if not 0 < refresh_s < lease_s:
-            raise ValueError(f"refresh {refresh_s} s must be > 0 and below the lease {lease_s} s")
-        self.lease_s = lease_s
-        self.refresh_ns = int(round(refresh_s * 1e9))
-        self.velocities: dict[str, float] | None = None  # the command being kept alive, None = none
-        self.sent_ns = 0
-
-    def command(self, velocities_rpm: Mapping[str, float], now_ns: int) -> SendMove | StopMotors:
-        """A new command from the controller: a goal for motion, a cancel for a stop."""
-        if all(v == 0.0 for v in velocities_rpm.values()):
-            self.velocities = None
-            return StopMotors()
-        self.velocities = dict(velocities_rpm)
-        return self._send(self.velocities, now_ns)
-
-    def refresh(self, now_ns: int) -> SendMove | None:
-        """The same command again when the last goal is `refresh_s` old."""
-        if self.velocities is None or now_ns - self.sent_ns < self.refresh_ns:
-            return None
-        return self._send(self.velocities, now_ns)
-
-    def renew(self, now_ns: int) -> SendMove | None:
-        """The driver ended the goal by its timeout before the refresh came: send it again now."""
-        return None if self.velocities is None else self._send(self.velocities, now_ns)
-
-    def release(self) -> None:
-        """Nothing to keep alive (goal over, or the driver stopped the motors at a limit)."""
-        self.velocities = None
-
-    def _send(self, velocities: dict[str, float], now_ns: int) -> SendMove:
-        self.sent_ns = now_ns
-        return SendMove(dict(velocities), self.lease_s)
 
 
 class ManipulationCore:
@@ -330,16 +274,15 @@ class ManipulationCore:
         own input) and stops the motors; a running motor command is re-sent when due (MoveLease)."""
         if self.controller is None:
             return []
-        controller, goal = self._running()
-        streams = [f"taxels/{f}" for f in controller.fingers] + [f"wrench/{f}" for f in self._streams.wrenches]
-        stale = self.watchdog.check(streams, now_ns)
+        goal = self._running()[1]
+        stale = self.watchdog.check(self._watched(), now_ns)
         if stale is not None:
             return self._abort(now_ns, SENSOR_STALE, stale)
         for spec in (i for i in goal.inputs if i.stream in self._streams.inputs):
             silent = self.watchdog.check_input(spec.stream, self._input_timeout_ns, now_ns, spec.topic)
             if silent is not None:
                 return self._abort(now_ns, goal.stale_reason(spec.stream), silent)
-        refresh = self.lease.refresh(now_ns)
+        refresh = self.lease.refresh(now_ns, self._data_ns(now_ns))
         return [refresh] if refresh is not None else []
 
     def cancel(self, now_ns: int) -> list:
@@ -355,7 +298,7 @@ class ManipulationCore:
         if reason.startswith(MOTOR_FAULT) or refusal_code(reason) is not None:
             return self._abort(now_ns, MOTOR_FAULT, reason)
         if reason == TIMEOUT:
-            renewed = self.lease.renew(now_ns)
+            renewed = self.lease.renew(now_ns, self._data_ns(now_ns))
             return [renewed] if renewed is not None else []
         if reason == JOINT_LIMIT:
             self.lease.release()
@@ -367,6 +310,16 @@ class ManipulationCore:
         if self.controller is None or self.goal is None:
             raise RuntimeError("no goal is running")
         return self.controller, self.goal
+
+    def _watched(self) -> list[str]:
+        """The streams the running goal's watchdog watches (besides /joint_states)."""
+        controller = self._running()[0]
+        return [f"taxels/{f}" for f in controller.fingers] + [f"wrench/{f}" for f in self._streams.wrenches]
+
+    def _data_ns(self, now_ns: int) -> int:
+        """When the oldest watched input arrived: a motor command's lease counts from there (SendMove)."""
+        oldest = self.watchdog.oldest_receipt(self._watched())
+        return now_ns if oldest is None else oldest
 
     def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:
         return self._actions(self._running()[0].abort(now_ns, reason), now_ns, detail)
@@ -388,7 +341,7 @@ class ManipulationCore:
         c, goal = self._running()
         actions: list = []
         if out.command is not None:
-            actions.append(self.lease.command(out.command.velocities_rpm, now_ns))
+            actions.append(self.lease.command(out.command.velocities_rpm, now_ns, self._data_ns(now_ns)))
         status = goal.status(c, self.context())
         actions.append(Feedback(goal.name, out.phase, status))
         if out.done:

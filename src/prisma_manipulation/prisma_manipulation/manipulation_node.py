@@ -217,9 +217,10 @@ class ManipulationNode(Node):
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
         seq = self._move_seq
-        # stamped: the lease counts from now, so a goal a dropped link delivers late is refused; named:
-        # the motor driver serves one controller at a time and says which one holds the motors
-        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s, self._now_ns(),
+        # stamped with when its data arrived (SendMove): the lease counts from there, so a goal a dropped
+        # link delivers late is refused; named: the motor driver serves one controller at a time and
+        # says which one holds the motors
+        goal = move_goal_to_msg(self.types, velocity_goal(action.velocities_rpm, action.timeout_s, action.stamp_ns,
                                                           self.get_fully_qualified_name()))
         future = self._move_client.send_goal_async(goal)
         future.add_done_callback(lambda f, s=seq: self._on_move_accepted(f, s))

@@ -28,6 +28,7 @@ from prisma_motor_driver.control_table import VELOCITY_LIMIT_MAX_RPM
 
 from .contact_monitor import DEFAULT_K, K_RANGE
 from .gripper_controller import DEFAULT_THUMB_RATIO
+from .move_lease import MOVE_LEASE_S
 from .teleop_controller import COMMAND_PERIOD_S
 
 MAX_FORCE_N = 10.0  # the highest force any parameter may name: twice the calibrated range of the pads
@@ -59,7 +60,9 @@ class ManipulationConfig(Params):
                                       rules="one of fingers")
     stale_timeout: float = parameter(0.1, "watchdog: taxels, wrenches or /joint_states older or silent this long "
                                           "abort the goal with sensor_stale", unit="s", bounds=(0.0, 1.0),
-                                     open_low=True, live=True, rules="at least 4 x watchdog_period")
+                                     open_low=True, live=True,
+                                     rules=f"at least 4 x watchdog_period, below the MoveMotors lease "
+                                           f"{MOVE_LEASE_S:g} s")
     watchdog_period: float = parameter(0.02, "how often the watchdog checks", unit="s", bounds=(0.0, 1.0),
                                        open_low=True)
     max_speed_rpm: float = parameter(70.0, "goals asking for a faster motor speed are rejected", unit="rpm",
@@ -151,6 +154,12 @@ class ManipulationConfig(Params):
             # a check more than half the stale window after the last counts as the node held up (watchdog.py)
             raise ParameterError("stale_timeout", self.stale_timeout,
                                  f"at least 4 x watchdog_period ({4 * self.watchdog_period:g} s)")
+        if self.stale_timeout >= MOVE_LEASE_S:
+            # each motor command's lease counts from its data (move_lease.py): data this old would send
+            # goals the driver refuses as expired, and the goal would end motor_fault, not sensor_stale
+            raise ParameterError("stale_timeout", self.stale_timeout,
+                                 f"must be below the MoveMotors lease {MOVE_LEASE_S:g} s: a motor command lasts at "
+                                 "most a lease past the data it rests on")
         for name in GOAL_SPEEDS:
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")

@@ -113,6 +113,13 @@ class SensorWatchdog:
                     return f"{name} {age / 1e6:.0f} ms older than /joint_states"
         return None
 
+    def oldest_receipt(self, streams: tuple[str, ...] | list[str]) -> int | None:
+        """When the least recent of /joint_states and `streams` last arrived: a decision taken now rests
+        on nothing newer (None: one of them never came)."""
+        receipts = [self._joint_receipt_ns] + [s.receipt_ns if (s := self._streams.get(n)) else None
+                                               for n in streams]
+        return None if any(r is None for r in receipts) else min(r for r in receipts if r is not None)
+
     def arrived(self, stream: str, timeout_ns: int) -> bool:
         """A goal kind's input came for the running goal: received since `timeout_ns` before its start
         (an older value is not one to follow)."""

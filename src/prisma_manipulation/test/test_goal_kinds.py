@@ -122,8 +122,9 @@ def test_a_kind_with_an_extra_input_is_one_class_and_one_entry():
     for t_ms in range(10, 300, 10):
         assert _scan(core, t_ms) == [Feedback("follow", "wait", FollowStatus(0.0, 0.4))]
     # the target comes between two scans: the next scan steps with it
-    assert _scan(core, 300, target=2.0) == [SendMove({"fingers": 10.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0},
-                                                     0.3), Feedback("follow", "follow", FollowStatus(2.0, 0.4))]
+    assert _scan(core, 300, target=2.0) == [
+        SendMove({"fingers": 10.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3, 300 * MS),
+        Feedback("follow", "follow", FollowStatus(2.0, 0.4))]
     # the glove falls silent while the sensors flow: the goal ends with the kind's own reason, counted
     # from the last target's receipt (297 ms)
     actions = []
@@ -143,11 +144,13 @@ def test_a_kind_steps_once_per_scan_with_the_latest_value_of_its_input():
     _scan(core, 0, target=1.5)
     assert core.accept(FollowRequest(), True, 0) is None
     core.start(FollowRequest(), 0)
-    assert _moves(_scan(core, 10)) == [SendMove({"fingers": 5.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3)]
+    assert _moves(_scan(core, 10)) == [SendMove({"fingers": 5.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3,
+                                                10 * MS)]
     # two targets between scans: the newer is followed; a scan without one keeps it
     core.on_input("glove/targets", 12 * MS, 3.0, 12 * MS)
     core.on_input("glove/targets", 16 * MS, 2.5, 16 * MS)
-    assert _moves(_scan(core, 20)) == [SendMove({"fingers": 15.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3)]
+    assert _moves(_scan(core, 20)) == [SendMove({"fingers": 15.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3,
+                                                20 * MS)]
     fed = _scan(core, 30)
     assert _moves(fed) == [] and fed[-1].status == FollowStatus(2.5, 0.4)
 
@@ -162,7 +165,7 @@ def test_an_input_older_than_its_timeout_at_the_start_is_not_followed():
     # 1.5 rad came 193 ms before the start (stale_timeout 0.1 s): the goal waits for a new target
     assert [(a.phase, a.status.target) for a in _scan(core, 200)] == [("wait", 0.0)]
     assert _moves(_scan(core, 210, target=0.5)) == [SendMove({"fingers": -5.0, "thumb_flexion": 0.0,
-                                                              "thumb_rotation": 0.0}, 0.3)]
+                                                              "thumb_rotation": 0.0}, 0.3, 210 * MS)]
 
 
 def test_a_request_of_no_kind_is_a_type_error():

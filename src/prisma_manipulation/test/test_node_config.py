@@ -37,6 +37,8 @@ def test_manipulation_limits_equal_the_motor_driver_limits():
     (ManipulationConfig, {"frame_id_format": "pad"}, "invalid parameter 'frame_id_format' = 'pad'"),
     (ManipulationConfig, {"stale_timeout": 0.06}, "invalid parameter 'stale_timeout' = 0.06: at least 4 x "
                                                   "watchdog_period"),
+    (ManipulationConfig, {"stale_timeout": 0.3}, "invalid parameter 'stale_timeout' = 0.3: must be below the "
+                                                 "MoveMotors lease 0.3 s"),
 ])
 def test_bad_parameters_name_themselves(cls, values, message):
     with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):

@@ -105,7 +105,7 @@ def test_admitted_without_targets_it_waits_then_follows_the_latest_target_each_s
         assert [a.phase for a in actions] == ["waiting"] and core.busy
     # the glove's targets: 50 Hz, stamps between the scans; each scan follows the latest
     actions = scan(core, 1000, target={"fingers": 5.0})
-    assert actions[0] == SendMove({"fingers": 40.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3)
+    assert actions[0] == SendMove({"fingers": 40.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}, 0.3, 1000 * MS)
     status = actions[-1].status
     assert actions[-1].phase == "following" and status.targets[0] == 5.0 and math.isnan(status.targets[1])
     # the index pad reaches the limit: the fingers motor stops, the goal holds
@@ -134,7 +134,7 @@ def test_the_targets_silent_past_the_timeout_end_it_input_stale_with_the_motors_
     assert core.accept(TeleopRequest(), True, 170 * MS) is None
     core.start(TeleopRequest(), 170 * MS)
     assert scan(core, 180, target={"fingers": 0.0})[0] == SendMove({"fingers": -40.0, "thumb_flexion": 0.0,
-                                                                    "thumb_rotation": 0.0}, 0.3)
+                                                                    "thumb_rotation": 0.0}, 0.3, 180 * MS)
 
 
 def test_targets_older_than_the_timeout_by_stamp_end_it_too():

@@ -57,7 +57,7 @@ def move_goal_from_msg(msg: Any) -> MoveGoal:
 
 def velocity_goal(velocities_rpm: Mapping[str, float], timeout_s: float, stamp_ns: int = 0,
                   controller: str = "") -> MoveGoal:
-    """A velocity goal; `stamp_ns` (the sending instant) makes its timeout count from then, `controller`
+    """A velocity goal; `stamp_ns` (the sending instant, or earlier) makes its timeout count from then, `controller`
     (the sender's fully qualified node name) names whose lease it is."""
     return MoveGoal(list(velocities_rpm), "velocity", [float(v) for v in velocities_rpm.values()], [], timeout_s,
                     stamp_ns, controller)
