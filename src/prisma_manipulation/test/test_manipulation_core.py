@@ -1,5 +1,6 @@
 """ManipulationCore without ROS: goal admission and refusals (invalid, busy, not_ready,
-no_contact), one goal at a time, foreign /joint_states, stops, the MoveMotors lease, a gripper goal."""
+no_contact), one goal at a time, foreign /joint_states, stops, a gripper goal (the MoveMotors lease:
+test_move_lease.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -21,7 +22,6 @@ from prisma_manipulation.manipulation_core import (
     Ignored,
     ManipulateRequest,
     ManipulationCore,
-    MoveLease,
     SendMove,
     StopMotors,
 )
@@ -259,54 +259,6 @@ def test_live_parameters_apply_when_they_should():
     assert core.monitor.k == 0.7 and core.k_parameter == 0.7
 
 
-def test_motor_commands_are_leased_and_refreshed_while_they_hold():
-    """The motor driver stops a MoveMotors goal after MOVE_LEASE_S (0.3 s); the core re-sends the
-    running command every 0.1 s, so the motors stop within 0.3 s of the last refresh when it dies."""
-    core = _core()
-    rotate = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}
-    back = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}
-
-    def scan(t_ms, rotation=0.5, right_lost=False):
-        """Joint states (refreshes ride on their check) and a thumb sample at t_ms: what was sent."""
-        t = t_ms * MS
-        sent = core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": rotation}), t)
-        sent += core.on_taxels("thumb", t, _volts(right_lost), t)[1]
-        return [a for a in sent if not isinstance(a, Feedback)]
-
-    assert core.start(ManipulateRequest("horizontal"), 0)[0] == SendMove(rotate, 0.3, 0)
-    assert [scan(t) for t in range(10, 100, 10)] == [[]] * 9  # same command: nothing sent
-    # the refresh rides on /joint_states' check: its lease counts from the thumb's sample before (90 ms)
-    assert scan(100) == [SendMove(rotate, 0.3, 90 * MS)]
-    assert core.check(150 * MS) == [] and scan(190) == [] and scan(200) == [SendMove(rotate, 0.3, 190 * MS)]
-    # the driver's goal timed out before a refresh reached it (this node stalled): sent again at once
-    assert core.on_move_result("timeout", 230 * MS) == [SendMove(rotate, 0.3, 200 * MS)]
-    assert scan(240) == [] and scan(320) == [] and scan(330) == [SendMove(rotate, 0.3, 320 * MS)]
-    # a new command restarts the lease period
-    assert scan(340, right_lost=True) == [SendMove(back, 0.3, 340 * MS)]
-    assert [scan(t) for t in range(350, 440, 10)] == [[]] * 9 and scan(440) == [SendMove(back, 0.3, 430 * MS)]
-    # the driver stopped the motors at its joint limit: no refresh drives them on
-    assert core.on_move_result("joint_limit", 450 * MS) == []
-    assert [scan(t) for t in range(450, 610, 10)] == [[]] * 16 and core.busy
-    # a stop is a cancel, and nothing is refreshed after the goal
-    core.on_joints(JointSample(610 * MS, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 610 * MS)
-    _, actions = core.on_taxels("thumb", 610 * MS, _volts(), 610 * MS)
-    assert isinstance(actions[0], StopMotors) and isinstance(actions[-1], Finished)
-    assert core.check(10**9) == [] and core.on_move_result("timeout", 10**9) == []
-
-
-def test_move_lease_decisions():
-    lease = MoveLease(lease_s=0.3, refresh_s=0.1)
-    assert lease.refresh(0, 0) is None  # nothing to keep alive
-    assert lease.command({"fingers": 60.0}, 5 * MS, 2 * MS) == SendMove({"fingers": 60.0}, 0.3, 2 * MS)
-    assert lease.refresh(104 * MS, 100 * MS) is None
-    assert lease.refresh(105 * MS, 100 * MS) == SendMove({"fingers": 60.0}, 0.3, 100 * MS)
-    assert lease.renew(106 * MS, 200 * MS) == SendMove({"fingers": 60.0}, 0.3, 106 * MS)  # never from the future
-    assert lease.command({"fingers": 0.0, "thumb_flexion": 0.0}, 110 * MS, 110 * MS) == StopMotors()
-    assert lease.refresh(10**9, 10**9) is None and lease.renew(10**9, 10**9) is None
-    with pytest.raises(ValueError, match="refresh 0.3 s must be > 0 and below the lease 0.3 s"):
-        MoveLease(lease_s=0.3, refresh_s=0.3)
-
-
 def test_a_manipulation_is_refused_no_contact_on_an_untouched_pad():
     core = ManipulationCore(ManipulationConfig())
     _feed(core, 0, taxels=("thumb",), wrenches=())
@@ -378,37 +330,3 @@ def test_gripper_goal_through_the_core():
     assert (done.kind, done.success, done.reason) == ("gripper", True, "force_reached")
     assert done.status == GripperStatus(position=3.7, effort=1.02, stalled=True, reached_goal=False)
     assert not core.busy
-
-
-def test_no_renewal_sent_into_a_dropped_link_restarts_the_motors_when_it_comes_back():
-    """Two hosts, the link down 0.4 s: manipulation (stale_timeout 0.24 s) goes on renewing the
-    command until its watchdog fires, and every renewal is delivered when the link comes back. Each
-    lease counts from the data it rests on, so the driver refuses every one as expired; counted from
-    its send time, the last would have run the motors again for 0.1 s."""
-    from prisma_motor_driver.motor_goals import goal_expired
-    from prisma_motor_driver.ros_conversions import velocity_goal
-
-    core = ManipulationCore(ManipulationConfig(stale_timeout=0.24))
-    core.on_joints(JointSample(0, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 0)
-    core.on_taxels("thumb", 0, _volts(), 0)
-    assert core.start(ManipulateRequest("horizontal"), 0)[0] == SendMove(
-        {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}, MOVE_LEASE_S, 0)
-    for t_ms in range(10, 110, 10):  # scans until the link drops after the one at 100 ms
-        t = t_ms * MS
-        core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.5}), t)
-        core.on_taxels("thumb", t, _volts(), t)
-    outage = []
-    for t_ms in range(120, 500, 20):  # the watchdog's ticks while nothing arrives
-        actions = core.check(t_ms * MS)
-        outage += [(t_ms * MS, a) for a in actions if isinstance(a, SendMove)]
-        if not core.busy:
-            break
-    assert t_ms == 360 and isinstance(actions[-1], Finished) and actions[-1].reason == "sensor_stale"
-    assert [(t // MS, a.stamp_ns // MS) for t, a in outage] == [(200, 100), (300, 100)]
-    back_ns = 500 * MS
-    for _, action in outage:
-        goal = velocity_goal(action.velocities_rpm, action.timeout_s, action.stamp_ns)
-        assert goal_expired(goal, back_ns) is not None
-    last_sent_ns, last = outage[-1]
-    by_send_time = velocity_goal(last.velocities_rpm, last.timeout_s, last_sent_ns)
-    assert goal_expired(by_send_time, back_ns) is None  # the old stamp: accepted, runs until 600 ms
