@@ -15,7 +15,7 @@ Requests (`op` and its fields) and what each answers:
   type action_msgs/msg/GoalStatusArray) listed, accepted after since_ns;
 - stamped(topic, since_ns, until_ns): {"messages": [[stamp_ns, fields...]]} of the messages stamped
   after since_ns (JointState: [stamp, velocities, positions], with "names"; DiagnosticArray: [stamp,
-  [[name, hardware_id], ...]]; others: [stamp]), once
+  [[name, hardware_id], ...]]; others: [stamp, frame_id, finger (its `finger` field, or "")]), once
   one stamped at or after until_ns (if given) has been received;
 - keeping_up(leader, follower, lag_s, checks, timeout_s): answers once the follower topic's newest
   stamp stays within lag_s of the leader's (both collected), an error at the timeout;
@@ -133,7 +133,7 @@ class _Probe:
             elif hasattr(msg, "status"):  # diagnostic_msgs/DiagnosticArray: who reported
                 rows.append([stamp, [[status.name, status.hardware_id] for status in msg.status]])
             else:
-                rows.append([stamp])
+                rows.append([stamp, msg.header.frame_id, getattr(msg, "finger", "")])
         return {"messages": rows[::-1], "names": names}
 
     def keeping_up(self, leader: str, follower: str, lag_s: float, checks: int = 10, timeout_s: float = 90.0) -> dict:
