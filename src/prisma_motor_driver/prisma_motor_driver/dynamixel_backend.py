@@ -1,7 +1,10 @@
 """Dynamixel X-series motors over Protocol 2.0 with dynamixel-sdk.
 
-One GroupSyncRead of Present Current/Velocity/Position (126..135), one of Hardware Error Status (70)
-and one of Bus Watchdog (98) per cycle; goals go out with GroupSyncWrite. Mode changes follow the
+One GroupSyncRead per cycle of the block from Hardware Error Status (70) through Present Position
+(135), which holds Bus Watchdog (98) and Present Current/Velocity/Position (126..135): one
+transaction, not one per register (each costs the adapter's USB round trip, and on an emulated bus
+a wake-up of the emulator: three of them made a tick take 20-80 ms there); goals go out with
+GroupSyncWrite. Mode changes follow the
 firmware rule: torque off, write Operating Mode (EEPROM), torque on. Communication errors (no status
 packet, corrupt status, a sync read answered with a block of another length: the late status of an
 earlier instruction) are retried a bounded number of times and counted; exhausting the retries raises
@@ -11,7 +14,7 @@ SDK's input flush) raises BusError at once, naming the port and the OS reason.
 Opening the bus makes each servo safe on its own before anything moves: its Current Limit (EEPROM)
 is written, so no command pulls a tendon harder; its Bus Watchdog is armed (`watchdog_s`), so a driver
 that dies or freezes, or a cable that is cut, stops the servo within that period: the driver's own
-traffic (three sync reads every tick) feeds it. A fired watchdog (Bus Watchdog reads -1; the goal
+traffic (a sync read every tick) feeds it. A fired watchdog (Bus Watchdog reads -1; the goal
 registers refuse writes) is cleared by writing 0 and armed again (`rearm_watchdog`). The servo's LED
 (RAM, off at every power-up) marks it homed since it powered up (homing.py).
 """
@@ -35,6 +38,10 @@ _RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.CO
 # How long one read of the port waits for the status packet's bytes (the SDK's packet timeout,
 # ~34 ms, still bounds the whole wait).
 READ_WAIT_S = 0.002
+# The block each tick reads: Hardware Error Status (70) through Present Position (135), Bus Watchdog
+# (98) and the present state (126..135) inside it
+CYCLE_START = ct.ADDR_HARDWARE_ERROR_STATUS
+CYCLE_LENGTH = ct.STATE_START + ct.STATE_LENGTH - CYCLE_START
 
 
 class WaitingPortHandler(sdk.PortHandler):
@@ -73,13 +80,9 @@ class DynamixelBus:
         self._port = port_handler_factory(port)
         self._packet = sdk.PacketHandler(2.0)
         self._modes: dict[str, int] = {}
-        self._state_reader = sdk.GroupSyncRead(self._port, self._packet, ct.STATE_START, ct.STATE_LENGTH)
-        self._error_reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
-        self._watchdog_reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_BUS_WATCHDOG, 1)
+        self._state_reader = sdk.GroupSyncRead(self._port, self._packet, CYCLE_START, CYCLE_LENGTH)
         for config in self.motors.values():
             self._state_reader.addParam(config.servo_id)
-            self._error_reader.addParam(config.servo_id)
-            self._watchdog_reader.addParam(config.servo_id)
         self.model_numbers: dict[str, int] = {}
         self.needs_homing = True
         self.homed = {name: False for name in self.motors}
@@ -151,8 +154,6 @@ class DynamixelBus:
         attempts = self.retries + 1
         for attempt in range(attempts):
             self._retry(self._state_reader.txRxPacket, "sync read present state")
-            self._retry(self._error_reader.txRxPacket, "sync read hardware error status")
-            self._retry(self._watchdog_reader.txRxPacket, "sync read bus watchdog")
             wrong = self._wrong_length_blocks()
             if wrong is None:
                 break
@@ -167,12 +168,12 @@ class DynamixelBus:
         self.stats.reads += 1
         states = {}
         for name, c in self.motors.items():
-            if not self._state_reader.isAvailable(c.servo_id, ct.STATE_START, ct.STATE_LENGTH):
+            if not self._state_reader.isAvailable(c.servo_id, CYCLE_START, CYCLE_LENGTH):
                 raise BusError(f"sync read: no present state from {name} (id {c.servo_id})")
-            raw = self._state_reader.data_dict[c.servo_id]
-            present = ct.PresentState.from_bytes(raw)
-            error = self._error_reader.getData(c.servo_id, ct.ADDR_HARDWARE_ERROR_STATUS, 1)
-            watchdog = ct.to_signed(self._watchdog_reader.getData(c.servo_id, ct.ADDR_BUS_WATCHDOG, 1), 1)
+            block = self._state_reader.data_dict[c.servo_id]
+            present = ct.PresentState.from_bytes(bytes(block[ct.STATE_START - CYCLE_START:]))
+            error = block[ct.ADDR_HARDWARE_ERROR_STATUS - CYCLE_START]
+            watchdog = ct.to_signed(block[ct.ADDR_BUS_WATCHDOG - CYCLE_START], 1)
             if error:
                 self.stats.hardware_errors += 1
             states[name] = MotorState(
@@ -191,12 +192,9 @@ class DynamixelBus:
     def _wrong_length_blocks(self) -> str | None:
         """What the last sync reads got of another length than asked, None if nothing."""
         for name, c in self.motors.items():
-            for reader, what, length in ((self._state_reader, "present state", ct.STATE_LENGTH),
-                                         (self._error_reader, "hardware error status", 1),
-                                         (self._watchdog_reader, "bus watchdog", 1)):
-                block = reader.data_dict.get(c.servo_id)
-                if block is not None and len(block) != length:
-                    return f"{name} (id {c.servo_id}) answered {len(block)} bytes of {what}, not {length}"
+            block = self._state_reader.data_dict.get(c.servo_id)
+            if block is not None and len(block) != CYCLE_LENGTH:
+                return f"{name} (id {c.servo_id}) answered {len(block)} bytes of present state, not {CYCLE_LENGTH}"
         return None
 
     # ---- commands --------------------------------------------------------------------------

@@ -263,7 +263,7 @@ def test_a_late_status_of_an_earlier_instruction_is_retried_not_taken_for_the_pr
     emu._handle = lambda packet: encode_status(1, 0, b"\x00\x00\x00") + handle(packet) \
         if packet.instruction == sdk.INST_SYNC_READ else handle(packet)
     # (the SDK's slice of the short packet holds its 3 parameters and its 2 CRC bytes)
-    with pytest.raises(BusError, match=r"fingers \(id 1\) answered 5 bytes of present state, not 10 after 3 attempts"):
+    with pytest.raises(BusError, match=r"fingers \(id 1\) answered 5 bytes of present state, not 66 after 3 attempts"):
         bus.read_state()
     assert bus.stats.comm_failures == 1
     emu._handle = handle

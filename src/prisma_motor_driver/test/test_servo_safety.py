@@ -96,7 +96,7 @@ def test_a_driver_that_falls_silent_is_stopped_by_the_servos_and_nothing_moves_u
     clock.advance(1.0)
     present = emu.present()[1]
     assert present.velocity_rpm == 0.0 and present.bus_watchdog == ct.WATCHDOG_FIRED
-    # every servo stopped itself 0.1 s after the last packet (the three sync reads of the last tick)
+    # every servo stopped itself 0.1 s after the last packet (the sync read of the last tick)
     assert sorted(f.servo_id for f in emu.watchdog_firings) == [1, 2, 3]
     assert [f.at_s for f in emu.watchdog_firings] == pytest.approx([last_packet_s + 0.1] * 3, abs=1e-9)
     # 30 rpm for 0.1 s after the last packet: 0.314 rad, not the 3.1 rad of the whole second
