@@ -16,13 +16,19 @@ from dataclasses import dataclass
 # executor) before the motors stop under a live controller.
 MOVE_LEASE_S = 0.3
 MOVE_REFRESH_S = 0.1
+# A goal's stamp counts the age of its data up to this much: what is left of its lease outlasts a
+# refresh period and 50 ms of transit and a late executor, so that old (but not stale) data shortens
+# the lease without letting it end between two refreshes of a live controller.
+MAX_DATA_AGE_S = MOVE_LEASE_S - MOVE_REFRESH_S - 0.05
 
 
 @dataclass(frozen=True)
 class SendMove:
     """A MoveMotors velocity goal. Its stamp, from which the driver counts its timeout, is when the
-    oldest data the command rests on arrived, not when it is sent: a renewal held back by a dropped
-    link, or sent on data a link stopped delivering, lasts no longer than a lease past that data."""
+    oldest data the command rests on arrived (at most MAX_DATA_AGE_S before it is sent), not when
+    it is sent: a renewal held back by a dropped link, or sent on data a link stopped delivering,
+    lasts no longer than a lease past that data (or, for data older than MAX_DATA_AGE_S, a refresh
+    period and 50 ms past its sending)."""
 
     velocities_rpm: dict[str, float]
     timeout_s: float
@@ -40,11 +46,16 @@ class MoveLease:
     every `refresh_s` while the command holds, so the motor driver stops the motors on its own when
     the sender is gone. The off-robot recorder (prisma_sim.hand_session) runs the same decisions."""
 
-    def __init__(self, lease_s: float = MOVE_LEASE_S, refresh_s: float = MOVE_REFRESH_S) -> None:
+    def __init__(self, lease_s: float = MOVE_LEASE_S, refresh_s: float = MOVE_REFRESH_S,
+                 max_data_age_s: float = MAX_DATA_AGE_S) -> None:
         if not 0 < refresh_s < lease_s:
             raise ValueError(f"refresh {refresh_s} s must be > 0 and below the lease {lease_s} s")
+        if not 0 <= max_data_age_s <= lease_s - refresh_s:
+            raise ValueError(f"max data age {max_data_age_s} s must be from 0 to the lease less a refresh "
+                             f"({lease_s - refresh_s:g} s)")
         self.lease_s = lease_s
         self.refresh_ns = int(round(refresh_s * 1e9))
+        self.max_data_age_ns = int(round(max_data_age_s * 1e9))
         self.velocities: dict[str, float] | None = None  # the command being kept alive, None = none
         self.sent_ns = 0
 
@@ -73,4 +84,4 @@ class MoveLease:
 
     def _send(self, velocities: dict[str, float], now_ns: int, data_ns: int) -> SendMove:
         self.sent_ns = now_ns
-        return SendMove(dict(velocities), self.lease_s, min(data_ns, now_ns))
+        return SendMove(dict(velocities), self.lease_s, min(max(data_ns, now_ns - self.max_data_age_ns), now_ns))

@@ -155,8 +155,8 @@ class ManipulationConfig(Params):
             raise ParameterError("stale_timeout", self.stale_timeout,
                                  f"at least 4 x watchdog_period ({4 * self.watchdog_period:g} s)")
         if self.stale_timeout >= MOVE_LEASE_S:
-            # each motor command's lease counts from its data (move_lease.py): data this old would send
-            # goals the driver refuses as expired, and the goal would end motor_fault, not sensor_stale
+            # manipulation renews the motor command until its watchdog fires: the window bounds how long
+            # after its last data a renewal that a dropped link held back can still run the motors
             raise ParameterError("stale_timeout", self.stale_timeout,
                                  f"must be below the MoveMotors lease {MOVE_LEASE_S:g} s: a motor command lasts at "
                                  "most a lease past the data it rests on")

@@ -78,6 +78,10 @@ def test_move_lease_decisions():
     assert lease.refresh(104 * MS, 100 * MS) is None
     assert lease.refresh(105 * MS, 100 * MS) == SendMove({"fingers": 60.0}, 0.3, 100 * MS)
     assert lease.renew(106 * MS, 200 * MS) == SendMove({"fingers": 60.0}, 0.3, 106 * MS)  # never from the future
+    # data 400 ms old counts as 150 ms: 150 ms of lease left, a refresh period and 50 ms
+    assert lease.renew(500 * MS, 100 * MS) == SendMove({"fingers": 60.0}, 0.3, 350 * MS)
+    with pytest.raises(ValueError, match="max data age 0.25 s must be from 0 to the lease less a refresh"):
+        MoveLease(lease_s=0.3, refresh_s=0.1, max_data_age_s=0.25)
     assert lease.command({"fingers": 0.0, "thumb_flexion": 0.0}, 110 * MS, 110 * MS) == StopMotors()
     assert lease.refresh(10**9, 10**9) is None and lease.renew(10**9, 10**9) is None
     with pytest.raises(ValueError, match="refresh 0.3 s must be > 0 and below the lease 0.3 s"):
@@ -104,7 +108,8 @@ def test_no_renewal_sent_into_a_dropped_link_restarts_the_motors_when_it_comes_b
         if not core.busy:
             break
     assert t_ms == 360 and isinstance(actions[-1], Finished) and actions[-1].reason == "sensor_stale"
-    assert [(t // MS, a.stamp_ns // MS) for t, a in outage] == [(200, 100), (300, 100)]
+    # the second renewal's data is 200 ms old: counted as 150 (MAX_DATA_AGE_S), its lease ends 450 ms
+    assert [(t // MS, a.stamp_ns // MS) for t, a in outage] == [(200, 100), (300, 150)]
     back_ns = 500 * MS
     for _, action in outage:
         goal = velocity_goal(action.velocities_rpm, action.timeout_s, action.stamp_ns)
