@@ -1,11 +1,10 @@
 """The hand graph at a scan rate, real or relay: CPU with nothing else subscribed, then the probe
 while pinch grasps run; the scan-rate sweep; the relay with the node's idle entities.
 
-Every run puts the control path on its rungs, hand.launch.py's (prisma_common.scheduling
-control_path_env: SCHED_FIFO 18-20 where permitted, each node on its own rung and each relay on the
-rung of the node it stands for): the launched graph, the node executables the sweep starts and the
-relays alike, so the real and relay runs and the 100 Hz and swept runs compare like with like. Each
-run records the rung every process was seen at (`rungs`).
+Every run puts the control path on one rung, hand.launch.py's (prisma_common.scheduling
+control_path_env: SCHED_FIFO 20 where permitted): the launched graph, the node executables the
+sweep starts and the relays alike, so the real and relay runs and the 100 Hz and swept runs compare
+like with like. Each run records the rung every process was seen at (`rungs`).
 """
 from __future__ import annotations
 
@@ -48,18 +47,18 @@ def _executable(package: str, name: str) -> str:
 
 def start_hand(kind: str, rate_hz: float, logdir: Path, launch: bool,
                relay_args: dict[str, list[str]] | None = None) -> tuple[list[Proc], dict[str, int]]:
-    """The hand graph on the control path's rungs (a relay on the rung of the node it stands for);
-    returns the processes to stop and the pid of each node (or its relay). relay_args: extra
-    arguments of a relay role (bench/ros_relay.py), by node."""
+    """The hand graph on the control path's rung; returns the processes to stop and the pid of each
+    node (or its relay). relay_args: extra arguments of a relay role (bench/ros_relay.py), by node."""
+    rung_env = control_path_env()
     if kind == "relay":
         relay = {node: start(f"relay_{RELAY_ROLE[node]}",
                              relay_command("ros_relay.py", RELAY_ROLE[node],
                                            "--rate-hz", str(rate_hz if node == "tactile_driver" else 100.0),
                                            "--goal-every", str(max(1, round(rate_hz / 10))),
-                                           *(relay_args or {}).get(node, [])), logdir, control_path_env(node))
+                                           *(relay_args or {}).get(node, [])), logdir, rung_env)
                  for node in HAND_NODES}
         return list(relay.values()), {node: p.popen.pid for node, p in relay.items()}
-    if launch:  # hand.launch.py's rt_priority:= and nice:= defaults are the same rungs
+    if launch:  # hand.launch.py's rt_priority:= and nice:= defaults are the same rung
         if rate_hz != 100.0:
             raise ValueError(f"hand.launch.py runs the sim scan at config/tactile_driver.yaml's rate_hz; "
                              f"{rate_hz} Hz needs launch=False")
@@ -76,8 +75,7 @@ def start_hand(kind: str, rate_hz: float, logdir: Path, launch: bool,
         "motor_driver": ("prisma_motor_driver", ["-p", "backend:=sim"]),
     }
     procs = {node: start(node, [_executable(package, node), "--ros-args", "-r", f"__node:={node}",
-                                "--params-file", str(config / f"{node}.yaml"), *extra], logdir,
-                          control_path_env(node))
+                                "--params-file", str(config / f"{node}.yaml"), *extra], logdir, rung_env)
              for node, (package, extra) in args.items()}
     return list(procs.values()), {node: p.popen.pid for node, p in procs.items()}
 

@@ -47,13 +47,12 @@ the rest (force_estimator, manipulation, tactile_markers, RViz); parts:=all (the
 not know where the others run: same topics, same actions.
 
 The control path (the four nodes, and the emulator with hardware:=emulated) runs with real-time
-scheduling, SCHED_FIFO up to rt_priority:=20, ahead of every ordinary process: a plotting tool, a
-recorder, a browser on the same cores cannot hold up the taxel, wrench and motor streams until a goal
-stops sensor_stale. The emulator and the motor driver run at rt_priority, the tactile driver one
-below, the force estimator and manipulation two below (prisma_common/scheduling.py). Where
-real-time scheduling is not permitted (not root, no `rtprio` limit in /etc/security/limits.conf;
-README, "On the robot") the nodes run at nice:=-5 if that is permitted, else at the default
-priority, and say so in their first log line. rt_priority:=0 asks for niceness only.
+scheduling, SCHED_FIFO rt_priority:=20, ahead of every ordinary process: a plotting tool, a recorder,
+a browser on the same cores cannot hold up the taxel, wrench and motor streams until a goal stops
+sensor_stale (prisma_common/scheduling.py). Where real-time scheduling is not permitted (not root, no
+`rtprio` limit in /etc/security/limits.conf; README, "On the robot") the nodes run at nice:=-5 if
+that is permitted, else at the default priority, and say so in their first log line. rt_priority:=0
+asks for niceness only.
 """
 import tempfile
 from pathlib import Path
@@ -197,7 +196,7 @@ def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCo
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("sim_object"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
-        name="hand_emulator", output="screen", additional_env=control_path_env("hand_emulator"), condition=condition,
+        name="hand_emulator", output="screen", additional_env=control_path_env(), condition=condition,
     )
     return [
         emulator,

@@ -15,15 +15,6 @@ Real-time scheduling needs root, CAP_SYS_NICE or an `rtprio` limit (README, "On 
 it is refused the process falls back to a raised niceness, which needs the `nice` limit, and
 otherwise runs at the default priority; `apply_priority` says which happened, for the node's log.
 
-Within the control path the processes stand on three rungs below its top (`RUNGS_BELOW_TOP`): the
-emulated hardware and the motor driver at the top, the sensor drivers one below, the nodes that
-compute (the force estimator's network, manipulation, teleop) two below. SCHED_FIFO does not share
-a core between processes of one priority: on one rung, a motor driver woken for its 100 Hz bus
-cycle waited behind inferences and controller steps, and /joint_states (which every watchdog
-watches, and whose bus traffic feeds the servos' 100 ms Bus Watchdog) went 104 ms silent once in a
-full test run. Measured on `hardware:=emulated` over 120 s each: gaps between /joint_states stamps
-p99.9 28.0 ms, max 42.2 ms on one rung; 17.8 and 24.8 ms on the ladder.
-
 The launch files ask for it through the environment (PRISMA_RT_PRIORITY, PRISMA_NICE), read once at
 the start of the process. A node takes its real-time rung only once it is built (node_process.py):
 its start (loading a model, torch's first inference) is seconds of CPU that, at SCHED_FIFO 20, would
@@ -38,7 +29,6 @@ import os
 from collections.abc import Mapping
 
 RT_PRIORITY_ENV = "PRISMA_RT_PRIORITY"  # 1-99: SCHED_FIFO priority; 0 or unset: no real-time scheduling
-RUNG_ENV = "PRISMA_RT_RUNG"  # how many priorities below PRISMA_RT_PRIORITY this process runs (0 or unset: at it)
 NICE_ENV = "PRISMA_NICE"  # niceness when real-time scheduling is not asked for or refused
 RT_PRIORITY_RANGE = (0, 99)
 NICE_RANGE = (-20, 19)
@@ -51,32 +41,14 @@ PROBE_RT_PRIORITY = 30
 # rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
 CONTROL_PATH_RT_PRIORITY = 20
 CONTROL_PATH_NICE = -5
-# The control path's processes by how far below its top they run (a process of the control path not
-# named here runs at the top). The niceness is the same for all.
-RUNGS_BELOW_TOP = {"hand_emulator": 0, "motor_driver": 0,
-                   "tactile_driver": 1, "synthetic_glove": 1,
-                   "force_estimator": 2, "manipulation": 2, "teleop": 2}
 # The fault CLI a test runs acts when the test says: above every ordinary process, below the control
 # path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
 FAULT_CLI_RT_PRIORITY = 10
 
 
-def control_path_env(process: str | None = None) -> dict[str, str]:
-    """The environment that puts a process on the control path, as hand.launch.py does: `process`
-    (an executable of RUNGS_BELOW_TOP) on its rung, None at the top."""
-    return {RT_PRIORITY_ENV: str(CONTROL_PATH_RT_PRIORITY), NICE_ENV: str(CONTROL_PATH_NICE),
-            RUNG_ENV: str(rung_below_top(process))}
-
-
-def rung_below_top(process: str | None) -> int:
-    """How many priorities below the control path's top `process` runs (0 for None)."""
-    return 0 if process is None else RUNGS_BELOW_TOP.get(process, 0)
-
-
-def rung_priority(top: int, below: int) -> int:
-    """The SCHED_FIFO priority `below` rungs under `top` (never under 1); 0 (no real-time scheduling)
-    stays 0."""
-    return max(1, top - below) if top > 0 else 0
+def control_path_env() -> dict[str, str]:
+    """The environment that puts a process on the control path's rung, as hand.launch.py does."""
+    return {RT_PRIORITY_ENV: str(CONTROL_PATH_RT_PRIORITY), NICE_ENV: str(CONTROL_PATH_NICE)}
 
 
 def try_rt_priority(priority: int) -> bool:
@@ -137,17 +109,13 @@ def apply_priority(rt_priority: int | None, nice: int | None) -> str:
 
 
 def priority_from_env(env: Mapping[str, str] | None = None) -> tuple[int | None, int | None] | None:
-    """(rt_priority, nice) from PRISMA_RT_PRIORITY (PRISMA_RT_RUNG rungs below it) and PRISMA_NICE, None
-    when neither is set (a process started by hand keeps the priority it was given). ValueError names a
-    malformed one."""
+    """(rt_priority, nice) from PRISMA_RT_PRIORITY and PRISMA_NICE, None when neither is set (a process
+    started by hand keeps the priority it was given). ValueError names a malformed one."""
     env = os.environ if env is None else env
     rt_priority = _env_int(env, RT_PRIORITY_ENV, *RT_PRIORITY_RANGE)
     nice = _env_int(env, NICE_ENV, *NICE_RANGE)
     if rt_priority is None and nice is None:
         return None
-    below = _env_int(env, RUNG_ENV, *RT_PRIORITY_RANGE)
-    if rt_priority is not None and below:
-        rt_priority = rung_priority(rt_priority, below)
     return rt_priority, nice
 
 

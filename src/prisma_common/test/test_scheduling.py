@@ -15,7 +15,6 @@ from prisma_common.scheduling import (
     apply_priority,
     apply_priority_from_env,
     control_path_env,
-    priority_from_env,
 )
 
 IS_ROOT = os.geteuid() == 0
@@ -98,17 +97,3 @@ def test_try_rt_priority_sets_the_calling_process():
             "os.sched_getparam(0).sched_priority)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["True", str(os.SCHED_FIFO), str(FAULT_CLI_RT_PRIORITY)]
-
-
-def test_the_control_path_ladder_puts_the_bus_above_the_sensors_above_the_computing_nodes():
-    assert priority_from_env(control_path_env("motor_driver")) == (20, -5)
-    assert priority_from_env(control_path_env("hand_emulator")) == (20, -5)
-    assert priority_from_env(control_path_env("tactile_driver")) == (19, -5)
-    assert priority_from_env(control_path_env("force_estimator")) == (18, -5)
-    assert priority_from_env(control_path_env("manipulation")) == (18, -5)
-    assert priority_from_env(control_path_env()) == (20, -5)  # a process of its own: at the top
-    # rt_priority:=2 on the launch line: never below 1; rt_priority:=0 stays without real-time scheduling
-    assert priority_from_env({"PRISMA_RT_PRIORITY": "2", "PRISMA_RT_RUNG": "2"}) == (1, None)
-    assert priority_from_env({"PRISMA_RT_PRIORITY": "0", "PRISMA_NICE": "-5", "PRISMA_RT_RUNG": "2"}) == (0, -5)
-    with pytest.raises(ValueError, match="PRISMA_RT_RUNG='two': an integer from 0 to 99"):
-        priority_from_env({"PRISMA_RT_PRIORITY": "20", "PRISMA_RT_RUNG": "two"})
