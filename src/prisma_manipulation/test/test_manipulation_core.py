@@ -29,6 +29,7 @@ from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.ros_conversions import (
     joint_sample_from_msg,
 )
+from prisma_testing.core_inputs import core_at_rest, pressed_pad
 
 MS = 1_000_000
 
@@ -38,21 +39,8 @@ def roundtrip(msg):
     return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
 
 
-def _core():
-    core = ManipulationCore(ManipulationConfig())
-    core.on_joints(JointSample(0, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 0)
-    return core
-
-
-def _volts(right_lost=False):
-    v = np.array([0.8, 1.1, 0.8, 1.0, 1.5, 1.3, 0.8, 1.2, 0.8], dtype=np.float32)
-    if right_lost:
-        v[[0, 3, 6]] = 0.5
-    return v
-
-
 def test_core_validates_goals_with_defaults_and_limits():
-    core = _core()
+    core = core_at_rest()
     resolved, refusal = core.resolve(GraspRequest("pinch"))
     assert refusal is None and (resolved.finger_force, resolved.thumb_force, resolved.speed_rpm) == (0.8, 1.0, 60.0)
     assert (core.resolve(GraspRequest("pinch", speed_rpm=71.0))[1]
@@ -89,7 +77,7 @@ def _feed(core, t_ms, taxels=("thumb", "index"), wrenches=("thumb", "index"), jo
     if joints:
         core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), t)
     for f in taxels:
-        core.on_taxels(f, t - age_ms * MS, _volts(), t)
+        core.on_taxels(f, t - age_ms * MS, pressed_pad(), t)
     for f in wrenches:
         core.on_wrench(f, t - age_ms * MS, 0.0, t)
 
@@ -175,7 +163,7 @@ def test_foreign_joint_states_change_no_decision():
             if t_ms == 20:
                 log.append(core.accept(ManipulateRequest("horizontal"), True, t))
                 log.append(core.start(ManipulateRequest("horizontal"), t))
-            log.append(core.on_taxels("thumb", t, _volts(right_lost=t_ms >= 200), t + 2 * MS)[1])
+            log.append(core.on_taxels("thumb", t, pressed_pad(right_lost=t_ms >= 200), t + 2 * MS)[1])
             log.append(core.check(t + 5 * MS))
         return log, core
 
@@ -190,18 +178,18 @@ def test_foreign_joint_states_change_no_decision():
 
 
 def test_core_steps_on_each_complete_scan_and_stops_on_edge_lost():
-    core = _core()
+    core = core_at_rest()
     actions = core.start(ManipulateRequest("horizontal", k=0.9), 0)
     # the lease counts from the oldest watched input: /joint_states from t=0
     assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}, MOVE_LEASE_S, 0)
     assert core.monitor.k == 0.9  # the goal's k for the goal's duration
-    ev, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
+    ev, actions = core.on_taxels("thumb", 10 * MS, pressed_pad(), 10 * MS)
     assert ev.k == 0.9 and [type(a) for a in actions] == [Feedback]
-    ev, actions = core.on_taxels("thumb", 20 * MS, _volts(right_lost=True), 20 * MS)
+    ev, actions = core.on_taxels("thumb", 20 * MS, pressed_pad(right_lost=True), 20 * MS)
     assert ev.lost_edges == ("right",)
     assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}, MOVE_LEASE_S, 0)
     core.on_joints(JointSample(30 * MS, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 30 * MS)
-    _, actions = core.on_taxels("thumb", 30 * MS, _volts(), 30 * MS)
+    _, actions = core.on_taxels("thumb", 30 * MS, pressed_pad(), 30 * MS)
     assert isinstance(actions[0], StopMotors)
     done = actions[-1]
     assert isinstance(done, Finished) and done.success and done.reason == "edge_lost"
@@ -210,11 +198,11 @@ def test_core_steps_on_each_complete_scan_and_stops_on_edge_lost():
 
 
 def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
-    core = _core()
+    core = core_at_rest()
     core.start(GraspRequest("pinch"), 0)
-    _, actions = core.on_taxels("thumb", 10 * MS, _volts(), 10 * MS)
+    _, actions = core.on_taxels("thumb", 10 * MS, pressed_pad(), 10 * MS)
     assert actions == []
-    _, actions = core.on_taxels("index", 10 * MS, _volts(), 10 * MS)
+    _, actions = core.on_taxels("index", 10 * MS, pressed_pad(), 10 * MS)
     assert actions == [] and core.on_wrench("thumb", 10 * MS, 0.0, 11 * MS) == []
     actions = core.on_wrench("index", 10 * MS, 0.85, 12 * MS)
     assert actions[0] == SendMove({"fingers": 0.0, "thumb_flexion": 60.0, "thumb_rotation": 0.0}, MOVE_LEASE_S, 0)
@@ -222,7 +210,7 @@ def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
 
 def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
     for trigger, reason in (("stale", "sensor_stale"), ("cancel", "canceled"), ("fault", "motor_fault")):
-        core = _core()
+        core = core_at_rest()
         core.start(GraspRequest("pinch"), 0)
         if trigger == "stale":
             for t in range(20, 100, 20):  # the watchdog's ticks: nothing arrives
@@ -244,11 +232,11 @@ def test_live_parameters_apply_when_they_should():
     gives way only to a change of k itself."""
     from dataclasses import replace
 
-    core = _core()
+    core = core_at_rest()
     core.start(GraspRequest("pinch"), 0)
     core.reconfigure(replace(core.config, stale_timeout=0.2, grasp_speed_rpm=40.0, min_mean_voltage=2.0))
     assert core.busy and not any(isinstance(a, Finished) for a in core.check(150 * MS))  # stale after 200 ms now
-    ev, _ = core.on_taxels("thumb", 160 * MS, _volts(), 160 * MS)
+    ev, _ = core.on_taxels("thumb", 160 * MS, pressed_pad(), 160 * MS)
     assert ev.mean_voltage < 2.0 and not ev.feasible  # below the new min_mean_voltage
     assert core.resolve(GraspRequest("pinch"))[0].speed_rpm == 40.0
     assert core.check(361 * MS)[-1].reason == "sensor_stale"  # /joint_states silent for 361 ms
@@ -269,12 +257,12 @@ def test_a_manipulation_is_refused_no_contact_on_an_untouched_pad():
                             "0.55 V): a manipulation starts from a held object, grasp first")
     # the refused goal holds nothing: the next one is refused for its own reason, not busy
     assert str(core.accept(GraspRequest("pinch"), True, 10 * MS)) == "not_ready: no taxels/index received yet"
-    core.on_taxels("thumb", 20 * MS, _volts(), 20 * MS)  # mean 1.03 V: held
+    core.on_taxels("thumb", 20 * MS, pressed_pad(), 20 * MS)  # mean 1.03 V: held
     assert core.accept(ManipulateRequest("horizontal"), True, 20 * MS) is None
 
 
 def test_a_manipulation_that_loses_its_contact_ends_no_contact():
-    core = _core()
+    core = core_at_rest()
     core.start(ManipulateRequest("vertical"), 0)
     _, actions = core.on_taxels("thumb", 10 * MS, np.array(PadParams().rest_volts, dtype=np.float32), 10 * MS)
     assert isinstance(actions[0], StopMotors)
@@ -285,7 +273,7 @@ def test_a_manipulation_that_loses_its_contact_ends_no_contact():
 
 
 def test_a_move_goal_the_driver_refuses_ends_the_goal_motor_fault():
-    core = _core()
+    core = core_at_rest()
     core.start(GraspRequest("pinch"), 0)
     actions = core.on_move_result("not_ready: motor bus not connected: [Errno 2] No such file", 5 * MS)
     assert isinstance(actions[0], StopMotors)
@@ -293,7 +281,7 @@ def test_a_move_goal_the_driver_refuses_ends_the_goal_motor_fault():
                                                                       "[Errno 2] No such file")
 
 
-def test_gripper_goal_through_the_core():
+def test_gripper_goal_through_thecore_at_rest():
     """Every configured pad's taxels and wrench step it; the fingers close at 60 rpm and the thumb at
     0.8333 x 60; the highest pad force (the estimator's Fz) stops it; feedback and result carry
     position, effort, stalled and reached_goal."""
@@ -317,7 +305,7 @@ def test_gripper_goal_through_the_core():
                                        "thumb_rotation": 0.0}), t)
         out = []
         for f in fingers:
-            out += core.on_taxels(f, t, _volts(), t)[1]
+            out += core.on_taxels(f, t, pressed_pad(), t)[1]
         for f in fingers:
             out += core.on_wrench(f, t, forces.get(f, 0.0), t)
         return out

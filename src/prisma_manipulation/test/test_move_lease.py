@@ -3,7 +3,6 @@
 from the data it rests on, so that renewals a dropped link held back are refused when it returns."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from prisma_manipulation.controllers import JointSample
@@ -11,35 +10,20 @@ from prisma_manipulation.manipulation_core import (
     Feedback,
     Finished,
     ManipulateRequest,
-    ManipulationCore,
 )
 from prisma_manipulation.move_lease import MOVE_LEASE_S, MoveLease, SendMove, StopMotors
 from prisma_manipulation.node_config import ManipulationConfig
 from prisma_motor_driver.motor_goals import goal_expired
 from prisma_motor_driver.ros_conversions import velocity_goal
+from prisma_testing.core_inputs import core_at_rest, pressed_pad
 
 MS = 1_000_000
-HAND_AT_REST = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}
-
-
-def _core(config: ManipulationConfig | None = None) -> ManipulationCore:
-    core = ManipulationCore(config or ManipulationConfig())
-    core.on_joints(JointSample(0, dict(HAND_AT_REST)), 0)
-    return core
-
-
-def _volts(right_lost=False):
-    """A thumb pad pressed at its centre (both edges in contact); right_lost: its right column dark."""
-    v = np.array([0.8, 1.1, 0.8, 1.0, 1.5, 1.3, 0.8, 1.2, 0.8], dtype=np.float32)
-    if right_lost:
-        v[[0, 3, 6]] = 0.5
-    return v
 
 
 def test_motor_commands_are_leased_and_refreshed_while_they_hold():
     """The motor driver stops a MoveMotors goal after MOVE_LEASE_S (0.3 s); the core re-sends the
     running command every 0.1 s, so the motors stop within 0.3 s of the last refresh when it dies."""
-    core = _core()
+    core = core_at_rest()
     rotate = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}
     back = {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": -20.0}
 
@@ -47,7 +31,7 @@ def test_motor_commands_are_leased_and_refreshed_while_they_hold():
         """Joint states (refreshes ride on their check) and a thumb sample at t_ms: what was sent."""
         t = t_ms * MS
         sent = core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": rotation}), t)
-        sent += core.on_taxels("thumb", t, _volts(right_lost), t)[1]
+        sent += core.on_taxels("thumb", t, pressed_pad(right_lost), t)[1]
         return [a for a in sent if not isinstance(a, Feedback)]
 
     assert core.start(ManipulateRequest("horizontal"), 0)[0] == SendMove(rotate, 0.3, 0)
@@ -66,7 +50,7 @@ def test_motor_commands_are_leased_and_refreshed_while_they_hold():
     assert [scan(t) for t in range(450, 610, 10)] == [[]] * 16 and core.busy
     # a stop is a cancel, and nothing is refreshed after the goal
     core.on_joints(JointSample(610 * MS, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}), 610 * MS)
-    _, actions = core.on_taxels("thumb", 610 * MS, _volts(), 610 * MS)
+    _, actions = core.on_taxels("thumb", 610 * MS, pressed_pad(), 610 * MS)
     assert isinstance(actions[0], StopMotors) and isinstance(actions[-1], Finished)
     assert core.check(10**9) == [] and core.on_move_result("timeout", 10**9) == []
 
@@ -93,14 +77,14 @@ def test_no_renewal_sent_into_a_dropped_link_restarts_the_motors_when_it_comes_b
     command until its watchdog fires, and every renewal is delivered when the link comes back. Each
     lease counts from the data it rests on, so the driver refuses every one as expired; counted from
     its send time, the last would have run the motors again for 0.1 s."""
-    core = _core(ManipulationConfig(stale_timeout=0.24))
-    core.on_taxels("thumb", 0, _volts(), 0)
+    core = core_at_rest(ManipulationConfig(stale_timeout=0.24))
+    core.on_taxels("thumb", 0, pressed_pad(), 0)
     assert core.start(ManipulateRequest("horizontal"), 0)[0] == SendMove(
         {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 20.0}, MOVE_LEASE_S, 0)
     for t_ms in range(10, 110, 10):  # scans until the link drops after the one at 100 ms
         t = t_ms * MS
         core.on_joints(JointSample(t, {"fingers": 0.0, "thumb_flexion": 0.0, "thumb_rotation": 0.5}), t)
-        core.on_taxels("thumb", t, _volts(), t)
+        core.on_taxels("thumb", t, pressed_pad(), t)
     outage = []
     for t_ms in range(120, 500, 20):  # the watchdog's ticks while nothing arrives
         actions = core.check(t_ms * MS)
