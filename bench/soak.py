@@ -41,7 +41,7 @@ def minute_medians(report) -> dict[str, list[float]]:
     return medians
 
 
-def plot(report, path: Path) -> None:
+def plot(report, path: Path, beside_load: bool = True) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -53,8 +53,8 @@ def plot(report, path: Path) -> None:
         values = [sample.get(name, float("nan")) for _, sample in report.rss_timeline]
         rss.plot(times, values, label=name)
     rss.set_ylabel("resident memory (MiB)")
-    rss.set_title(f"Soak beside the load harness: {len(report.goals)} goals, {len(report.failures)} missed "
-                  f"their outcome")
+    where = "beside the load harness" if beside_load else "without the load harness"
+    rss.set_title(f"Soak {where}: {len(report.goals)} goals, {len(report.failures)} missed their outcome")
     rss.legend(loc="center right")
     colours = {"grasp pinch": "tab:blue", "manipulate horizontal": "tab:green",
                "manipulate vertical, cancelled": "tab:orange", "gripper open": "tab:purple"}
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     tmp.replace(args.out / "soak.json")  # whole or not at all
     print(json.dumps(summary, indent=1))
     if args.plot:
-        plot(report, args.plot)
+        plot(report, args.plot, beside_load=not args.no_load)
         print(f"wrote {args.plot}")
     grew = {n: g for n, g in report.rss_growth_mb.items() if g >= MAX_RSS_GROWTH_MB}
     return 1 if report.failures or report.refused_replacements or report.dead or grew else 0
