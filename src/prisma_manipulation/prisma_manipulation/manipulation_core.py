@@ -275,14 +275,15 @@ class ManipulationCore:
         if self.controller is None:
             return []
         goal = self._running()[1]
-        stale = self.watchdog.check(self._watched(), now_ns)
+        watched = self._watched()
+        stale = self.watchdog.check(watched, now_ns)
         if stale is not None:
             return self._abort(now_ns, SENSOR_STALE, stale)
         for spec in (i for i in goal.inputs if i.stream in self._streams.inputs):
             silent = self.watchdog.check_input(spec.stream, self._input_timeout_ns, now_ns, spec.topic)
             if silent is not None:
                 return self._abort(now_ns, goal.stale_reason(spec.stream), silent)
-        refresh = self.lease.refresh(now_ns, self._data_ns(now_ns))
+        refresh = self.lease.refresh(now_ns, self._data_ns(now_ns, watched))
         return [refresh] if refresh is not None else []
 
     def cancel(self, now_ns: int) -> list:
@@ -316,9 +317,10 @@ class ManipulationCore:
         controller = self._running()[0]
         return [f"taxels/{f}" for f in controller.fingers] + [f"wrench/{f}" for f in self._streams.wrenches]
 
-    def _data_ns(self, now_ns: int) -> int:
-        """When the oldest watched input arrived: a motor command's lease counts from there (SendMove)."""
-        oldest = self.watchdog.oldest_receipt(self._watched())
+    def _data_ns(self, now_ns: int, watched: list[str] | None = None) -> int:
+        """When the oldest watched input arrived (`watched`: the running goal's, if its caller has them):
+        a motor command's lease counts from there (SendMove)."""
+        oldest = self.watchdog.oldest_receipt(self._watched() if watched is None else watched)
         return now_ns if oldest is None else oldest
 
     def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:

@@ -2,9 +2,10 @@
 (`MOVE_LEASE_S`) and, while the controller keeps the same command, is re-sent every `MOVE_REFRESH_S`.
 A node that dies or hangs stops re-sending; the driver's goal times out and it stops the motors.
 
-The lease also bounds the sensor watchdog's window (node_config.py: stale_timeout below the lease):
-a renewal decided on data the watchdog still calls fresh, held back by a dropped link and delivered
-when it comes back, must be refused by the driver as expired, not restart the motors.
+Each goal is stamped with when its data arrived (`SendMove`), so a renewal decided on data the
+watchdog still calls fresh, held back by a dropped link and delivered when it comes back, is refused
+by the driver as expired instead of starting the motors again; the watchdog's window stays below the
+lease (node_config.py) to keep that bound short.
 """
 from __future__ import annotations
 
@@ -38,7 +39,6 @@ class SendMove:
 @dataclass(frozen=True)
 class StopMotors:
     pass
-
 
 
 class MoveLease:

@@ -158,8 +158,8 @@ class ManipulationConfig(Params):
             # manipulation renews the motor command until its watchdog fires: the window bounds how long
             # after its last data a renewal that a dropped link held back can still run the motors
             raise ParameterError("stale_timeout", self.stale_timeout,
-                                 f"must be below the MoveMotors lease {MOVE_LEASE_S:g} s: a motor command lasts at "
-                                 "most a lease past the data it rests on")
+                                 f"must be below the MoveMotors lease {MOVE_LEASE_S:g} s: it bounds how long after "
+                                 "its last data a renewal a dropped link held back can still run the motors")
         for name in GOAL_SPEEDS:
             if getattr(self, name) > self.max_speed_rpm:
                 raise ParameterError(name, getattr(self, name), f"above max_speed_rpm {self.max_speed_rpm}")
