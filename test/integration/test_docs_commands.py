@@ -13,6 +13,8 @@ shipped files from the root:
   traceback (ROS only); every `prisma-eval-force` line whose bundles are shipped and that writes
   nothing (no --plots, --json, --table) evaluates them (as `python -m prisma_force_estimator.cli
   eval`, the checkout's code: the console script on PATH may be another install's).
+- docs/architecture.md's launch-file table names, for each launch file, exactly the arguments it
+  declares (an argument added, renamed or dropped shows up here, not in a user's `ros2 launch`).
 The rest (launches, goals, training for minutes, commands on recordings) are run by the launch,
 CLI and training tests; here their paths are checked.
 """
@@ -26,7 +28,7 @@ from pathlib import Path
 
 import pytest
 
-from prisma_testing.repo_paths import BRINGUP, ROOT
+from prisma_testing.repo_paths import BRINGUP, LAUNCH, ROOT
 from prisma_testing.ros_harness import NodeProcess
 
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -128,3 +130,24 @@ def test_prisma_eval_force_on_the_shipped_bundle_runs(where, line):
     result = subprocess.run(args, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, f"{where}: {line}\n{result.stdout}{result.stderr}"
     assert "| cnn2 |" in result.stdout and "push_fz ok" in result.stdout, result.stdout
+
+
+def launch_table() -> dict[str, str]:
+    """docs/architecture.md's launch-file table: file name -> its arguments cell."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    section = text.split("### Launch files", 1)[1].split("\n\n", 1)[0]
+    rows = [line.split(" | ") for line in section.splitlines() if line.startswith("| ") and ".launch.py" in line]
+    return {cells[0].strip("| "): cells[2] for cells in rows}
+
+
+def test_the_launch_table_names_exactly_the_arguments_each_launch_file_declares():
+    table = launch_table()
+    files = sorted(p.name for p in LAUNCH.glob("*.launch.py"))
+    assert sorted(table) == files, "docs/architecture.md's launch table: one row per file in launch/"
+    for name, cell in table.items():
+        declared = set(re.findall(r'DeclareLaunchArgument\(\s*"(\w+)"', (LAUNCH / name).read_text()))
+        named = set(re.findall(r"`([a-z_]+)`", cell))  # `x:=y`, `<dir>/servos`: examples, not names
+        assert declared, f"{name} declares no argument"
+        extra, missing = sorted(named - declared), sorted(declared - named)
+        assert not extra and not missing, (f"docs/architecture.md, {name}'s row: not in the launch file {extra}, "
+                                           f"declared but not in the row {missing}")
