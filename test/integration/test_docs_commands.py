@@ -13,6 +13,8 @@ shipped files from the root:
   traceback (ROS only); every `prisma-eval-force` line whose bundles are shipped and that writes
   nothing (no --plots, --json, --table) evaluates them (as `python -m prisma_force_estimator.cli
   eval`, the checkout's code: the console script on PATH may be another install's).
+- every `ros2 launch prisma_bringup <file> name:=value ...` line (documents and the launch files'
+  docstrings) passes arguments that file declares, with a value among its choices where it has any;
 - docs/architecture.md's launch-file table names, for each launch file, exactly the arguments it
   declares (an argument added, renamed or dropped shows up here, not in a user's `ros2 launch`).
 The rest (launches, goals, training for minutes, commands on recordings) are run by the launch,
@@ -20,6 +22,7 @@ CLI and training tests; here their paths are checked.
 """
 from __future__ import annotations
 
+import ast
 import re
 import shlex
 import subprocess
@@ -151,3 +154,41 @@ def test_the_launch_table_names_exactly_the_arguments_each_launch_file_declares(
         extra, missing = sorted(named - declared), sorted(declared - named)
         assert not extra and not missing, (f"docs/architecture.md, {name}'s row: not in the launch file {extra}, "
                                            f"declared but not in the row {missing}")
+
+
+def declared_arguments(launch_file: Path) -> dict[str, tuple[str, ...] | None]:
+    """A launch file's DeclareLaunchArgument names -> their choices (None: any value)."""
+    declared: dict[str, tuple[str, ...] | None] = {}
+    for node in ast.walk(ast.parse(launch_file.read_text())):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "DeclareLaunchArgument":
+            choices = next((k.value for k in node.keywords if k.arg == "choices"), None)
+            try:
+                declared[ast.literal_eval(node.args[0])] = tuple(ast.literal_eval(choices)) if choices else None
+            except ValueError:  # choices computed (list(FINGERS)): launch itself checks those
+                declared[ast.literal_eval(node.args[0])] = None
+    return declared
+
+
+def launch_lines() -> list[tuple[str, str, str]]:
+    """(where, launch file, the rest of the line) for each documented `ros2 launch prisma_bringup`."""
+    found = []
+    for source in [*DOCUMENTS, *sorted(LAUNCH.glob("*.launch.py"))]:
+        for number, line in enumerate(source.read_text().splitlines(), 1):
+            for match in re.finditer(r"ros2 launch prisma_bringup (\w+\.launch\.py)([^`|]*)", line):
+                found.append((f"{source.relative_to(ROOT)}:{number}", match.group(1), match.group(2)))
+    return found
+
+
+def test_documented_launch_lines_are_found():
+    files = {file for _, file, _ in launch_lines()}
+    assert files == {p.name for p in LAUNCH.glob("*.launch.py")}, "every launch file has a documented line"
+
+
+@pytest.mark.parametrize("where,file,rest", launch_lines())
+def test_a_documented_launch_line_passes_arguments_its_file_declares(where, file, rest):
+    assert (LAUNCH / file).is_file(), f"{where}: no launch file {file}"
+    declared = declared_arguments(LAUNCH / file)
+    for name, value in re.findall(r"(\w+):=(\S+)", rest):
+        assert name in declared, f"{where}: {file} declares no argument {name} (it has {sorted(declared)})"
+        choices = declared[name]
+        assert choices is None or value in choices, f"{where}: {name}:={value}, but {file} takes {choices}"
