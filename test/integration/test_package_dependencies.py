@@ -3,11 +3,13 @@
 Every import of another workspace package is at module level (a `TYPE_CHECKING` block counts as
 module level) and declared in package.xml; none hides inside a function. The declared graph is
 acyclic, so it has no back-edges: prisma_common and prisma_hand_sim, the ROS-free layers, sit
-below every driver and import no ROS.
+below every driver and import no ROS. docs/architecture.md's workspace layout lists every package,
+and its dependency drawing has the declared graph's layering (each package above the same ones).
 """
 from __future__ import annotations
 
 import ast
+import re
 import xml.etree.ElementTree as ET
 from graphlib import CycleError, TopologicalSorter
 
@@ -110,3 +112,51 @@ def test_the_ros_free_layers_are_at_the_bottom():
         ros = {name: sorted(where) for name, where in {**top, **nested}.items()
                if name in ("rclpy", "rosidl_runtime_py") or name.endswith("_msgs")}
         assert not ros, f"{package} must stay ROS-free, imports {ros}"
+
+
+ARCHITECTURE = (ROOT / "docs" / "architecture.md").read_text()
+ALWAYS_BELOW = {"prisma_common", "prisma_msgs"}  # the drawing leaves them implicit under every package
+
+
+def drawn_graph() -> dict[str, set[str]]:
+    """architecture.md's drawing: lines of `a, b <- c <- d  (note)`, and `all of the above but x`."""
+    block = ARCHITECTURE.split("## Package dependencies\n```\n", 1)[1].split("```", 1)[0]
+    graph: dict[str, set[str]] = {}
+    above: list[str] = []  # every package named on the lines so far
+    for line in block.splitlines():
+        levels = [level.strip() for level in re.sub(r"\(.*?\)", "", line).split("<-")]
+        for lower, upper in zip(levels, levels[1:]):
+            names: list[str] = []
+            for item in (s.strip() for s in lower.split(",")):
+                but = re.fullmatch(r"all of the above but (\w+)", item)
+                names += [n for n in above if n != but.group(1)] if but else [item]
+            graph.setdefault(upper, set()).update(names)
+            above += [n for n in [*names, upper] if n not in above]
+    return graph
+
+
+def below(graph: dict[str, set[str]], package: str) -> set[str]:
+    found: set[str] = set()
+    todo = [package]
+    while todo:
+        for dependency in graph.get(todo.pop(), ()):
+            if dependency not in found:
+                found.add(dependency)
+                todo.append(dependency)
+    return found - ALWAYS_BELOW
+
+
+def test_the_workspace_layout_lists_every_package():
+    layout = ARCHITECTURE.split("## Workspace layout\n```\n", 1)[1].split("```", 1)[0]
+    listed = sorted(re.findall(r"^src/(\w+)/", layout, re.MULTILINE))
+    assert listed == PACKAGES, f"docs/architecture.md's layout lists {listed}, src/ holds {PACKAGES}"
+
+
+def test_the_dependency_drawing_has_the_declared_layering():
+    drawn = drawn_graph()
+    declared_graph = {p: declared(p) & set(PACKAGES) for p in PACKAGES}
+    assert set(drawn) | {n for names in drawn.values() for n in names} == set(PACKAGES)
+    for package in PACKAGES:
+        assert below(drawn, package) == below(declared_graph, package), (
+            f"docs/architecture.md draws {package} above {sorted(below(drawn, package))}, "
+            f"its package.xml puts it above {sorted(below(declared_graph, package))}")
