@@ -20,6 +20,7 @@ from rclpy.qos import qos_profile_sensor_data
 
 from prisma_common.diagnostics import diagnostics_from_msg, of_namespace
 from prisma_common.hand import FINGERS
+from prisma_common.messages import ns_from_stamp
 
 from .doctor_facts import (
     HAND_NODES,
@@ -61,7 +62,7 @@ class Gatherer:
 
         def on_diagnostics(msg: Any) -> None:
             # every hand publishes on /diagnostics; a namespaced hand's statuses carry its namespace
-            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            stamp = ns_from_stamp(msg.header.stamp)
             for status in diagnostics_from_msg(msg):
                 ours = of_namespace(status, self.namespace)
                 if ours is not None:
@@ -72,7 +73,7 @@ class Gatherer:
             def take(msg: Any) -> None:
                 if self.sampling:
                     voltages = list(msg.voltages)
-                    stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                    stamp = ns_from_stamp(msg.header.stamp)
                     self.samples[finger].append((stamp, min(voltages), max(voltages)))
             return take
 
