@@ -130,7 +130,10 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         """The glove falls silent: when its last target was published (its stamp)."""
         results = self.ros.set_parameters("/teleop_test_glove", on=False)
         self.assertTrue(all(r.successful for r in results), results)
-        self.ros.spin_for(0.1)  # the last ones in flight arrive
+        off_ns = self.ros.now_ns()  # its publishing timer runs in the thread that answered: none after this
+        # this process takes the streams late on a busy machine: once it has the /joint_states of
+        # 0.1 s later, the targets before them (same executor, each ready stream taken in turn) are in
+        self.ros.message_stamped(self.joints, off_ns + 100_000_000, 30.0)
         return stamp_ns(self.targets[-1])
 
     def start_goal(self):
@@ -190,7 +193,7 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         last_ns = self.glove_stops()
         result = ros.result(self.handle, timeout_sec=10.0)
         status, reason = goal_outcome(result)
-        ros.spin_for(0.5)
+        ros.message_stamped(self.joints, last_ns + 500_000_000, 30.0)  # however late this process takes them
         after = [m for m in self.joints if stamp_ns(m) >= last_ns]
         stop_s = self.stopped_after(after, last_ns, STOPPED_RAD_S)
         settle_s = self.stopped_after(after, last_ns, SIM_STOPPED_RAD_S)

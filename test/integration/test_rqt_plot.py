@@ -95,9 +95,14 @@ def test_rqt_plot_widget_plots_threshold_against_taxel_3(ros):
             return all(len(data_plot._curves[name]["y"]) >= 100 for name in (THRESHOLD, TAXEL_3))
 
         assert ros.spin_until(filled, 60.0), {n: len(data_plot._curves[n]["y"]) for n in (THRESHOLD, TAXEL_3)}
-        ros.spin_for(0.2)  # the probe's own copy of the last plotted messages
         curves = {name: (data_plot._curves[name]["x"].copy(), data_plot._curves[name]["y"].copy())
                   for name in (THRESHOLD, TAXEL_3)}
+        # the probe's own copy of the last plotted messages: rqt_plot's subscription keeps the newest
+        # 10 and this one all of them, so on a busy machine this one is seconds behind rqt_plot's
+        newest = max(float(xs.max()) for xs, _ in curves.values())
+        assert ros.spin_until(lambda: plot_x(contacts[-1], widget._start_time) >= newest, 60.0), (
+            f"the probe took /prisma/thumb/contact up to x = {plot_x(contacts[-1], widget._start_time):.3f}, "
+            f"rqt_plot's newest point is at {newest:.3f}")
         lines = {name: line for name, line in data_plot._data_plot_widget._curves.items()}
         drawn = {name: len(line.get_xdata()) for name, line in lines.items()}
         image = widget.grab().toImage()

@@ -19,6 +19,7 @@ import signal
 import subprocess
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -204,15 +205,31 @@ class RosHarness:
         from rclpy.executors import TimeoutException
 
         end = time.monotonic() + timeout_sec
+        # rclpy starts a pass's quiet_sec timer when the pass starts, not when it waits: on a busy
+        # machine the timer has run out before the wait, which then returns at once with whatever is
+        # ready, and the pass ends "timed out" right after running callbacks that may have set off
+        # more. So quiet is a timed-out pass that ran nothing, polling a coroutine that still awaits
+        # (a goal's execute callback, yielded by every pass) not counted: its first run is.
+        awaiting: weakref.WeakSet = weakref.WeakSet()
+        ran = False
         while time.monotonic() < end:
             try:
                 # what rclpy's spin_once does, telling whether anything was ready
                 handler, _, _ = self.executor.wait_for_ready_callbacks(quiet_sec, None, _never)
             except TimeoutException:
-                return
+                if not ran:
+                    return
+                ran = False
+                continue
+            polled_again = handler in awaiting
             handler()
             if handler.exception() is not None:
                 raise handler.exception()
+            if handler.done():
+                ran = True
+            else:
+                ran = ran or not polled_again
+                awaiting.add(handler)
         raise TimeoutError(f"callbacks still ready after {timeout_sec} s of settling")
 
     def set_time(self, stamp_ns: int, settle: bool = False) -> None:
