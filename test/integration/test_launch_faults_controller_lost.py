@@ -66,7 +66,7 @@ class TestControllerLost(GraphTestCase):
         os.kill(pid, signal.SIGKILL)
         proc_info.assertWaitForShutdown(process="manipulation", timeout=10)
 
-        ros.spin_for(1.5)
+        ros.message_stamped(joints, kill_ns + 1_500_000_000, 30.0)  # 1.5 s of them, however late they come
         after = [m for m in joints[received_before:] if stamp_ns(m) > kill_ns]
         self.assertTrue(after, "no /joint_states after the kill")
         self.assertFalse(stopped(after[0], SIM_STOPPED_RAD_S), "the motors were not moving at the kill")

@@ -208,7 +208,7 @@ class TestMissingParts(GraphTestCase):
         self.hub.unplug()
         unplugged_ns = time.time_ns()
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on without its sensors")
-        ros.spin_for(0.5)  # every /joint_states of the stop has arrived
+        ros.message_at(self.joints, 0.5, timeout_sec=30.0)  # every /joint_states of the stop, however late
         self.assertEqual((result.result().status, result.result().result.reason),
                          (GoalStatus.STATUS_ABORTED, "sensor_stale"))
         ended = ros.wait_for_log(name="manipulation", contains="grasp goal ended: sensor_stale")

@@ -62,7 +62,7 @@ class TestEmptyHandGripper(GraphTestCase):
         self.assertEqual(outcome.status, GoalStatus.STATUS_ABORTED)
         self.assertTrue(outcome.result.stop_reason.startswith("no_contact: the thumb pad is not in contact"),
                         outcome.result.stop_reason)
-        ros.spin_for(0.3)
+        ros.message_at(self.joints, 0.3, timeout_sec=30.0)  # however late this process takes them
         self.assertTrue(all(stopped(m) for m in self.joints[before:]))  # nothing moved
 
     def test_2_gripper_closes_fully_on_nothing(self):
@@ -100,7 +100,7 @@ class TestEmptyHandGripper(GraphTestCase):
         handle.cancel_goal_async()
         self.assertTrue(ros.spin_until(result, 10.0), "no result after the cancel")
         self.assertEqual(result.result().status, GoalStatus.STATUS_CANCELED)
-        ros.spin_for(CANCEL_STOP_S + 0.3)
+        ros.message_stamped(self.joints, cancel_ns + int((CANCEL_STOP_S + 0.3) * 1e9), 30.0)
         after = self.joints[moving:]
         first_stop = next((m for m in after if stamp_ns(m) > cancel_ns and stopped(m)), None)
         self.assertIsNotNone(first_stop, f"still moving: {list(after[-1].velocity)}")
