@@ -22,7 +22,6 @@ CLI and training tests; here their paths are checked.
 """
 from __future__ import annotations
 
-import ast
 import re
 import shlex
 import subprocess
@@ -31,6 +30,7 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.launch_files import declared_arguments
 from prisma_testing.repo_paths import BRINGUP, LAUNCH, ROOT
 from prisma_testing.ros_harness import NodeProcess
 
@@ -148,25 +148,12 @@ def test_the_launch_table_names_exactly_the_arguments_each_launch_file_declares(
     files = sorted(p.name for p in LAUNCH.glob("*.launch.py"))
     assert sorted(table) == files, "docs/architecture.md's launch table: one row per file in launch/"
     for name, cell in table.items():
-        declared = set(re.findall(r'DeclareLaunchArgument\(\s*"(\w+)"', (LAUNCH / name).read_text()))
+        declared = set(declared_arguments(LAUNCH / name))
         named = set(re.findall(r"`([a-z_]+)`", cell))  # `x:=y`, `<dir>/servos`: examples, not names
         assert declared, f"{name} declares no argument"
         extra, missing = sorted(named - declared), sorted(declared - named)
         assert not extra and not missing, (f"docs/architecture.md, {name}'s row: not in the launch file {extra}, "
                                            f"declared but not in the row {missing}")
-
-
-def declared_arguments(launch_file: Path) -> dict[str, tuple[str, ...] | None]:
-    """A launch file's DeclareLaunchArgument names -> their choices (None: any value)."""
-    declared: dict[str, tuple[str, ...] | None] = {}
-    for node in ast.walk(ast.parse(launch_file.read_text())):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "DeclareLaunchArgument":
-            choices = next((k.value for k in node.keywords if k.arg == "choices"), None)
-            try:
-                declared[ast.literal_eval(node.args[0])] = tuple(ast.literal_eval(choices)) if choices else None
-            except ValueError:  # choices computed (list(FINGERS)): launch itself checks those
-                declared[ast.literal_eval(node.args[0])] = None
-    return declared
 
 
 def launch_lines() -> list[tuple[str, str, str]]:

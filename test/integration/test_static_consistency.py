@@ -36,7 +36,14 @@ from pathlib import Path
 import pytest
 import yaml
 
-from prisma_testing.launch_files import CONTROL_PATH_NODE, NOT_LITERAL, LaunchedNode, launched_nodes, string_literal
+from prisma_testing.launch_files import (
+    CONTROL_PATH_NODE,
+    NOT_LITERAL,
+    LaunchedNode,
+    declared_arguments,
+    launched_nodes,
+    string_literal,
+)
 from prisma_testing.repo_paths import BRINGUP, CONFIG, LAUNCH, ROOT
 from prisma_testing.ros_harness import ROS_AVAILABLE, require_ros
 from prisma_testing.topic_table import SHARED_TOPICS, TableRow, topic_table
@@ -117,9 +124,7 @@ def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
 
 
 def declared_launch_arguments(launch_file: Path) -> set[str]:
-    tree = ast.parse(launch_file.read_text(), filename=str(launch_file))
-    declared = _calls(tree, "DeclareLaunchArgument")
-    return {string_literal(c.args[0]) for c in declared if c.args and string_literal(c.args[0])}
+    return set(declared_arguments(launch_file))
 
 
 def used_launch_configurations(launch_file: Path) -> list[tuple[int, str | None]]:

@@ -58,3 +58,21 @@ def launched_nodes(launch_file: Path) -> list[LaunchedNode]:
         package = string_literal(keywords.get("package"))
         found.append(LaunchedNode(launch_file.name, call.lineno, package, executable, name, files, tuple(inline)))
     return found
+
+
+def declared_arguments(launch_file: Path) -> dict[str, tuple[str, ...] | None]:
+    """A launch file's DeclareLaunchArgument names -> their choices (None: any value, or choices
+    computed, such as list(FINGERS): launch itself checks those)."""
+    declared: dict[str, tuple[str, ...] | None] = {}
+    for node in ast.walk(ast.parse(launch_file.read_text(), filename=str(launch_file))):
+        called = getattr(node.func, "id", getattr(node.func, "attr", None)) if isinstance(node, ast.Call) else None
+        if called == "DeclareLaunchArgument" and node.args:
+            name = string_literal(node.args[0])
+            if name is None:
+                continue
+            choices = next((k.value for k in node.keywords if k.arg == "choices"), None)
+            try:
+                declared[name] = tuple(ast.literal_eval(choices)) if choices is not None else None
+            except ValueError:
+                declared[name] = None
+    return declared
