@@ -1,4 +1,5 @@
-"""RosHarness.settle(): the barrier the sim-time node tests advance the clock behind.
+"""RosHarness.settle(): the barrier the sim-time node tests advance the clock behind; and what
+message_stamped says when the message it waits for never comes.
 
 settle() must not return while a callback it ran has set off another. rclpy starts a pass's quiet
 timer when the pass starts; a pass that first resumes a slow coroutine (a goal's execute callback
@@ -14,7 +15,9 @@ from prisma_testing.ros_harness import RosHarness, require_ros
 
 require_ros()
 
+import pytest  # noqa: E402
 from rclpy.node import Node  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 
@@ -71,3 +74,33 @@ def test_settle_returns_with_nothing_to_run(ros):
     start = time.monotonic()
     ros.settle()
     assert time.monotonic() - start < 1.0
+
+
+class StalePublisher(Node):
+    """A stream that keeps coming, every message stamped at one instant in the past."""
+
+    STAMP_NS = 1_600_000_000 * 10**9
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("stale_publisher", **kwargs)
+        self.out = self.create_publisher(JointState, "stale", 10)
+        message = JointState()
+        message.header.stamp.sec = self.STAMP_NS // 10**9
+        self.create_timer(0.02, lambda: self.out.publish(message))
+
+
+def test_message_stamped_tells_a_stream_still_published_from_a_silent_one(ros):
+    ros.node(StalePublisher)
+    received = ros.collect(JointState, "stale")
+    assert ros.spin_until(lambda: len(received) >= 3, 10.0)
+    with pytest.raises(AssertionError) as behind:
+        ros.message_stamped(received, time.time_ns(), timeout_sec=0.5)
+    # the newest it has, how this process ran meanwhile, and a fresh subscription's view
+    text = str(behind.value)
+    assert text.startswith("newest: -"), text
+    assert " spins, longest gap " in text, text
+    assert "stale: 1 publisher(s), a fresh subscription received " in text, text
+    silent = ros.collect(JointState, "silent")
+    with pytest.raises(AssertionError) as nothing:
+        ros.message_stamped(silent, time.time_ns(), timeout_sec=0.1)
+    assert "silent: 0 publisher(s), a fresh subscription received nothing in 2.0 s" in str(nothing.value)

@@ -96,6 +96,25 @@ def stamp_ns(msg: Any) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
+class _SpinCount:
+    """How often a wait ran the executor and its longest gap: a process kept from running shows
+    as few spins with a long gap, a stalled subscription as many spins and nothing received."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.longest_gap = 0.0
+        self._last = time.monotonic()
+
+    def tick(self) -> None:
+        now = time.monotonic()
+        self.longest_gap = max(self.longest_gap, now - self._last)
+        self._last = now
+        self.count += 1
+
+    def __str__(self) -> str:
+        return f"{self.count} spins, longest gap {self.longest_gap:.3f} s"
+
+
 class RosHarness:
     """One test's ROS world: context, executor, probe node, sim clock, /rosout log capture."""
 
@@ -411,10 +430,35 @@ class RosHarness:
                 first = m
             return first
 
-        if not self.spin_until(lambda: found() is not None, timeout_sec):
+        spins = _SpinCount()
+        end = time.monotonic() + timeout_sec
+        while found() is None and time.monotonic() < end:
+            spins.tick()
+            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
+        if found() is None:
             newest = f"{(stamp_ns(received[-1]) - at_ns) * 1e-9:+.3f} s" if received else "none"
-            raise AssertionError(f"newest: {newest}")
+            raise AssertionError(f"newest: {newest}; {spins}; {self._stream_check(received)}")
         return found()
+
+    def _stream_check(self, received: list, seconds: float = 2.0) -> str:
+        """Whether the stream a `collect` list stopped receiving is still published: a fresh
+        subscription to its topic for `seconds` tells a silent publisher from a stalled reader."""
+        subscription = self._collecting.get(id(received))
+        if subscription is None:
+            return "its subscription is closed"
+        topic, msg_type = subscription.topic_name, subscription.msg_type
+        fresh: list = []
+        check = self.probe.create_subscription(msg_type, topic, fresh.append, 1000)
+        try:
+            self.spin_for(seconds)
+        finally:
+            self.probe.destroy_subscription(check)
+        publishers = self.probe.count_publishers(topic)
+        if not fresh:
+            return f"{topic}: {publishers} publisher(s), a fresh subscription received nothing in {seconds} s"
+        newest = (stamp_ns(fresh[-1]) - self.now_ns()) * 1e-9
+        return (f"{topic}: {publishers} publisher(s), a fresh subscription received {len(fresh)} in "
+                f"{seconds} s (newest {newest:+.3f} s), the collecting one {len(received)} in all")
 
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
                               timeout_sec: float = 60.0, period_sec: float = 0.1) -> None:
