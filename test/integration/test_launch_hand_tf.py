@@ -32,6 +32,7 @@ require_ros()
 
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
+from action_msgs.msg import GoalStatus  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray  # noqa: E402
@@ -51,17 +52,18 @@ from prisma_hand_sim.sim_objects import OBJECTS  # noqa: E402
 from prisma_testing.urdf_kinematics import link_poses  # noqa: E402
 
 HANDS = {"": "", "/left": "left/"}  # namespace -> frame prefix
-SUCCEEDED = 4
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 @pytest.mark.launch_test
 def generate_test_description():
-    # the second hand at the default priority: two control paths at real-time priority would leave
-    # this test's own process too little of the two cores to see their messages
+    # the second hand below the default priority: two control paths at real-time priority would
+    # leave this test's own process too little of the two cores to see their messages, and at nice 0
+    # its seven processes took seven shares of what the first hand leaves to this one's one (a CI
+    # run's /joint_states fell 10 s behind here); what is checked of it are its frames, not its timing
     return graph_under_test(include_launch("hand.launch.py", sim="true"),
                             include_launch("hand.launch.py", sim="true", namespace="left",
-                                           rt_priority="0", nice="0"))
+                                           rt_priority="0", nice="10"))
 
 
 def stamp_ns_of(stamp) -> int:
@@ -173,7 +175,7 @@ class TestHandTf(GraphTestCase):
         self.assertTrue(ros.spin_until(lambda: any(stamp_ns(t) >= ended_ns - 100_000_000
                                                    for m in tf[-3:] for t in m.transforms), 30.0))
         ros.stop_collecting(joints, model, tf)
-        self.assertEqual((result.status, result.result.reason), (SUCCEEDED, "force_reached"))
+        self.assertEqual((result.status, result.result.reason), (GoalStatus.STATUS_SUCCEEDED, "force_reached"))
         self.assertEqual({name for m in joints for name in m.name}, set(MOTOR_NAMES))  # the motors, unchanged
         samples = [(m.header.stamp, dict(zip(m.name, m.position))) for m in joints]
         flexing = [(stamp, motors) for stamp, motors in samples if motors["thumb_flexion"] > 0.05]
