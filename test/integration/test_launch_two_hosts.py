@@ -28,9 +28,11 @@ In order:
    joint of both hands below 0.05 rad/s within 0.5 s of the link going down, and stays so; the goal
    ends ABORTED sensor_stale, the log naming the stream that went silent; the link back up, no
    MoveMotors goal starts on the robot by itself (one held back by the link is refused, its lease
-   over), and the next Grasp succeeds: nothing restarted;
+   over), and once the hand's streams are back in step on the workstation (its wrench within 50 ms
+   of its /joint_states; the time it took is printed) the next Grasp succeeds: nothing restarted;
 3. the same mid horizontal rotation (left thumb rotating at 2 rpm), the next Manipulate edge_lost;
-4. the link down and up while no goal runs: nothing moves; then a Grasp succeeds;
+4. the link down and up while no goal runs: nothing moves; then, the streams back in step, a Grasp
+   succeeds;
 5. the link flapping (down 0.6 s, up 0.2 s, three times in 2.2 s) during a grasp: as 2.
 After the launches are stopped (SIGINT, as Ctrl-C): every process exits 0 without a traceback, both
 motor drivers turn the torque off.
@@ -203,6 +205,23 @@ class TwoHostGraph:
         goals = self.robot.call("goals", topic=f"/{hand}/prisma/motors/move/_action/status", since_ns=since_ns)
         return [goal for goal in goals["goals"] if goal[1] != "ABORTED"]
 
+    def back_in_step(self, hand: str, up_ns: int) -> float:
+        """Seconds from the link coming up (up_ns) until the workstation's wrench of `hand` keeps
+        within 50 ms of its /joint_states, as at warm-up: the next goal of a test starts on streams
+        that flow again, as an operator's would after a link fault (one sent while they recover
+        ends sensor_stale, the tactile stream a few hundred ms behind the motors')."""
+        topics = {f"/{hand}/joint_states": "sensor_msgs/msg/JointState",
+                  f"/{hand}/prisma/hand/wrench": "prisma_msgs/msg/HandWrench"}
+        for topic, type_name in topics.items():
+            self.workstation.call("collect", topic=topic, type=type_name)
+        try:
+            self.workstation.call("keeping_up", leader=f"/{hand}/joint_states", follower=f"/{hand}/prisma/hand/wrench",
+                                  lag_s=0.05, checks=10, timeout_s=30.0)
+        finally:
+            for topic in topics:
+                self.workstation.call("stop_collecting", topic=topic)
+        return (time.time_ns() - up_ns) * 1e-9
+
     def stale_logs(self) -> list[str]:
         return self.workstation.call("logs", name="manipulation", contains="goal ended: sensor_stale")["logs"]
 
@@ -326,6 +345,7 @@ def link_down_mid_goal(graph, hosts, goal: dict, joint: int, rad_s: float, next_
     why = graph.stale_logs()[stale_before:]
     print(f"workstation: {why}")
     assert len(why) == 1 and STALE_DETAIL.search(why[0]), why
+    print(f"left streams back in step {graph.back_in_step('left', up):.2f} s after the link came up")
     graph.prepare("left", holding=manipulating)
     assert graph.run("left", next_goal) == next_outcome
 
@@ -349,10 +369,11 @@ def test_4_link_down_while_no_goal_runs_moves_nothing(graph, hosts):
         assert time.monotonic() < deadline, f"the hands still move: {graph.moving_after(quiet_from)[-3:]}"
     down = hosts.link_down()
     time.sleep(1.0)
-    hosts.link_up()
+    up = hosts.link_up()
     time.sleep(1.0)
     assert graph.moving_after(down) == []
     assert graph.started_on_robot("left", down) == [] and graph.started_on_robot("right", down) == []
+    print(f"left streams back in step {graph.back_in_step('left', up):.2f} s after the link came up")
     assert graph.run("left", PINCH) == ("SUCCEEDED", "force_reached")
 
 
