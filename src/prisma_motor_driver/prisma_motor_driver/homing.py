@@ -17,6 +17,7 @@ Nothing here talks to the bus: `HomingRun.step` takes the motors' states and ret
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -77,12 +78,16 @@ class HomingStep:
 class HomingRun:
     """One homing of some motors, fed the motors' states each driver tick."""
 
-    def __init__(self, motors: list[str], settings: HomingSettings, start_ns: int) -> None:
+    def __init__(self, motors: list[str], settings: HomingSettings, start_ns: int,
+                 start_rad: Mapping[str, float] | None = None) -> None:
+        """`start_rad`: where the motors stood when the homing was sent (each motor's travel counts
+        from there); a motor without one counts from its first state here, which comes a tick or
+        more after it started turning."""
         if not motors:
             raise ValueError("homing needs at least one motor")
         self.settings = settings
         self.start_ns = start_ns
-        self.motors = {name: MotorHoming(name) for name in motors}
+        self.motors = {name: MotorHoming(name, (start_rad or {}).get(name)) for name in motors}
 
     @property
     def finished(self) -> bool:

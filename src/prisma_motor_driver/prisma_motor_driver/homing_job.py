@@ -9,7 +9,7 @@ an operator, and a fault that persists must not keep the motors turning toward t
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from .backend import BusError, MotorBus, MotorState
@@ -62,9 +62,10 @@ class HomingJob:
         self._return: dict[str, float] = {}
         self._return_deadline_ns = 0
 
-    def start(self, names: list[str], now_ns: int) -> HomingResult | None:
-        """Home `names`; the result when the homing is over at once (the sim's motors need none, or
-        the bus failed), else None."""
+    def start(self, names: list[str], now_ns: int, positions: Mapping[str, float] | None = None) -> HomingResult | None:
+        """Home `names` from `positions` (rad, the last read: each motor's travel counts from there);
+        the result when the homing is over at once (the sim's motors need none, or the bus failed),
+        else None."""
         motors = self.bus.motors
         if not self.bus.needs_homing:
             return HomingResult(True, "homed: the sim motors start at their zero, nothing to find", names,
@@ -81,16 +82,16 @@ class HomingJob:
             except BusError:
                 pass
             return HomingResult(False, f"homing_failed: {exc}", names)
-        self.run = HomingRun(names, settings, now_ns)
+        self.run = HomingRun(names, settings, now_ns, positions)
         self._at_start = False
         self._zeros, self._return = {}, {}
         return None
 
-    def start_wanted(self, now_ns: int) -> HomingResult | None:
+    def start_wanted(self, now_ns: int, positions: Mapping[str, float] | None = None) -> HomingResult | None:
         """The homing asked for at start (or again after an interruption), of every motor."""
         self.wanted = False
         self._at_start_tries -= 1
-        done = self.start(list(self.bus.motors), now_ns)
+        done = self.start(list(self.bus.motors), now_ns, positions)
         if done is not None and not done.success and self._at_start_tries > 0:
             self.wanted = True  # the bus failed under it: tried again, as after an interruption
         self._at_start = done is None

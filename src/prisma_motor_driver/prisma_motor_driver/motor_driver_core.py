@@ -169,7 +169,8 @@ class MotorDriverCore:
         goal's result (it ends: homing takes the motors) and, when the homing is over at once (the sim's
         motors need none, or the bus failed), its result."""
         preempted = self.runner.abort("preempted: homing") if self.runner.active else None
-        return preempted, self.homing.start(list(motors) or list(self.bus.motors), now_ns)
+        return preempted, self.homing.start(list(motors) or list(self.bus.motors), now_ns,
+                                            _positions(self._last_states))
 
     def cancel_homing(self) -> HomingResult | None:
         return self.homing.cancel()
@@ -215,7 +216,7 @@ class MotorDriverCore:
         if self.homing.run is not None:
             return self._step_homing(states, now_ns)
         if self.homing.wanted and not self.runner.active:
-            return TickResult(states, homing_result=self.homing.start_wanted(now_ns))
+            return TickResult(states, homing_result=self.homing.start_wanted(now_ns, _positions(states)))
         feedback, result = self.runner.tick(states, now_ns)
         return TickResult(states, feedback, result)
 
@@ -306,3 +307,7 @@ class MotorDriverCore:
             out.append(DiagnosticStatusData(f"motor_driver: {name}", m_level, m_message, f"{hw}#{c.servo_id}",
                                             {k: str(v) for k, v in vals.items()}))
         return out
+
+
+def _positions(states: dict[str, MotorState]) -> dict[str, float]:
+    return {name: state.position_rad for name, state in states.items()}

@@ -174,6 +174,23 @@ def test_homing_after_a_power_cycle_with_the_fingers_closed_past_one_turn(hand):
     assert ct.ticks_to_rad(emu.present()[1].mechanical_ticks) == pytest.approx(9.0, abs=0.1)
 
 
+def test_homing_travel_counts_from_where_the_motors_stood_when_it_was_sent(hand):
+    """The driver's first tick after the homing command may come late (a busy computer): the travel
+    it reports is still from where the fingers stood, not from where that tick found them."""
+    emu, clock = hand
+    emu.place(1, ct.rad_to_ticks(7.0))
+    emu.power_cycle()
+    core = make_core(emu, zeros={name: 0 for name in IDS})
+    run(core, emu, clock, 0.01)
+    core.start_homing([], round(clock.now_s * 1e9))
+    emu.sync()
+    clock.advance(0.08)  # below the 100 ms Bus Watchdog: the fingers turn 0.13 rad toward the stop meanwhile
+    ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None)
+    result = ticks[-1].homing_result
+    assert result is not None and result.success, result
+    assert result.travel_rad == pytest.approx([7.0, 0.0, 3.0], abs=0.02)
+
+
 def test_homing_with_no_end_stop_fails_naming_the_motor_and_leaves_it_stopped(hand):
     emu, clock = hand
     emu.set_end_stops(2, None, None)  # the thumb's flexion tendon off its spool: nothing stops it
