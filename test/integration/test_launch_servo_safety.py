@@ -87,7 +87,9 @@ class TestServoSafety(GraphTestCase):
         return goal
 
     def joint(self, name: str) -> float:
-        msg = self.joints[-1]
+        """`name`'s position in the first /joint_states published from now on: the newest this process
+        has received may still be from before what the test just did (a homing's new zero)."""
+        msg = self.ros.message_at(self.joints, 0.0)
         return msg.position[list(msg.name).index(name)]
 
     def start_rotation(self):
