@@ -1,5 +1,6 @@
-"""RosHarness.settle(): the barrier the sim-time node tests advance the clock behind; and what
-message_stamped says when the message it waits for never comes.
+"""RosHarness.settle(): the barrier the sim-time node tests advance the clock behind; what
+message_stamped says when the message it waits for never comes; the test process's DDS threads on
+their rung.
 
 settle() must not return while a callback it ran has set off another. rclpy starts a pass's quiet
 timer when the pass starts; a pass that first resumes a slow coroutine (a goal's execute callback
@@ -9,8 +10,11 @@ stale sample set off.
 """
 from __future__ import annotations
 
+import os
+import subprocess
 import time
 
+from prisma_common.scheduling import TEST_DDS_NICE
 from prisma_testing.ros_harness import RosHarness, require_ros
 
 require_ros()
@@ -104,3 +108,27 @@ def test_message_stamped_tells_a_stream_still_published_from_a_silent_one(ros):
     with pytest.raises(AssertionError) as nothing:
         ros.message_stamped(silent, time.time_ns(), timeout_sec=0.1)
     assert "silent: 0 publisher(s), a fresh subscription received nothing in 2.0 s" in str(nothing.value)
+
+
+def _thread_niceness() -> dict[str, set[int]]:
+    """Niceness of this process's threads, by thread name."""
+    found: dict[str, set[int]] = {}
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as comm, open(f"/proc/self/task/{tid}/stat") as stat:
+                found.setdefault(comm.read().strip(), set()).add(int(stat.read().rsplit(")", 1)[1].split()[16]))
+        except FileNotFoundError:  # a thread that ended meanwhile
+            continue
+    return found
+
+
+def test_dds_threads_run_on_their_rung_and_this_thread_and_its_children_do_not(ros):
+    if os.geteuid() != 0:
+        pytest.skip("a niceness below 0 needs root or CAP_SYS_NICE: the harness leaves it where it is")
+    ours = os.getpriority(os.PRIO_PROCESS, 0)
+    threads = _thread_niceness()
+    # Cyclone's receive and delivery threads: what takes the samples off the socket into the readers
+    assert threads["recvUC"] == threads["dq.user"] == {TEST_DDS_NICE}, threads
+    assert os.getpriority(os.PRIO_PROCESS, 0) == ours != TEST_DDS_NICE
+    child = subprocess.run(["sh", "-c", "cut -d' ' -f19 /proc/self/stat"], capture_output=True, text=True, check=True)
+    assert int(child.stdout) == ours

@@ -41,6 +41,12 @@ PROBE_RT_PRIORITY = 30
 # rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
 CONTROL_PATH_RT_PRIORITY = 20
 CONTROL_PATH_NICE = -5
+# A test process's DDS threads (receive, delivery): level with the control path's niceness, ahead of
+# the ordinary processes of a busy machine, so that every sample the graph publishes reaches the
+# test's reader history while its Python thread waits for a core. A receive thread kept from running
+# lets the socket buffer overflow and the writers' reliable history (10 deep) move on: samples lost,
+# not late. The test's Python thread stays at the default, and so do the processes it starts.
+TEST_DDS_NICE = CONTROL_PATH_NICE
 # The fault CLI a test runs acts when the test says: above every ordinary process, below the control
 # path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
 FAULT_CLI_RT_PRIORITY = 10
