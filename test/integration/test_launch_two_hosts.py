@@ -205,21 +205,26 @@ class TwoHostGraph:
         goals = self.robot.call("goals", topic=f"/{hand}/prisma/motors/move/_action/status", since_ns=since_ns)
         return [goal for goal in goals["goals"] if goal[1] != "ABORTED"]
 
-    def back_in_step(self, hand: str, up_ns: int) -> float:
-        """Seconds from the link coming up (up_ns) until the workstation's wrench of `hand` keeps
-        within 50 ms of its /joint_states, as at warm-up: the next goal of a test starts on streams
-        that flow again, as an operator's would after a link fault (one sent while they recover
-        ends sensor_stale, the tactile stream a few hundred ms behind the motors')."""
+    def wait_in_step(self, hand: str, timeout_s: float) -> None:
+        """Until the workstation's wrench of `hand` keeps within 50 ms of its /joint_states (taken
+        only for this wait: the probe runs above the graph)."""
         topics = {f"/{hand}/joint_states": "sensor_msgs/msg/JointState",
                   f"/{hand}/prisma/hand/wrench": "prisma_msgs/msg/HandWrench"}
         for topic, type_name in topics.items():
             self.workstation.call("collect", topic=topic, type=type_name)
         try:
             self.workstation.call("keeping_up", leader=f"/{hand}/joint_states", follower=f"/{hand}/prisma/hand/wrench",
-                                  lag_s=0.05, checks=10, timeout_s=30.0)
+                                  lag_s=0.05, checks=10, timeout_s=timeout_s)
         finally:
             for topic in topics:
                 self.workstation.call("stop_collecting", topic=topic)
+
+    def back_in_step(self, hand: str, up_ns: int) -> float:
+        """Seconds from the link coming up (up_ns) until `hand`'s streams are in step again, as at
+        warm-up: the next goal of a test starts on streams that flow again, as an operator's would
+        after a link fault (one sent while they recover ends sensor_stale, the tactile stream a few
+        hundred ms behind the motors')."""
+        self.wait_in_step(hand, timeout_s=30.0)
         return (time.time_ns() - up_ns) * 1e-9
 
     def stale_logs(self) -> list[str]:
@@ -251,14 +256,8 @@ def graph(hosts):
             watchdog = started.workstation.call("set_parameters", node=f"/{hand}/manipulation",
                                                 values={"stale_timeout": WORKSTATION_STALE_TIMEOUT_S})
             assert watchdog == {"results": [[True, ""]]}, watchdog
-        for hand in HANDS:
-            started.workstation.call("collect", topic=f"/{hand}/joint_states", type="sensor_msgs/msg/JointState")
-            started.workstation.call("collect", topic=f"/{hand}/prisma/hand/wrench", type="prisma_msgs/msg/HandWrench")
         for hand in HANDS:  # the estimators keep pace with the motors (warmed up)
-            started.workstation.call("keeping_up", leader=f"/{hand}/joint_states",
-                                     follower=f"/{hand}/prisma/hand/wrench", lag_s=0.05, checks=10, timeout_s=120.0)
-            for topic in (f"/{hand}/joint_states", f"/{hand}/prisma/hand/wrench"):
-                started.workstation.call("stop_collecting", topic=topic)
+            started.wait_in_step(hand, timeout_s=120.0)
         # glove_perception (the slowest to start) answers the robot's glove frames
         started.workstation.call("stamped", topic="/stag/hand_pose", until_ns=1, wait_s=120.0)
         yield started

@@ -124,6 +124,7 @@ class _SpinCount:
         self._last = time.monotonic()
 
     def tick(self) -> None:
+        """One more spin (returns None: usable inside a wait's condition)."""
         now = time.monotonic()
         self.longest_gap = max(self.longest_gap, now - self._last)
         self._last = now
@@ -452,12 +453,8 @@ class RosHarness:
                 first = m
             return first
 
-        spins = _SpinCount()
-        end = time.monotonic() + timeout_sec
-        while found() is None and time.monotonic() < end:
-            spins.tick()
-            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
-        if found() is None:
+        spins = _SpinCount()  # spin_until checks its condition once per spin
+        if not self.spin_until(lambda: spins.tick() or found() is not None, timeout_sec):
             newest = f"{(stamp_ns(received[-1]) - at_ns) * 1e-9:+.3f} s" if received else "none"
             raise AssertionError(f"newest: {newest}; {spins}; {self._stream_check(received)}")
         return found()
