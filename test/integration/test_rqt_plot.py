@@ -13,7 +13,10 @@ thresholds in rqt" section.
 """
 from __future__ import annotations
 
+import bisect
+import math
 import os
+import statistics
 
 import pytest
 
@@ -69,6 +72,14 @@ def plot_x(msg, start_time: float) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 10**-9 - start_time
 
 
+def probe_gap_around(probe_xs: list[float], x: float) -> float:
+    """The gap between the probe's messages on either side of `x` (inf at the ends)."""
+    after = bisect.bisect_left(probe_xs, x)
+    if after == 0 or after == len(probe_xs):
+        return math.inf
+    return probe_xs[after] - probe_xs[after - 1]
+
+
 def test_rqt_plot_widget_plots_threshold_against_taxel_3(ros):
     app = QApplication.instance() or QApplication(["rqt_plot", "-platform", "offscreen"])
     hand = ros2_launch("prisma_bringup", "hand.launch.py", "sim:=true")
@@ -115,12 +126,23 @@ def test_rqt_plot_widget_plots_threshold_against_taxel_3(ros):
     assert len(contacts) - first >= 100
     # every plotted point is the field of a ContactState the graph published, at that message's stamp
     by_x = {plot_x(m, widget._start_time): m for m in contacts}
+    probe_xs = sorted(by_x)
+    period = statistics.median(b - a for a, b in zip(probe_xs, probe_xs[1:]))  # the stream's period
     for name, field in ((THRESHOLD, lambda m: m.threshold), (TAXEL_3, lambda m: m.voltages[3])):
         xs, ys = curves[name]
         assert len(xs) == len(ys) >= 100
+        not_in_probe = [x for x in xs if x not in by_x]
+        for x in not_in_probe:
+            # beside the load harness the probe's own reliable depth-10 stream once lacked a sample
+            # rqt_plot's subscription had: allowed only where the probe's stamps show that hole
+            assert probe_gap_around(probe_xs, x) > 1.5 * period, (
+                f"{name}: a point at x = {x} that no /prisma/thumb/contact message has, and the probe "
+                f"received the messages on both sides of it")
+        print(f"{name}: {len(xs)} points, {len(not_in_probe)} at a sample the probe lost")
+        assert len(not_in_probe) <= len(xs) // 50, (name, not_in_probe)
         for x, y in zip(xs, ys):
-            assert x in by_x, f"{name}: a point at x = {x} that no /prisma/thumb/contact message has"
-            assert y == float(field(by_x[x])), name
+            if x in by_x:
+                assert y == float(field(by_x[x])), name
         assert 0.0 < ys.min() and ys.max() < VREF, (name, ys.min(), ys.max())
     # the threshold is K x the mean taxel voltage (k = 0.8 in config/manipulation.yaml); nothing
     # touches the thumb, so taxel 3 sits above it (safe) at every sample

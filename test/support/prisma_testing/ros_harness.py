@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import pytest
 
 from prisma_common.goal_refusal import NOT_READY, refusal_code
-from prisma_common.scheduling import TEST_DDS_NICE
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, TEST_DDS_NICE, try_rt_priority
 
 ROS_SKIP_REASON = (
     "needs ROS 2 and the built workspace: source ../shared/ros2/setup.sh (or /opt/ros/jazzy), "
@@ -337,6 +337,41 @@ class RosHarness:
 
     def publisher(self, msg_type: type, topic: str, qos_profile: Any = 10):
         return self.probe.create_publisher(msg_type, topic, qos_profile)
+
+    @contextlib.contextmanager
+    def publishing(self, msg_type: type, topic: str, message: Callable[[int], Any], rate_hz: float,
+                   qos_profile: Any = 10) -> Iterator[list[int]]:
+        """Inside the block, `message(i)` (stamped now) published on `topic` at `rate_hz` as another
+        process on the robot would: from a thread of its own at the control path's real-time
+        priority where permitted, so that the stream keeps its rate however busy this process's
+        executor is (a probe timer beside the load harness ran at a fifth of its rate). Yields the
+        send instants (time_ns), growing while the block runs."""
+        from builtin_interfaces.msg import Time
+
+        publisher = self.probe.create_publisher(msg_type, topic, qos_profile)
+        sent: list[int] = []
+        stop = threading.Event()
+
+        def run() -> None:
+            try_rt_priority(CONTROL_PATH_RT_PRIORITY)  # this thread only
+            due = time.monotonic()
+            while not stop.is_set():
+                now = time.time_ns()
+                msg = message(len(sent))
+                msg.header.stamp = Time(sec=now // 10**9, nanosec=now % 10**9)
+                publisher.publish(msg)
+                sent.append(now)
+                due += 1.0 / rate_hz
+                stop.wait(max(0.0, due - time.monotonic()))
+
+        thread = threading.Thread(target=run, name=f"publishing {topic}", daemon=True)
+        thread.start()
+        try:
+            yield sent
+        finally:
+            stop.set()
+            thread.join(timeout=5.0)
+            self.probe.destroy_publisher(publisher)
 
     def publish(self, topic: str, msg: Any, wait_for_subscribers: int = 1) -> None:
         """Publish on `topic` from the probe, first waiting until that many subscribers matched."""
