@@ -58,8 +58,9 @@ from .tactile_link import HubLink, I2CPads
 
 class EmulatedHand:
     def __init__(self, paths: EmulatorPaths, settings: EmulatorSettings | None = None,
-                 clock_ns: Callable[[], int] = time.monotonic_ns, log: Callable[[str], None] | None = None) -> None:
-        """`log` gets the servos' event lines (a stall at an end stop, a bus watchdog firing)."""
+                 clock_ns: Callable[[], int] | None = None, log: Callable[[str], None] | None = None) -> None:
+        """`log` gets the servos' event lines (a stall at an end stop, a bus watchdog firing).
+        `clock_ns`: a test's manual clock; by default time.monotonic_ns, the wall clock."""
         self.paths = paths
         self.settings = settings or EmulatorSettings()
         if self.settings.rate_hz <= 0:
@@ -67,6 +68,8 @@ class EmulatedHand:
         if self.settings.tactile_link not in TACTILE_LINKS:
             raise ValueError(f"tactile_link {self.settings.tactile_link!r}: choose one of {', '.join(TACTILE_LINKS)}")
         self.tactile_link = self.settings.tactile_link
+        wall_clock = clock_ns is None
+        clock_ns = clock_ns or time.monotonic_ns
         self.clock_ns = clock_ns
         self.period_ns = int(round(1e9 / self.settings.rate_hz))
         self.lock = threading.Lock()  # world, pads and ADC registers: the tick vs the I2C server
@@ -77,7 +80,7 @@ class EmulatedHand:
         self._contacts = HandWorldContactSource(self.world)
         self._pads = SimHubBackend(self._contacts, FINGERS, seed=self.settings.seed)
         self.i2c = I2CPads(self.lock)
-        self.servos = EmulatedServos(self.settings.directions, self.settings.zero_ticks, clock_ns, log)
+        self.servos = EmulatedServos(self.settings.directions, self.settings.zero_ticks, clock_ns, log, wall_clock)
         self.hub = HubLink(paths.hub, self.settings.hub_buffer_bytes, np.random.default_rng(self.settings.seed))
         self._servo_link = PtyLink(paths.servos)
         self._i2c_server: Any = None

@@ -34,10 +34,11 @@ class EmulatedServos:
     socket's thread sets the faults, and timed ones end at `expire_faults` (the tick's)."""
 
     def __init__(self, directions: tuple[int, ...], zero_ticks: tuple[int, ...], clock_ns: Callable[[], int],
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, wall_clock: bool = True) -> None:
         self.directions, self.zero_ticks = directions, zero_ticks
         self.clock_ns = clock_ns
-        self.bus = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9, log=log)
+        self.bus = DynamixelEmulator(list(MOTOR_IDS.values()), clock=lambda: clock_ns() * 1e-9, log=log,
+                                     wall_clock=wall_clock)
         for name, (lo, hi) in END_STOPS_RAD.items():
             self.bus.set_end_stops(MOTOR_IDS[name], *sorted((self._mechanical_ticks(name, lo),
                                                              self._mechanical_ticks(name, hi))))

@@ -19,7 +19,10 @@ next n instructions to that ID but sends no status packet (the host sees a timeo
 anything until set back (its watchdog, if armed, fires); `set_baud(id, rate)` configures it at
 another rate (by another tool): silent at the host's.
 
-Time comes from `clock()` (seconds); tests pass a manual clock so motion is deterministic.
+Time comes from `clock()` (seconds); tests pass a manual clock so motion is deterministic. On real
+time the emulator can be held up (this process not running) while packets wait in the pty: a Bus
+Watchdog deadline that passed meanwhile is judged by those packets once read, as a servo, which
+hears every packet as it comes, would have judged it (and the event logged).
 """
 from __future__ import annotations
 
@@ -77,8 +80,13 @@ class DynamixelEmulator:
     happens; the last ones are kept in `events` too."""
 
     def __init__(self, ids: list[int] | tuple[int, ...], clock: Callable[[], float] | None = None,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, wall_clock: bool | None = None) -> None:
         self.clock = clock or time.monotonic
+        # `wall_clock` (default: no clock given): the clock runs on while this process is held up
+        # (a busy computer) with packets waiting in the pty, which a real servo would have heard as
+        # they came; a manual clock stands still meanwhile
+        self._real_time = clock is None if wall_clock is None else wall_clock
+        self._seen_empty_s = self.clock()  # when the pty was last found with nothing to read
         self.bus = ServoBus(ids, self.clock(), log)  # the emulator's start is a power-up
         # the bus's own containers (mutated in place, never rebound), read by tests and the hand emulator
         self.servos, self.stats = self.bus.servos, self.bus.stats
@@ -232,11 +240,17 @@ class DynamixelEmulator:
     def _serve(self) -> None:
         while not self._stop.is_set():
             try:
-                ready, _, _ = select.select([self._master], [], [], 0.05)
+                waiting = self._pending()
+                if not waiting:
+                    self._seen_empty_s = self.clock()
+                ready = waiting or select.select([self._master], [], [], 0.05)[0]
             except (OSError, ValueError):
                 return
             if not ready:
                 continue
+            # the bytes came by now (waited for) or after the pty was last found empty (already there);
+            # the lock below can hold this thread up longer still
+            unread_since = self._seen_empty_s if waiting else self.clock()
             # read under the lock so that `sync()` can tell "nothing in flight" reliably
             with self._lock:
                 try:
@@ -245,7 +259,7 @@ class DynamixelEmulator:
                     return
                 self._host_rate = self.host_baud()  # the rate these bytes were sent at
                 for packet in self.decoder.feed(data):
-                    self._integrate()
+                    self._integrate(unread_since if self._real_time else None)
                     reply = self._handle(packet)
                     if reply:
                         os.write(self._master, reply)
@@ -253,8 +267,16 @@ class DynamixelEmulator:
     def _handle(self, packet: Packet) -> bytes:
         return self.bus.handle(packet, self._host_rate)
 
-    def _integrate(self) -> None:
-        self.bus.integrate_to(self.clock())
+    def _pending(self) -> bool:
+        """Bytes from the host wait in the pty, unread."""
+        return self._master >= 0 and bool(select.select([self._master], [], [], 0)[0])
+
+    def _integrate(self, unread_since: float | None = None) -> None:
+        """Motion up to clock(). Called between packets (`unread_since`: see ServoBus.integrate_to)
+        or by another thread, which finds the bytes this one has not read yet."""
+        if unread_since is None and self._real_time and self._pending():
+            unread_since = self._seen_empty_s
+        self.bus.integrate_to(self.clock(), unread_since)
 
 
 def stderr_log(line: str) -> None:

@@ -6,7 +6,8 @@ A servo hears a packet when it is on the bus (not `silent`) and listens at the r
 sent at. It takes part in (and feeds its Bus Watchdog with) packets addressed to it, sync reads and
 writes naming it and broadcast pings, which every servo answers in ID order. Motion is integrated
 up to each packet; a servo whose Bus Watchdog period ran out between two packets is stopped at that
-exact instant (the integration is split there) and the firing kept in `watchdog_firings`. A servo
+exact instant (the integration is split there) and the firing kept in `watchdog_firings`, unless
+the emulator itself was held up with packets waiting (`integrate_to`'s `unread_since`). A servo
 told to drop n status packets processes the instructions but answers none of them.
 """
 from __future__ import annotations
@@ -56,6 +57,7 @@ class ServoBus:
         self.watchdog_firings: list[WatchdogFiring] = []
         self.events: collections.deque[str] = collections.deque(maxlen=1000)
         self._log = log
+        self._held_deadline: dict[int, float] = {}  # servo ID -> the deadline last judged by unread bytes
 
     def note(self, line: str | None) -> None:
         if line is None:
@@ -64,13 +66,24 @@ class ServoBus:
         if self._log is not None:
             self._log(line)
 
-    def integrate_to(self, now: float) -> None:
-        """Every servo's motion from the last integration up to `now`, watchdog stops included."""
+    def integrate_to(self, now: float, unread_since: float | None = None) -> None:
+        """Every servo's motion from the last integration up to `now`, watchdog stops included.
+
+        `unread_since`: instruction bytes are waiting that the emulator (not the servo) was too late
+        to read, and came some time after this instant. A real servo hears a packet as it arrives,
+        so a watchdog deadline after that instant may have been met: it fires only if the packets,
+        once read, do not feed it (the next integration stops the servo at the deadline)."""
         start, self.last_s = self.last_s, now
         for servo in self.servos.values():
             t = start
             deadline = servo.watchdog_deadline()
-            if deadline is not None and deadline < now:
+            if deadline is not None and deadline < now and unread_since is not None and deadline > unread_since:
+                if self._held_deadline.get(servo.servo_id) != deadline:
+                    self._held_deadline[servo.servo_id] = deadline
+                    self.note(f"servo {servo.servo_id}: bus watchdog deadline t={deadline:.3f} s passed while "
+                              f"instructions waited unread since t={unread_since:.3f} s (the emulator was held "
+                              f"up {(now - unread_since) * 1000:.0f} ms): judged by those instructions")
+            elif deadline is not None and deadline < now:
                 # the servo stops at the instant the period ran out, not at the next packet
                 period_s = servo.bus_watchdog * ct.WATCHDOG_UNIT_S
                 self.note(servo.integrate(max(0.0, deadline - t), deadline))

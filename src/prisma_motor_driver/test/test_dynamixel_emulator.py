@@ -9,6 +9,7 @@ Baud Rate (a servo at another rate does not answer). Manual clock: every number 
 from __future__ import annotations
 
 import math
+import time
 
 import dynamixel_sdk as sdk
 import pytest
@@ -127,6 +128,42 @@ def test_out_of_range_watchdog_values_are_refused(wire):
     assert ph.write1ByteTxRx(port, 1, ct.ADDR_BUS_WATCHDOG, 128) == (sdk.COMM_SUCCESS, ERR_DATA_RANGE)
     assert ph.write1ByteTxRx(port, 1, ct.ADDR_BUS_WATCHDOG, 0xFF) == (sdk.COMM_SUCCESS, ERR_DATA_RANGE)
     assert emu.servos[1].bus_watchdog == 0
+
+
+def test_an_emulator_held_up_with_a_packet_waiting_judges_the_watchdog_by_that_packet(monkeypatch):
+    """On real time: the emulator's thread kept from reading (its lock held, as a busy process would
+    keep it) while the host's Goal Velocity write waits in the pty, past the watchdog's deadline. A
+    servo hears a packet as it comes, so this one was fed in time and keeps turning; with no packet
+    written it fires at its deadline as before."""
+    import dynamixel_sdk.port_handler
+
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 200)
+    period_s = 10 * ct.WATCHDOG_UNIT_S  # 200 ms: a slow test thread still writes long before it
+    lines: list[str] = []
+    with DynamixelEmulator([1], log=lines.append) as emu:
+        port = sdk.PortHandler(emu.port_name)
+        assert port.openPort() and port.setBaudRate(1_000_000)
+        ph = sdk.PacketHandler(2.0)
+        ok(ph.write1ByteTxRx(port, 1, ct.ADDR_TORQUE_ENABLE, 1))
+        ok(ph.write1ByteTxRx(port, 1, ct.ADDR_BUS_WATCHDOG, 10))
+        for fed in (True, False):
+            ok(ph.write4ByteTxRx(port, 1, ct.ADDR_GOAL_VELOCITY, ct.rpm_to_units(30.0)))
+            with emu._lock:  # the emulator held up
+                time.sleep(0.02)
+                if fed:
+                    sent = ph.write4ByteTxOnly(port, 1, ct.ADDR_GOAL_VELOCITY, ct.rpm_to_units(30.0))
+                    assert sent == sdk.COMM_SUCCESS
+                time.sleep(2 * period_s)
+            emu.sync()
+            emu.update()
+            if fed:
+                assert emu.watchdog_firings == [], lines
+                assert emu.present()[1].velocity_rpm == pytest.approx(30.0, rel=0.01)
+                assert any("passed while instructions waited unread" in line for line in lines), lines
+            else:
+                [firing] = emu.watchdog_firings
+                assert emu.present()[1].velocity_rpm == 0.0
+        port.closePort()
 
 
 # ---- power-up ---------------------------------------------------------------------------------
