@@ -103,6 +103,7 @@ class HubOnPty:
         self.port = PtyHubPort(link)
         self.period = 1.0 / rate_hz
         self.counts = rest_counts()
+        self.last_frame_ns = 0  # when the hub last wrote a frame (wall clock, as the stamps)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -127,6 +128,7 @@ class HubOnPty:
         while not self._stop.is_set():
             if self.port.pending() < 4096:  # nobody reading (driver not connected yet): frames are lost
                 self.port.write(encode_frame(sequence, self.counts))
+                self.last_frame_ns = time.time_ns()
             sequence += 1
             due += self.period
             time.sleep(max(0.0, due - time.monotonic()))
@@ -190,10 +192,12 @@ class TestMissingParts(GraphTestCase):
         self.assertTrue(ros.spin_until(lambda: self.joints and stopped(self.joints[-1], SIM_STOPPED_RAD_S), 5.0))
 
     def test_2_hub_unplugged_mid_grasp(self):
-        """Motors stopped: measured by header stamps, from the last taxel frame the driver received
-        (the newest TaxelArray stamp before the hang-up) to the first /joint_states whose every
-        velocity is 0 (below 1e-3 rad/s). The watchdog's limit is 100 ms without a sample; the
-        motors must be stopped within 100 ms after it, so within 200 ms of that last frame."""
+        """Motors stopped: measured on the wall clock, from the last frame the hub wrote before the
+        hang-up to the stamp of the first /joint_states whose every velocity is 0 (below 1e-3
+        rad/s). The watchdog's limit is 100 ms without a sample; the motors must be stopped within
+        100 ms after it, so within 200 ms of that last frame. The hub's own record, not the newest
+        TaxelArray this process holds: beside the load harness this process lost the last 1.2 s of
+        the taxel streams (reliable, a history of 10 at the writer) and measured 1.3 s."""
         ros = self.ros
         self.assertIsNotNone(self.motor_driver, "needs the motor driver test_1 starts")
         goal = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0)
@@ -214,14 +218,16 @@ class TestMissingParts(GraphTestCase):
         ended = ros.wait_for_log(name="manipulation", contains="grasp goal ended: sensor_stale")
         self.assertRegex(ended[-1], r"\((taxels|wrench)/(thumb|index) (silent for|\d+ ms older than /joint_states)")
 
-        last_frame_ns = max(stamp_ns(m) for f in FINGERS for m in self.taxels[f])
+        last_frame_ns = self.hub.last_frame_ns
         self.assertLess(last_frame_ns, unplugged_ns)
+        newest_taxels_ns = max(stamp_ns(m) for f in FINGERS for m in self.taxels[f])
         after = [m for m in self.joints[received_before:] if stamp_ns(m) > last_frame_ns]
         self.assertFalse(stopped(after[0], SIM_STOPPED_RAD_S), "the motors were not moving at the unplug")
         first_stop = next((i for i, m in enumerate(after) if stopped(m, SIM_STOPPED_RAD_S)), None)
         self.assertIsNotNone(first_stop, f"still moving: {list(after[-1].velocity)}")
         stop_s = (stamp_ns(after[first_stop]) - last_frame_ns) * 1e-9
-        print(f"hub unplugged mid-grasp: every velocity 0 {stop_s * 1e3:.0f} ms after the last taxel frame")
+        print(f"hub unplugged mid-grasp: every velocity 0 {stop_s * 1e3:.0f} ms after the hub's last frame "
+              f"(the newest TaxelArray here stamped {(newest_taxels_ns - last_frame_ns) * 1e-6:+.0f} ms from it)")
         self.assertLess(stop_s, STALE_TIMEOUT_S + STOP_AFTER_STALE_S)
         self.assertEqual([list(m.velocity) for m in after[first_stop:] if not stopped(m, SIM_STOPPED_RAD_S)], [])
         # the driver says why, naming the port
