@@ -18,8 +18,9 @@ tactile_driver reads the hub's frames through pyserial. The tests run in order, 
 5. a servo off the bus mid-grasp: the goal is aborted (sensor_stale or motor_fault, whichever safety
    net fires first), the other servos stop, and once it answers again the next Grasp succeeds;
 6. the paper's scenarios, each from its own world (the emulator's `world` command poses the hand as
-   prisma-sim's scenario starts): pinch and lateral grasps, horizontal, vertical, disturbance and
-   combined manipulation, each ending for the paper's reason.
+   prisma-sim's scenario starts; the holds' pushes come through the `push` command once the goal
+   runs, at the scenario's time from the goal's start): pinch and lateral grasps, horizontal,
+   vertical, disturbance and combined manipulation, each ending for the paper's reason.
 Faults go in through `prisma-hand-fault`, the emulator's own CLI.
 
 Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
@@ -29,6 +30,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import time
 import unittest
 from pathlib import Path
 
@@ -54,12 +56,12 @@ from prisma_msgs.msg import TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
+from prisma_manipulation.scenarios import scenario_world  # noqa: E402
 from prisma_sim.hand_session import HAND_SCENARIOS  # noqa: E402
 from prisma_sim.sim_runner import EXPECTED_REASONS  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_emulated_hand_{os.getpid()}"
-SUCCEEDED, ABORTED = 4, 6  # action_msgs/GoalStatus
 # its own time limit well beyond the grasp's 10 s default: on a loaded machine the fault CLI takes
 # seconds to start, and the fault must come while the grasp still runs
 SLOW_PINCH = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=10.0, timeout=60.0)
@@ -267,17 +269,28 @@ class TestHandEmulated(GraphTestCase):
     def test_6_paper_scenarios(self):
         ends, rotations, forces = {}, {}, {}
         for name, spec in HAND_SCENARIOS.items():
-            fault("world", name)
+            # the scenario's pushes count from its goal's start, as in prisma-sim: here pushed by the
+            # `push` command once the goal runs (the world's own clock starts at `world`, and a goal
+            # that a busy machine started 0.8 s later held the hand as it found it after the push)
+            pushes = scenario_world(name).disturbances
+            fault("world", name, "--pushes", "off")
             goal = (Grasp.Goal if spec.action == "grasp" else Manipulate.Goal)(**spec.goal)
             start = emulator_status()
-            ends[name] = goal_outcome(self.run_goal(goal))
+            client = self.grasp if spec.action == "grasp" else self.manipulate
+            handle = self.ros.send_until_started(client, goal, timeout_sec=30.0)
+            started = time.monotonic()
+            for push in pushes:
+                self.ros.spin_for(max(0.0, started + push.start_s - time.monotonic()))
+                fault("push", "--dx-mm", str(push.dx_mm), "--dy-mm", str(push.dy_mm),
+                      "--dwidth-mm", str(push.dwidth_mm), "--duration-s", str(push.duration_s))
+            ends[name] = goal_outcome(self.ros.result(handle, timeout_sec=40.0))
             end = emulator_status()
             rotations[name] = (end["servos"]["thumb_rotation"]["position_rad"]
                                - start["servos"]["thumb_rotation"]["position_rad"])
             forces[name] = end["forces_n"]
             print(f"{name}: {ends[name]}, thumb rotation {rotations[name]:+.3f} rad, forces {forces[name]}")
-        # the holds restore the contact side by rotating the thumb (the push came 0.5 s into the
-        # world), and the combined one the thumb's 1 N
+        # the holds restore the contact side by rotating the thumb (pushed 0.5 s into the goal),
+        # and the combined one the thumb's 1 N
         self.assertGreater(rotations["disturbance"], 0.2)
         self.assertGreater(rotations["combined"], 0.2)
         self.assertAlmostEqual(forces["combined"]["thumb"], 1.0, delta=0.15)

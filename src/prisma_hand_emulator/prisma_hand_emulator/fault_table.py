@@ -4,6 +4,7 @@ its values checked, before EmulatedHand runs its `_fault_<name>`) and prisma-han
 a subcommand per entry."""
 from __future__ import annotations
 
+import argparse
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -41,6 +42,13 @@ class Fault:
     help: str
     args: tuple[FaultArg, ...] = ()
     link: str | None = None
+
+
+def on_off(text: str) -> str:
+    """`on` or `off` (the CLI's parser; the socket's values are checked the same way)."""
+    if text not in ("on", "off"):
+        raise argparse.ArgumentTypeError(f"{text!r}: say on or off")
+    return text
 
 
 def _one_of(names: tuple[str, ...]) -> str:
@@ -84,7 +92,9 @@ FAULTS: dict[str, Fault] = {
         FaultArg("dwidth_mm", float, "change of the grip width (mm, negative = narrower)", 0.0),
         FaultArg("duration_s", non_negative_float, "over this long (s)", 0.3))),
     "world": Fault("place another object: the hand is posed as that world starts", (
-        FaultArg("name", str, ", ".join(WORLDS), positional=True),)),
+        FaultArg("name", str, ", ".join(WORLDS), positional=True),
+        FaultArg("pushes", on_off, "the world's timed pushes: on, as its scenario times them from now, or off "
+                 "(then `push` them when you want them, e.g. once a goal runs)", "on"))),
 }
 # Each motor's mechanical end stops (rad of the motor shaft from its zero): the open end is its
 
@@ -117,6 +127,11 @@ def fault_values(command: str, args: dict[str, Any], tactile_link: str) -> dict[
     return values
 
 
+def _check_on_off(name: str, value: Any) -> None:
+    if value not in ("on", "off"):
+        raise FaultError(f"{name} {value!r}: must be on or off")
+
+
 def _check_positive(name: str, value: Any) -> None:
     if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
         raise FaultError(f"{name} {value!r}: must be a number > 0")
@@ -129,4 +144,5 @@ def _check_non_negative(name: str, value: Any) -> None:
 
 # a FaultArg's CLI type -> the emulator's check of a value that came over the socket
 _VALUE_CHECKS: dict[Callable[[str], Any], Callable[[str, Any], None]] = {
-    positive_int: _check_positive, non_negative_int: _check_non_negative, non_negative_float: _check_non_negative}
+    positive_int: _check_positive, non_negative_int: _check_non_negative, non_negative_float: _check_non_negative,
+    on_off: _check_on_off}

@@ -259,14 +259,17 @@ class EmulatedHand:
             self.world.add_disturbance(Disturbance(start_s, duration_s, dx_mm, dy_mm, dwidth_mm))
         return f"push dx {dx_mm:g} mm, dy {dy_mm:g} mm, width {dwidth_mm:+g} mm over {duration_s:g} s"
 
-    def _fault_world(self, name: str) -> str:
+    def _fault_world(self, name: str, pushes: str) -> str:
         try:
             world = world_for(name)
         except ValueError as exc:
             raise FaultError(str(exc)) from None
+        if pushes == "off":
+            world.remove_disturbances()
         with self.lock:
             self.world, self.world_name = world, name
             self._contacts = self._pads.source = HandWorldContactSource(world)
             self._world_start_ns = self.clock_ns()
         self.servos.pose(world.positions)  # the experimenter posing the hand as that world starts
-        return f"world {name}: motors at " + ", ".join(f"{n} {v:.3f} rad" for n, v in world.positions.items())
+        timed = "" if pushes == "on" or not world_for(name).disturbances else " (its timed pushes off)"
+        return f"world {name}{timed}: motors at " + ", ".join(f"{n} {v:.3f} rad" for n, v in world.positions.items())

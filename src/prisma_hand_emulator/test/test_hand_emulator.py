@@ -187,6 +187,27 @@ def test_world_command_poses_the_servos_and_changes_the_world(rig):
     assert status["world"] == "pinch_grasp" and all(f == 0.0 for f in status["forces_n"].values())
 
 
+def test_a_world_without_its_timed_pushes_is_pushed_by_the_push_command(rig):
+    """`world combined --pushes off`: the scenario's start without its push at 0.5 s (the grip width
+    narrows, the thumb's force drops), so that a test can push once its goal runs, however late
+    that goal starts."""
+    r = rig("horizontal")
+
+    def thumb_force_after(seconds: float) -> float:
+        r.clock.advance(seconds)
+        r.tick()
+        return r.hand.status()["forces_n"]["thumb"]
+
+    assert r.hand.apply("world", name="combined").startswith("world combined: ")
+    held = thumb_force_after(0.01)
+    assert held > 0.5 and thumb_force_after(1.0) < held - 0.1  # its push came at 0.5 s
+    assert r.hand.apply("world", name="combined", pushes="off").startswith("world combined (its timed pushes off): ")
+    assert thumb_force_after(0.01) == pytest.approx(held, abs=0.01)
+    assert thumb_force_after(1.0) == pytest.approx(held, abs=0.01)  # no push
+    assert r.hand.apply("push", dx_mm=-4.0, dwidth_mm=-6.0).startswith("push dx -4 mm, dy 0 mm, width -6 mm")
+    assert thumb_force_after(0.5) < held - 0.1
+
+
 def test_the_emulator_places_the_sim_graphs_objects_too(rig):
     """One vocabulary for the simulated world (hand.launch.py sim_object:=): the emulated hand takes
     the objects the sim graph presents, an empty hand included, besides the scenarios' starts."""
@@ -236,6 +257,7 @@ def test_fault_defaults_come_from_the_table(rig):
     ("servo-error", {"motor": "wrist", "bit": 5}, "'wrist'"),
     ("servo-error", {"motor": "fingers", "bit": 9}, "bit 9"),
     ("world", {"name": "nope"}, "'nope'"),
+    ("world", {"name": "combined", "pushes": "maybe"}, "pushes 'maybe'"),
     ("nope", {}, "'nope'"),
 ])
 def test_bad_fault_values_raise_fault_error_naming_them(rig, command, args, named):

@@ -141,6 +141,13 @@ class HandWorld:
         self.disturbances.append(disturbance)
         self._applied.append(0.0)
 
+    def remove_disturbances(self) -> None:
+        """No timed pushes (none applied yet: call it before the world moves)."""
+        if any(self._applied):
+            raise RuntimeError("remove_disturbances: a push is already under way; remove them before the world moves")
+        self.disturbances.clear()
+        self._applied.clear()
+
     def set_positions(self, positions: Mapping[str, float], centre_on_thumb: bool = True) -> None:
         """Place the motors without any motion history (the object neither rolls nor slips); with
         centre_on_thumb the object sits where it touches the middle of the thumb pad."""
