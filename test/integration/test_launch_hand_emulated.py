@@ -97,10 +97,13 @@ class TestHandEmulated(GraphTestCase):
     def diagnostic(self, name_end: str, since_ns: int = 0) -> dict[str, str] | None:
         return diagnostic_values(self.diagnostics, name_end, since_ns)
 
-    def run_goal(self, goal, timeout_sec: float = 40.0):
+    def start_goal(self, goal):
+        """The goal's handle once it runs (Grasp or Manipulate, by its type)."""
         client = self.grasp if isinstance(goal, Grasp.Goal) else self.manipulate
-        handle = self.ros.send_until_started(client, goal, timeout_sec=30.0)
-        return self.ros.result(handle, timeout_sec=timeout_sec)
+        return self.ros.send_until_started(client, goal, timeout_sec=30.0)
+
+    def run_goal(self, goal, timeout_sec: float = 40.0):
+        return self.ros.result(self.start_goal(goal), timeout_sec=timeout_sec)
 
     def start_slow_grasp(self):
         """A grasp that closes at 10 rpm toward 3 N: still running when the fault comes."""
@@ -276,8 +279,7 @@ class TestHandEmulated(GraphTestCase):
             fault("world", name, "--pushes", "off")
             goal = (Grasp.Goal if spec.action == "grasp" else Manipulate.Goal)(**spec.goal)
             start = emulator_status()
-            client = self.grasp if spec.action == "grasp" else self.manipulate
-            handle = self.ros.send_until_started(client, goal, timeout_sec=30.0)
+            handle = self.start_goal(goal)
             started = time.monotonic()
             for push in pushes:
                 self.ros.spin_for(max(0.0, started + push.start_s - time.monotonic()))

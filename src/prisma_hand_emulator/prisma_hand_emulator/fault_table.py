@@ -44,9 +44,12 @@ class Fault:
     link: str | None = None
 
 
+ON_OFF = ("on", "off")
+
+
 def on_off(text: str) -> str:
     """`on` or `off` (the CLI's parser; the socket's values are checked the same way)."""
-    if text not in ("on", "off"):
+    if text not in ON_OFF:
         raise argparse.ArgumentTypeError(f"{text!r}: say on or off")
     return text
 
@@ -128,7 +131,7 @@ def fault_values(command: str, args: dict[str, Any], tactile_link: str) -> dict[
 
 
 def _check_on_off(name: str, value: Any) -> None:
-    if value not in ("on", "off"):
+    if value not in ON_OFF:
         raise FaultError(f"{name} {value!r}: must be on or off")
 
 

@@ -264,12 +264,13 @@ class EmulatedHand:
             world = world_for(name)
         except ValueError as exc:
             raise FaultError(str(exc)) from None
-        if pushes == "off":
+        pushes_removed = pushes == "off" and bool(world.disturbances)
+        if pushes_removed:
             world.remove_disturbances()
         with self.lock:
             self.world, self.world_name = world, name
             self._contacts = self._pads.source = HandWorldContactSource(world)
             self._world_start_ns = self.clock_ns()
         self.servos.pose(world.positions)  # the experimenter posing the hand as that world starts
-        timed = "" if pushes == "on" or not world_for(name).disturbances else " (its timed pushes off)"
+        timed = " (its timed pushes off)" if pushes_removed else ""
         return f"world {name}{timed}: motors at " + ", ".join(f"{n} {v:.3f} rad" for n, v in world.positions.items())
