@@ -41,17 +41,17 @@ PROBE_RT_PRIORITY = 30
 # rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
 CONTROL_PATH_RT_PRIORITY = 20
 CONTROL_PATH_NICE = -5
+# A test process's DDS threads (receive, delivery): level with the control path's niceness, ahead of
+# the ordinary processes of a busy machine, so that every sample the graph publishes reaches the
+# test's reader history while its Python thread waits for a core. A receive thread kept from running
+# lets the socket buffer overflow and the writers' reliable history (10 deep) move on: samples lost,
+# not late. The test's Python thread stays at the default, and so do the processes it starts: an
+# observer must not outrank the default-priority nodes it observes (tried on SCHED_FIFO 5: it kept up
+# with its streams, and a pass beside the load harness failed no fewer tests; docs/performance.md).
+TEST_DDS_NICE = CONTROL_PATH_NICE
 # The fault CLI a test runs acts when the test says: above every ordinary process, below the control
 # path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
 FAULT_CLI_RT_PRIORITY = 10
-# A test process: its DDS threads (receive, delivery) and the thread that takes the streams from them
-# (its executor), below the control path it must not hold up and the fault CLI it runs, above the
-# ordinary processes of a busy machine. At the default priority beside the load harness its executor
-# took 150 messages a second of the 750 a teleop test collects (the sim graph at SCHED_FIFO takes most
-# of two cores): its reader histories (1000 deep) held seconds of backlog, and every wait for a
-# current sample timed out though the graph was on time; at niceness -5 it still fell behind. What
-# the test thread starts (nodes, CLI tools, displays) starts at the default (SCHED_RESET_ON_FORK).
-TEST_PROCESS_RT_PRIORITY = 5
 
 
 def control_path_env() -> dict[str, str]:

@@ -12,7 +12,7 @@ from prisma_common.scheduling import (
     CONTROL_PATH_RT_PRIORITY,
     FAULT_CLI_RT_PRIORITY,
     PROBE_RT_PRIORITY,
-    TEST_PROCESS_RT_PRIORITY,
+    TEST_DDS_NICE,
     apply_priority,
     apply_priority_from_env,
     control_path_env,
@@ -81,9 +81,10 @@ def test_niceness_only_when_real_time_is_not_asked_for():
     assert apply_priority(None, current) == f"nice {current}"  # the same value: changes nothing
 
 
-def test_the_ladder_runs_probes_above_the_control_path_above_the_fault_cli_above_the_tests():
-    assert PROBE_RT_PRIORITY > CONTROL_PATH_RT_PRIORITY > FAULT_CLI_RT_PRIORITY > TEST_PROCESS_RT_PRIORITY > 0
-    assert CONTROL_PATH_NICE < 0
+def test_the_ladder_runs_probes_above_the_control_path_above_the_fault_cli():
+    assert PROBE_RT_PRIORITY > CONTROL_PATH_RT_PRIORITY > FAULT_CLI_RT_PRIORITY > 0 and CONTROL_PATH_NICE < 0
+    # a test's DDS threads ahead of ordinary processes, never ahead of the control path's fallback
+    assert CONTROL_PATH_NICE <= TEST_DDS_NICE < 0
     lines = run_probe(control_path_env())
     if IS_ROOT:
         assert lines[0] == f"real-time scheduling (SCHED_FIFO {CONTROL_PATH_RT_PRIORITY})"

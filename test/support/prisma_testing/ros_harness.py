@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import pytest
 
 from prisma_common.goal_refusal import NOT_READY, refusal_code
-from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, TEST_PROCESS_RT_PRIORITY, try_rt_priority
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, TEST_DDS_NICE, try_rt_priority
 
 ROS_SKIP_REASON = (
     "needs ROS 2 and the built workspace: source ../shared/ros2/setup.sh (or /opt/ros/jazzy), "
@@ -98,13 +98,20 @@ def stamp_ns(msg: Any) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def _this_thread_on_the_test_rung() -> tuple[int, Any] | None:
-    """This thread at SCHED_FIFO TEST_PROCESS_RT_PRIORITY, as the threads it starts from now on (DDS's);
-    its scheduling before (policy, param), or None where that is not permitted (left where it is)."""
-    before = (os.sched_getscheduler(0), os.sched_getparam(0))
-    if not try_rt_priority(TEST_PROCESS_RT_PRIORITY):
-        return None
-    return before
+@contextlib.contextmanager
+def _this_thread_at_nice(nice: int) -> Iterator[None]:
+    """This thread at niceness `nice` inside the block (Linux keeps niceness per thread), where
+    permitted; unchanged where not."""
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, nice)
+    except PermissionError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        os.setpriority(os.PRIO_PROCESS, 0, before)
 
 
 class _SpinCount:
@@ -160,13 +167,9 @@ class RosHarness:
         self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
         self._collecting: dict[int, Any] = {}  # id of a collect() list -> its subscription
         # DDS starts its threads with the first node of the process: the probe, made now with this
-        # thread on the test's rung (they inherit it), where this thread stays until shutdown; what
-        # it starts afterwards (nodes, tools) starts at the default again
-        self._scheduling_before = _this_thread_on_the_test_rung()
-        _ = self.probe
-        if self._scheduling_before is not None:
-            os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
-                                  os.sched_param(TEST_PROCESS_RT_PRIORITY))
+        # thread on their rung (they inherit it; scheduling.TEST_DDS_NICE), then this thread back
+        with _this_thread_at_nice(TEST_DDS_NICE):
+            _ = self.probe
 
     # ---- nodes -----------------------------------------------------------------------------
     def node(self, cls: Callable[..., Any], params: dict[str, Any] | None = None,
@@ -584,8 +587,6 @@ class RosHarness:
             node.destroy_node()
         self.executor.shutdown()
         self.rclpy.try_shutdown()
-        if self._scheduling_before is not None:
-            os.sched_setscheduler(0, *self._scheduling_before)
 
 
 # ---- nodes in their own process, as `ros2 run` starts them -----------------------------------------
@@ -600,8 +601,7 @@ class NodeProcess:
     stderr collected: `wait_for_output` a line it prints, `interrupt` it as Ctrl-C in its terminal
     does (SIGINT to the whole process group: `ros2 run` and the node under it), `wait` for its exit.
     As a context manager it kills whatever still runs at the end. The environment is inherited
-    (the test process's ROS_DOMAIN_ID included), with unbuffered Python and uncoloured ROS logs; it
-    starts at the default priority, not on the test's rung (SCHED_RESET_ON_FORK).
+    (the test process's ROS_DOMAIN_ID included), with unbuffered Python and uncoloured ROS logs.
     Each one started is kept in `started` (its output for the file a failing test names, launch_case)."""
 
     started: ClassVar[list[NodeProcess]] = []
