@@ -53,6 +53,7 @@ from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+from prisma_manipulation.ros_conversions import hand_wrench_samples  # noqa: E402
 
 MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
 OVERSHOOT_N = 0.15
@@ -164,8 +165,8 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         ros.spin_for(2.0)  # holding: nothing creeps on
         fb = self.latest_feedback(handle)
         at = self.positions()
-        pads = [list(zip(m.fingers, m.wrenches)) for m in self.wrenches if stamp_ns(m) >= closing_ns]
-        peaks = {f: max(w.wrench.force.z for scan in pads for g, w in scan if g == f) for f in FINGERS}
+        pads = [pad for m in self.wrenches for pad in hand_wrench_samples(m) if stamp_ns(pad[1]) >= closing_ns]
+        peaks = {f: max(w.wrench.force.z for g, w in pads if g == f) for f in FINGERS}
         rounded = {m: round(v, 3) for m, v in at.items()}
         print(f"held after closing: phase {fb.phase}, force_limited {list(fb.force_limited)}, positions {rounded}, "
               f"feedback pad_forces {[round(v, 3) for v in fb.pad_forces]}, peak Fz "
