@@ -63,6 +63,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from prisma_common.hand import FINGERS
 from prisma_common.scheduling import apply_priority_from_env
+from prisma_node_wiring.executor import SingleWaitExecutor
 
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
 DEPTH = 10  # every publisher and subscription of the nodes uses a keep-last depth of 10
@@ -307,6 +308,9 @@ def build(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
     parser.add_argument("--like-node", action="store_true",
                         help="manipulation: also the node's idle entities (Grasp and Manipulate action servers, "
                              "50 Hz timer)")
+    parser.add_argument("--executor", choices=["rclpy", "single_wait"], default="rclpy",
+                        help="rclpy's SingleThreadedExecutor (the yardstick) or the nodes' own "
+                             "(prisma_node_wiring.executor; bench_executor.py compares them)")
     parser.add_argument("--frame-rate-hz", type=float, default=7.3, help="glove_driver: frames/s")
     parser.add_argument("--poll-rate-hz", type=float, default=50.0, help="glove_driver: poll timer rate")
     return parser.parse_known_args(argv)
@@ -338,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
         if scheduling:
             node.get_logger().info(f"scheduling: {scheduling}")
         started = node.get_clock().now()
-        rclpy.spin(node)
+        rclpy.spin(node, executor=SingleWaitExecutor() if args.executor == "single_wait" else None)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # SIGINT / SIGTERM from the benchmark: a normal stop
     finally:

@@ -21,6 +21,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from prisma_common.scheduling import apply_priority, priority_from_env
+from prisma_node_wiring.executor import process_executor
 
 SHUTDOWN_CHECK_PERIOD_S = 0.25  # the longest a stop request can wait when rclpy's wake-up comes too early
 
@@ -64,7 +65,7 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
         # shutdown. A steady-clock timer bounds that to one period, whatever the node's clock.
         node.create_timer(SHUTDOWN_CHECK_PERIOD_S, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
         settle_garbage_collector()
-        rclpy.spin(node)
+        rclpy.spin(node, executor=process_executor())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except config_errors as exc:
