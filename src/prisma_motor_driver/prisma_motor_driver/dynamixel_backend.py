@@ -106,12 +106,15 @@ class DynamixelBus:
             model, _, _ = self._retry(lambda c=config: self._packet.ping(self._port, c.servo_id),
                                       f"ping {name} (id {config.servo_id})", result_index=1, error_index=2)
             self.model_numbers[name] = model
-            self._prepare(name, config, model)
+            self._prepare(name, config, model, arm=False)
+        # armed together once every servo is ready: armed one by one, the first servos' periods ran
+        # out while the driver was still preparing the others (eight round trips each)
+        self._sync_write(ct.ADDR_BUS_WATCHDOG, 1, {name: self.watchdog_units for name in self.motors})
 
-    def _prepare(self, name: str, config: MotorConfig, model: int) -> None:
+    def _prepare(self, name: str, config: MotorConfig, model: int, arm: bool = True) -> None:
         """Make one servo safe before it moves (also after it powered up again and forgot its RAM):
-        its Current Limit, velocity mode stopped, torque on, its Bus Watchdog armed; homed where its
-        LED (off at power-up, lit by homing) says so."""
+        its Current Limit, velocity mode stopped, torque on, its Bus Watchdog armed (`arm`); homed
+        where its LED (off at power-up, lit by homing) says so."""
         firmware = self._read1(config, ct.ADDR_FIRMWARE_VERSION, "firmware version")
         if firmware < ct.WATCHDOG_MIN_FIRMWARE:
             raise BusError(f"{name} (id {config.servo_id}): firmware v{firmware} has no Bus Watchdog (v"
@@ -123,7 +126,8 @@ class DynamixelBus:
         self._write1(config, ct.ADDR_BUS_WATCHDOG, 0)  # clears an error a fired watchdog left
         self._write4(config, ct.ADDR_GOAL_VELOCITY, 0)
         self._write1(config, ct.ADDR_TORQUE_ENABLE, 1)
-        self._write1(config, ct.ADDR_BUS_WATCHDOG, self.watchdog_units)
+        if arm:
+            self._write1(config, ct.ADDR_BUS_WATCHDOG, self.watchdog_units)
         self._modes[name] = ct.MODE_VELOCITY
         # the LED is off at power-up and lit by the homing that found this servo's zero
         self.homed[name] = self._read1(config, ct.ADDR_LED, "LED") == 1
@@ -241,14 +245,12 @@ class DynamixelBus:
         self._prepare(name, self._config(name), self.model_numbers.get(name, 0))
 
     def rearm_watchdog(self, names: list[str]) -> None:
-        for name in names:
-            c = self._config(name)
-            self._write1(c, ct.ADDR_BUS_WATCHDOG, 0)  # the goal registers take writes again
-            if self._modes.get(name) == ct.MODE_VELOCITY:
-                self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
-            else:
-                self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c))
-            self._write1(c, ct.ADDR_BUS_WATCHDOG, self.watchdog_units)
+        # sync writes for every fired servo at once, not a round trip per servo and register: on a slow
+        # bus (or emulator) the re-arm of one servo took long enough for the others' watchdogs to fire
+        # in turn
+        self._sync_write(ct.ADDR_BUS_WATCHDOG, 1, {n: 0 for n in names})  # the goal registers take writes again
+        self.stop(names)
+        self._sync_write(ct.ADDR_BUS_WATCHDOG, 1, {n: self.watchdog_units for n in names})
 
     def start_homing(self, names: list[str], rpm: float, current_ma: float) -> None:
         for name in names:
@@ -347,9 +349,13 @@ class DynamixelBus:
                     f"write {value} to address {address} of {c.name} (id {c.servo_id})", result_index=0, error_index=1)
 
     def _sync_write4(self, address: int, values: Mapping[str, int]) -> None:
-        writer = sdk.GroupSyncWrite(self._port, self._packet, address, 4)
+        self._sync_write(address, 4, values)
+
+    def _sync_write(self, address: int, size: int, values: Mapping[str, int]) -> None:
+        writer = sdk.GroupSyncWrite(self._port, self._packet, address, size)
         for name, value in values.items():
-            writer.addParam(self._config(name).servo_id, list(ct.to_unsigned(int(value), 4).to_bytes(4, "little")))
+            data = ct.to_unsigned(int(value), size).to_bytes(size, "little")
+            writer.addParam(self._config(name).servo_id, list(data))
         # sync write has no status packet: only a failed transmit can be retried
         self._retry(writer.txPacket, f"sync write address {address}")
         self.stats.writes += 1

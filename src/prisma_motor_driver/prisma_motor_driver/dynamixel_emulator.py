@@ -248,9 +248,11 @@ class DynamixelEmulator:
                 return
             if not ready:
                 continue
-            # the bytes came by now (waited for) or after the pty was last found empty (already there);
-            # the lock below can hold this thread up longer still
-            unread_since = self._seen_empty_s if waiting else self.clock()
+            # the bytes came after the pty was last found empty, which is all this thread knows: woken
+            # by them, it may have waited for a core or the interpreter lock before it looked at the
+            # clock (a deadline judged by that later instant fired watchdogs that the bytes had met),
+            # and the lock below can hold it up longer still
+            unread_since = self._seen_empty_s
             # read under the lock so that `sync()` can tell "nothing in flight" reliably
             with self._lock:
                 try:

@@ -46,6 +46,7 @@ def make_core(emu, zeros=None) -> MotorDriverCore:
     bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=1)
     core = MotorDriverCore(MotorDriverConfig(backend="dynamixel"), bus=bus, zeros=zeros)
     assert core.connect(0) is None
+    emu.sync()  # the sync write that arms the watchdogs has no status packet to wait for
     return core
 
 
@@ -102,7 +103,12 @@ def test_a_driver_that_falls_silent_is_stopped_by_the_servos_and_nothing_moves_u
     # 30 rpm for 0.1 s after the last packet: 0.314 rad, not the 3.1 rad of the whole second
     assert ct.ticks_to_rad(present.mechanical_ticks - moving) == pytest.approx(math.pi * 0.1, abs=0.01)
     # the driver wakes (SIGCONT): it sees the fired watchdog, ends the goal, clears and re-arms it
+    heard = emu.stats.instructions
     tick = core.tick(round(clock.now_s * 1e9))
+    emu.sync()
+    # in one sync read and sync writes, a packet each for every servo at once: a round trip per servo
+    # and register gave the other servos' watchdogs time to fire on a slow bus
+    assert emu.stats.instructions - heard == 5
     assert tick.result is not None and not tick.result.success
     assert tick.result.reason == (
         "motor_fault: fingers (id 1), thumb_flexion (id 2), thumb_rotation (id 3) stopped by their bus watchdogs: no "
