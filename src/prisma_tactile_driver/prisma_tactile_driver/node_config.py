@@ -45,8 +45,9 @@ class TactileDriverConfig(Params):
     port: str = parameter("/dev/ttyUSB1", "serial port of the Arduino hub (backend serial; the Dynamixel adapter "
                                           "defaults to ttyUSB0)")
     baud: int = parameter(1_000_000, "serial baud rate of the hub", unit="baud", bounds=(1, 4_000_000))
-    serial_poll_hz: float = parameter(500.0, "how often the serial port is drained", unit="Hz",
-                                      bounds=(0.0, 10_000.0), open_low=True)
+    serial_poll_hz: float = parameter(500.0, "the driver reads the hub's bytes as they come; it looks again this "
+                                             "often when none come, and reopens a lost port at most this often",
+                                      unit="Hz", bounds=(0.0, 10_000.0), open_low=True)
     reconnect_backoff_initial: float = parameter(0.05, "wait before reopening a lost port, doubled after each "
                                                        "failure", unit="s", bounds=(0.0, 60.0), open_low=True)
     reconnect_backoff_max: float = parameter(2.0, "longest wait between reopening attempts", unit="s",
@@ -111,7 +112,7 @@ def make_backend(config: TactileDriverConfig, contact_source: ContactSource | No
     """The configured backend. For sim, `contact_source` defaults to the scripted cycle."""
     if config.backend == "serial":
         from .serial_backend import SerialHubBackend
-        return SerialHubBackend(config.port, config.baud, read_timeout_s=0.0,
+        return SerialHubBackend(config.port, config.baud, read_timeout_s=1.0 / config.serial_poll_hz,
                                 backoff_initial_s=config.reconnect_backoff_initial,
                                 backoff_max_s=config.reconnect_backoff_max)
     if config.backend == "i2c":

@@ -100,6 +100,9 @@ class SerialHubBackend:
     def poll_frames(self) -> list[HubFrame]:
         """Read what is there (waiting at most read_timeout_s) and parse it; never raises."""
         if self._serial is None and not self._open():
+            # a port that is not open answers as late as an open one with nothing to read: a caller
+            # that reads in a loop (the node's reader thread) does not spin while the hub is away
+            time.sleep(self._read_timeout)
             return []
         port = self._serial
         assert port is not None  # open, or just opened by _open()
