@@ -133,8 +133,10 @@ def fault_parser() -> ArgumentParser:
     return parser
 
 
-@command("prisma-hand-fault")
-def fault_main(argv: list[str] | None = None) -> int:
+def fault_request(argv: list[str] | None = None) -> str:
+    """What prisma-hand-fault prints for `argv` (its parser's errors exit as argparse's do); UserError
+    for an emulator that cannot be reached or refuses. A test sends its faults through this in its own
+    process: a process started per fault took seconds beside a control path at real-time priority."""
     args = fault_parser().parse_args(argv)
 
     from .emulator_control import send
@@ -147,5 +149,10 @@ def fault_main(argv: list[str] | None = None) -> int:
     if not reply.get("ok"):
         error = str(reply.get("error", reply))
         raise UserError(error if error.startswith(f"{args.command}: ") else f"{args.command}: {error}")
-    print(json.dumps(reply["status"], indent=2) if "status" in reply else reply["message"])
+    return json.dumps(reply["status"], indent=2) if "status" in reply else str(reply["message"])
+
+
+@command("prisma-hand-fault")
+def fault_main(argv: list[str] | None = None) -> int:
+    print(fault_request(argv))
     return 0
