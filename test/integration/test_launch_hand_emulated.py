@@ -21,7 +21,8 @@ tactile_driver reads the hub's frames through pyserial. The tests run in order, 
    prisma-sim's scenario starts; the holds' pushes come through the `push` command once the goal
    runs, at the scenario's time from the goal's start): pinch and lateral grasps, horizontal,
    vertical, disturbance and combined manipulation, each ending for the paper's reason.
-Faults go in through `prisma-hand-fault`, the emulator's own CLI.
+Faults go in through the emulator's control socket from this process, with `prisma-hand-fault`'s own
+parser and request (`hand_fault`).
 
 Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
 """

@@ -2,7 +2,7 @@
 
 - every topic and action of docs/architecture.md's topic table that the hand's nodes provide is
   there with its type; the streams run at their rates, measured by header stamps over a 3 s window
-  once the graph is warm, by a probe process above the graph's priority (host_probe.py): taxels
+  once the graph is warm, by a probe process on the graph's priority (host_probe.py): taxels
   per finger and /joint_states at 100 Hz (80-110 Hz accepted: the drivers' timers run late on a
   loaded 2-core machine, they never run early; a machine starved by other jobs gets up to five
   windows, see setUpClass), /diagnostics once a second from each driver (over every window);
@@ -33,7 +33,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
-from prisma_common.scheduling import PROBE_RT_PRIORITY  # noqa: E402
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY  # noqa: E402
 from prisma_testing.topic_table import topic_table  # noqa: E402
 
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
@@ -79,10 +79,12 @@ class TestHandSim(GraphTestCase):
     @classmethod
     def subscribe(cls, ros):
         cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-        # the sixteen 100 Hz streams are taken by a probe process of their own, above the graph's
-        # priority (host_probe.py): this process, at the default priority beside a graph at real-time
-        # priority, stopped receiving one of them for good twice in CI while the drivers published it
-        cls.probe = HostProbe(list, rt_priority=PROBE_RT_PRIORITY)
+        # the sixteen 100 Hz streams are taken by a probe process of their own on the graph's
+        # real-time rung (host_probe.py): this process, at the default priority, got a few percent of
+        # a core beside the graph (docs/performance.md). Not above the graph: the checks read header
+        # stamps, nothing is timed, and at SCHED_FIFO 30 the probe's 58% of a core came before the
+        # graph's own work (manipulation then skipped ContactStates: 83 against 91 Hz, fresh-clone CI)
+        cls.probe = HostProbe(list, rt_priority=CONTROL_PATH_RT_PRIORITY)
         for topic, msg_type in STREAMS.items():
             cls.probe.call("collect", topic=topic, type=msg_type)
         # warm: the estimator (the slowest node: a network per sample) keeps pace with the taxels

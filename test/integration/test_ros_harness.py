@@ -14,7 +14,7 @@ import os
 import subprocess
 import time
 
-from prisma_common.scheduling import TEST_DDS_NICE
+from prisma_common.scheduling import TEST_COLLECTOR_NICE, TEST_DDS_NICE
 from prisma_testing.ros_harness import RosHarness, require_ros
 
 require_ros()
@@ -145,3 +145,58 @@ def test_publishing_keeps_its_rate_while_this_process_does_not_spin(ros):
     assert ros.spin_until(lambda: len(received) >= len(sent), 10.0), (len(received), len(sent))
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in received] == sent
     assert [list(m.name) for m in received] == [names[i % 3] for i in range(len(sent))]
+
+
+@pytest.fixture
+def apart():
+    """A RosHarness whose collections a collector process takes (as the launch tests' do)."""
+    harness = RosHarness(collect_apart=True)
+    try:
+        yield harness
+    finally:
+        harness.shutdown()
+
+
+def _scheduling(pid: int) -> tuple[int, int]:
+    """(policy, niceness) of a process, from /proc."""
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return int(fields[38]), int(fields[16])
+
+
+def test_a_collection_apart_holds_every_message_while_this_process_does_not_spin(apart):
+    received = apart.collect(JointState, "apart")
+    names = [["thumb"], ["index", "middle"], []]
+    with apart.publishing(JointState, "apart", lambda i: JointState(name=names[i % 3], position=[i * 0.5]),
+                          100.0) as sent:
+        time.sleep(0.5)  # nothing spins the executor: the collector's process takes them
+    assert len(sent) >= 25, len(sent)
+    deadline = time.monotonic() + 10.0
+    while len(received) < len(sent) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    # each message whole, stamped at its send instant, in order; read back as messages
+    assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in received] == sent
+    assert [list(m.name) for m in received] == [names[i % 3] for i in range(len(sent))]
+    assert [m.position[0] for m in received[-2:]] == [(len(sent) - 2) * 0.5, (len(sent) - 1) * 0.5]
+    assert received[-1] is received[len(sent) - 1] is list(reversed(received))[0]
+    # what message_stamped finds in it: the first message stamped at or after the instant
+    assert apart.message_stamped(received, sent[3] - 1, timeout_sec=1.0) is received[3]
+    collector = apart._collector.proc.pid
+    if os.geteuid() == 0:  # a niceness below 0 needs root or a nice limit
+        assert _scheduling(collector) == (os.SCHED_OTHER, TEST_COLLECTOR_NICE)
+    apart.stop_collecting(received)
+    with apart.publishing(JointState, "apart", lambda i: JointState(), 100.0):
+        time.sleep(0.3)
+    assert len(received) == len(sent)  # stopped: nothing more, what it held still there
+
+
+def test_a_silent_collection_apart_says_so_and_shutdown_removes_its_files():
+    apart = RosHarness(collect_apart=True)
+    try:
+        silent = apart.collect(JointState, "silent_apart")
+        with pytest.raises(AssertionError) as nothing:
+            apart.message_stamped(silent, time.time_ns(), timeout_sec=0.1)
+        folder = apart._collector.folder
+    finally:
+        apart.shutdown()
+    assert "silent_apart: 0 publisher(s), a fresh subscription received nothing in 2.0 s" in str(nothing.value)
+    assert not os.path.exists(folder)

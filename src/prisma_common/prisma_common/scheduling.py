@@ -7,9 +7,11 @@ CPU of one at nice 0, but still lets every runnable process run its slice before
 served. With a CPU hog per core and a memory hog beside the graph (test/support/prisma_testing/load_harness.py),
 ten pinch grasps at nice -5 ended `sensor_stale` two to ten times (a stream 101-198 ms old): the
 nodes were ready and waiting for a core. SCHED_FIFO runs a woken node at once, ahead of every
-ordinary process; the control path uses about a third of one core and blocks between samples, so it
-cannot starve the rest (and the kernel keeps 5% of each second for ordinary processes whatever a
-real-time process does).
+ordinary process. That holds while the control path leaves the computer room: it blocks between
+samples, and it took about a third of one core when this was written. On a slow 2-core VM it has
+since taken 1.4-1.7 cores (docs/performance.md, "The emulated servo bus on a full machine"); then it
+starves the rest (the kernel's workers that move serial bytes too, it seems: not shown) until the kernel's real-time
+budget (95% of each second) throttles it.
 
 Real-time scheduling needs root, CAP_SYS_NICE or an `rtprio` limit (README, "On the robot"). Where
 it is refused the process falls back to a raised niceness, which needs the `nice` limit, and
@@ -49,6 +51,12 @@ CONTROL_PATH_NICE = -5
 # observer must not outrank the default-priority nodes it observes (tried on SCHED_FIFO 5: it kept up
 # with its streams, and a pass beside the load harness failed no fewer tests; docs/performance.md).
 TEST_DDS_NICE = CONTROL_PATH_NICE
+# A launch test's collector process (prisma_testing.collector): it only appends each sample of the
+# streams the test checks to a file, as a recorder on the robot would; on the test DDS threads' rung,
+# ahead of the ordinary processes, not real-time: the sim graph takes up to 1.7 of 2 cores at SCHED_FIFO
+# 20 on a slow VM, and real-time CPU above it counts against the kernel's 95% real-time budget
+# (docs/performance.md, "A collector apart").
+TEST_COLLECTOR_NICE = CONTROL_PATH_NICE
 # The fault CLI a test runs acts when the test says: above every ordinary process, below the control
 # path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
 FAULT_CLI_RT_PRIORITY = 10

@@ -36,20 +36,21 @@ from __future__ import annotations
 import json
 import os
 import queue
-import select
-import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from prisma_testing.json_line_process import JsonLineProcess
+
 # the longest one wait of the probe's idle loop lasts: a request or a message ends it sooner
 IDLE_SPIN_SEC = 1.0
 
 
-class HostProbe:
-    """The test's end: starts the probe (through `run`, e.g. Host.run) and sends it requests."""
+class HostProbe(JsonLineProcess):
+    """The test's end: starts the probe (through `run`, e.g. Host.run) and sends it requests (`call`:
+    RuntimeError with the probe's output when one fails)."""
 
     def __init__(self, run: Callable[[Sequence[str]], list[str]], env: dict[str, str] | None = None,
                  start_timeout_s: float = 60.0, rt_priority: int = 0) -> None:
@@ -59,39 +60,8 @@ class HostProbe:
         argv = [sys.executable, "-m", "prisma_testing.host_probe"]
         if rt_priority > 0:
             argv += ["--rt-priority", str(rt_priority)]
-        self.proc = subprocess.Popen(run(argv), stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=full_env,
-                                     start_new_session=True)
-        self._stderr: list[str] = []
-        self._reader = threading.Thread(target=lambda: self._stderr.extend(self.proc.stderr), daemon=True)
-        self._reader.start()
+        super().__init__(run(argv), "host probe", full_env)
         self.call("ping", timeout_s=start_timeout_s)
-
-    def call(self, op: str, timeout_s: float = 120.0, **fields: Any) -> dict:
-        """Send one request and return its answer; RuntimeError with the probe's output when it fails."""
-        if self.proc.poll() is not None:
-            raise RuntimeError(f"the host probe exited ({self.proc.returncode}): {''.join(self._stderr)[-2000:]}")
-        self.proc.stdin.write(json.dumps({"op": op, **fields}) + "\n")
-        self.proc.stdin.flush()
-        ready, _, _ = select.select([self.proc.stdout], [], [], timeout_s)
-        line = self.proc.stdout.readline() if ready else ""
-        if not line:
-            raise RuntimeError(f"no answer from the host probe to {op} within {timeout_s} s: "
-                               f"{''.join(self._stderr)[-2000:]}")
-        answer = json.loads(line)
-        if "error" in answer:
-            raise RuntimeError(f"host probe {op}: {answer['error']}")
-        return answer
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.stdin.close()  # the probe ends at the end of its input
-            try:
-                self.proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, 9)
-                self.proc.wait()
-        self._reader.join(timeout=5)
 
 
 # ---- the probe's end: runs inside the host --------------------------------------------------------

@@ -12,6 +12,7 @@ everything else runs on wall time and is awaited with `spin_until`.
 """
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import math
@@ -143,10 +144,18 @@ class RosHarness:
     # subscription. Alternating timeouts would serve that one again and again (starving the others
     # until their queues overflow) and take messages of one scan out of order across topics.
     SPIN_SEC = 0.005
+    # A harness whose collections a collector process takes (collect_apart) is woken by none of their
+    # messages: its waits look at them every APART_SPIN_SEC. 200 empty spins a second cost 9% of a core
+    # on a 2-core VM (bench_collector's holder), most of what a busy machine leaves a test's process.
+    APART_SPIN_SEC = 0.02
 
-    def __init__(self) -> None:
+    def __init__(self, collect_apart: bool = False) -> None:
+        """collect_apart: `collect` through a collector process (prisma_testing.collector), for a
+        launch test beside a graph of other processes; in-process (the default) where the test's own
+        nodes publish and `settle` must find their messages collected."""
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
+
+        from prisma_node_wiring.executor import SingleWaitExecutor
 
         self.rclpy = rclpy
         rclpy.init()
@@ -155,7 +164,7 @@ class RosHarness:
         # this process's nodes share its DDS participant and see each other at once: the wait for
         # other processes' nodes would only add 0.5 s to every node a test builds
         single_instance.DISCOVERY_WAIT_S = 0.0
-        self.executor = SingleThreadedExecutor()
+        self.executor = SingleWaitExecutor()  # the nodes' own: as their processes spin them
         self.nodes: list = []
         self.sim_nodes: list = []
         self._sim_now: int | None = None
@@ -163,9 +172,13 @@ class RosHarness:
         self._clock_pub = None
         self._publishers: dict = {}
         self._clients: dict = {}
-        self._log: list | None = None
+        self._log: Sequence | None = None
         self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
         self._collecting: dict[int, Any] = {}  # id of a collect() list -> its subscription
+        self._collect_apart = collect_apart
+        self._wait_spin_sec = self.APART_SPIN_SEC if collect_apart else self.SPIN_SEC  # spin_for, spin_until
+        self._collector: Any = None  # the collector process, started by the first collect
+        self._collections: list = []
         # DDS starts its threads with the first node of the process: the probe, made now with this
         # thread on their rung (they inherit it; scheduling.TEST_DDS_NICE), then this thread back
         with _this_thread_at_nice(TEST_DDS_NICE):
@@ -224,14 +237,14 @@ class RosHarness:
         """Process callbacks for `seconds` of wall time."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
+            self.executor.spin_once(timeout_sec=self._wait_spin_sec)
 
     def spin_until(self, condition: Any, timeout_sec: float = 10.0) -> bool:
         """Process callbacks until `condition()` (or a Future) is true; False after the timeout."""
         done = condition.done if hasattr(condition, "done") else condition
         end = time.monotonic() + timeout_sec
         while not done() and time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=self.SPIN_SEC)
+            self.executor.spin_once(timeout_sec=self._wait_spin_sec)
         return bool(done())
 
     # ---- sim time --------------------------------------------------------------------------
@@ -315,11 +328,20 @@ class RosHarness:
                 return
 
     # ---- topics, services, actions ---------------------------------------------------------
-    def collect(self, msg_type: type, topic: str, qos_profile: Any = None) -> list:
-        """A list that fills with every message received on `topic` (depth 1000: bursts fit)."""
+    def collect(self, msg_type: type, topic: str, qos_profile: Any = None) -> Sequence:
+        """A sequence that fills with every message received on `topic` (depth 1000: bursts fit), in
+        arrival order; taken by the collector process with `collect_apart`."""
         from rclpy.event_handler import SubscriptionEventCallbacks
         from rclpy.qos import QoSProfile
 
+        if self._collect_apart:
+            from prisma_testing.collector import Collector
+
+            if self._collector is None:
+                self._collector = Collector()
+            collection = self._collector.collect(msg_type, topic, qos_profile)
+            self._collections.append(collection)
+            return collection
         received: list = []
         # without rclpy's QoS-event waitables, as the nodes' streams: a probe collecting a dozen 100 Hz
         # topics would spend more CPU walking them than the graph it observes
@@ -333,7 +355,11 @@ class RosHarness:
         """Close the subscriptions that fill these `collect` lists: a probe still taking dozens of
         100 Hz topics a test is done with leaves the executor little time for the next test's."""
         for received in lists:
-            self.probe.destroy_subscription(self._collecting.pop(id(received)))
+            if any(received is c for c in self._collections):
+                self._collector.stop(received)
+                self._collections.remove(received)
+            else:
+                self.probe.destroy_subscription(self._collecting.pop(id(received)))
 
     def publisher(self, msg_type: type, topic: str, qos_profile: Any = 10):
         return self.probe.create_publisher(msg_type, topic, qos_profile)
@@ -498,9 +524,17 @@ class RosHarness:
         """Whether the stream a `collect` list stopped receiving is still published: a fresh
         subscription to its topic for `seconds` tells a silent publisher from a stalled reader."""
         subscription = self._collecting.get(id(received))
-        if subscription is None:
+        if any(received is c for c in self._collections):
+            topic, msg_type = received.topic, received.msg_type
+            collector = self._collector.proc
+            if collector.poll() is not None:
+                return (f"{topic}: the collector exited ({collector.returncode}): "
+                        f"{self._collector.stderr_tail(1500)}")
+        elif subscription is None:
             return "its subscription is closed"
-        topic, msg_type = subscription.topic_name, subscription.msg_type
+        else:
+            topic, msg_type = subscription.topic_name, subscription.msg_type
+        reader = "" if subscription is None else f"; {self._reader_state(subscription)}"
         fresh: list = []
         check = self.probe.create_subscription(msg_type, topic, fresh.append, 1000)
         try:
@@ -512,7 +546,35 @@ class RosHarness:
             return f"{topic}: {publishers} publisher(s), a fresh subscription received nothing in {seconds} s"
         newest = (stamp_ns(fresh[-1]) - self.now_ns()) * 1e-9
         return (f"{topic}: {publishers} publisher(s), a fresh subscription received {len(fresh)} in "
-                f"{seconds} s (newest {newest:+.3f} s), the collecting one {len(received)} in all")
+                f"{seconds} s (newest {newest:+.3f} s), the collecting one {len(received)} in all{reader}")
+
+    def _reader_state(self, subscription: Any) -> str:
+        """Why a collecting subscription's messages stopped: how many callbacks per stream this
+        process's executor ran in the next second (a process kept from the CPU serves every stream a
+        few times; a stalled subscription none), and how many messages its DDS reader then held
+        untaken (taken now, as its handler would; thousands: the executor is behind, none: DDS never
+        delivered them). The executor's mark and handlers tell an rclpy stall (a subscription marked
+        taken by a handler that never ran is left out of every wait set)."""
+        served: collections.Counter = collections.Counter()
+        make = self.executor._make_handler
+
+        def counted(entity: Any, node: Any, take: Any) -> Any:
+            served[getattr(entity, "topic_name", type(entity).__name__)] += 1
+            return make(entity, node, take)
+
+        self.executor._make_handler = counted
+        try:
+            self.spin_for(1.0)
+        finally:
+            del self.executor._make_handler
+        handlers = sum(1 for task, entity, _ in list(self.executor._tasks)
+                       if entity is subscription and not task.done())
+        held = 0
+        with subscription.handle:
+            while held < 10_000 and subscription.handle.take_message(subscription.msg_type, False):
+                held += 1
+        return (f"callbacks in the next 1 s: {dict(served)}; its reader then held {held} untaken; "
+                f"executor mark {subscription._executor_event}, {handlers} unfinished handler(s)")
 
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
                               timeout_sec: float = 60.0, period_sec: float = 0.1) -> None:
@@ -580,6 +642,12 @@ class RosHarness:
 
     # ---- teardown --------------------------------------------------------------------------
     def shutdown(self) -> None:
+        if self._collector is not None:
+            self._collector.close()
+            self._collector = None
+            for collection in self._collections:
+                collection.close()
+            self._collections.clear()
         for client in self._action_clients:
             client.destroy()
         for node in list(self.executor.get_nodes()):
@@ -695,11 +763,12 @@ def start_and_interrupt(args: Sequence[str], ready: str, ros: RosHarness | None 
 _EXTERNAL_SHUTDOWN = """
 import importlib, sys, threading, time
 import rclpy
+from prisma_node_wiring.executor import process_executor
 main = importlib.import_module(sys.argv[1]).main
 def shut_down_when_spinning():
     while not rclpy.ok():
         time.sleep(0.05)
-    executor = rclpy.get_global_executor()  # the one rclpy.spin(node) uses
+    executor = process_executor()  # the one run_node spins
     while not executor.get_nodes():
         time.sleep(0.05)
     time.sleep(0.5)
@@ -799,10 +868,18 @@ def run_hand_fault(emulator_dir: str | Path, *args: str) -> subprocess.Completed
 
 
 def hand_fault(emulator_dir: str | Path, *args: str) -> str:
-    """`run_hand_fault`'s output; AssertionError naming the command when it fails."""
-    result = run_hand_fault(emulator_dir, *args)
-    assert result.returncode == 0, f"prisma-hand-fault {' '.join(args)}: {result.stderr}"
-    return result.stdout
+    """What `prisma-hand-fault --dir <emulator_dir> <args>` prints, sent from this process (the CLI's
+    parser and request, prisma_hand_emulator.emulator_cli.fault_request): a CLI process started per
+    fault took seconds on a 2-core machine whose control path runs at real-time priority, and a push
+    meant for 0.5 s into a 3 s hold came after the hold ended. AssertionError naming the command
+    when the emulator refuses it or cannot be reached."""
+    from prisma_common.cli_args import UserError
+    from prisma_hand_emulator.emulator_cli import fault_request
+
+    try:
+        return fault_request(["--dir", str(emulator_dir), *args])
+    except UserError as exc:
+        raise AssertionError(f"prisma-hand-fault {' '.join(args)}: {exc}") from None
 
 
 @functools.cache
