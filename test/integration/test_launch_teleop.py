@@ -23,7 +23,13 @@ import unittest
 
 import pytest
 
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+    pad_force_peaks,
+)
 from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
 from prisma_testing.ros_harness import STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
 
@@ -31,11 +37,11 @@ require_ros()
 
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
-from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.action import Teleoperate  # noqa: E402
+from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 from prisma_teleop.synthetic_glove_core import Synergies  # noqa: E402
 
 MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
@@ -54,7 +60,7 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
     def subscribe(cls, ros) -> None:
         cls.joints = ros.collect(JointState, "/joint_states")
         cls.targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
-        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.wrenches = ros.collect(HandWrench, "/prisma/hand/wrench")  # the five pads in one stream
         cls.feedback = ros.collect(Teleoperate.Impl.FeedbackMessage, "/prisma/teleoperate/_action/feedback")
         cls.glove = OperatorGlove()
 
@@ -64,7 +70,7 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
 
     def test_1_the_operator_closes_and_the_hand_stops_on_the_ball_at_the_touch_limit(self):
         ros, glove = self.ros, self.glove
-        ros.wait_until_keeping_up(self.joints, self.wrenches["thumb"], lag_sec=0.05, checks=10, timeout_sec=90.0)
+        ros.wait_until_keeping_up(self.joints, self.wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
         glove.move(OPEN)
         # the teleop node sends its goal once the targets flow (again after a refusal while the graph comes up)
         self.assertTrue(ros.spin_until(lambda: self.following_after(0), 60.0), ros.logs(name="teleop")[-5:])
@@ -78,7 +84,7 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
         self.assertTrue(ros.spin_until(held, 20.0), self.feedback[-1].feedback if self.feedback else None)
         ros.spin_for(2.0)  # holding: nothing creeps on
         at = self.positions()
-        peaks = {f: max(w.wrench.force.z for w in self.wrenches[f] if stamp_ns(w) >= closing_ns) for f in FINGERS}
+        peaks = pad_force_peaks(self.wrenches, closing_ns)
         target = self.targets[-1]
         print(f"operator's fist: targets {[round(v, 3) for v in target.position]} rad, the hand stopped at "
               f"{ {m: round(v, 3) for m, v in at.items()} }, peak Fz { {f: round(v, 3) for f, v in peaks.items()} }, "
@@ -91,9 +97,9 @@ class TestTeleop(WearingTheGlove, GraphTestCase):
         self.assertGreater(at["fingers"], 3.0)  # past first touch (3 rad)
         self.assertLess(at["fingers"], 8.5)  # stopped on the ball, short of the operator's fist
         self.assertTrue(stopped(self.ros.message_at(self.joints, 0.0, timeout_sec=30.0)))
-        # the pads' five 100 Hz wrench streams are this test's only use of them: without them this
-        # process (default priority, beside the graph at real-time priority) keeps up with the rest
-        self.ros.stop_collecting(*self.wrenches.values())
+        # the pads' 100 Hz wrench stream is this test's only use of it: without it this process
+        # (default priority, beside the graph at real-time priority) keeps up with the rest
+        self.ros.stop_collecting(self.wrenches)
 
     def test_2_the_operator_opens_and_the_hand_opens(self):
         self.glove.move(OPEN, 1.5)

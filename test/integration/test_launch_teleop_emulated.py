@@ -19,19 +19,25 @@ from pathlib import Path
 
 import pytest
 
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+    pad_force_peaks,
+)
 from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
-from prisma_testing.ros_harness import require_ros, stamp_ns, wait_until_homed
+from prisma_testing.ros_harness import require_ros, wait_until_homed
 
 require_ros()
 
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_teleop_emulated_{os.getpid()}"
@@ -51,20 +57,20 @@ class TestTeleopEmulated(WearingTheGlove, GraphTestCase):
     def subscribe(cls, ros) -> None:
         cls.joints = ros.collect(JointState, "/joint_states")
         cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-        cls.wrenches = {f: ros.collect(WrenchStamped, f"/prisma/{f}/wrench") for f in FINGERS}
+        cls.wrenches = ros.collect(HandWrench, "/prisma/hand/wrench")  # the five pads in one stream
         cls.glove = OperatorGlove()
 
     def test_1_the_operator_closes_on_the_ball_and_opens(self):
         ros, glove = self.ros, self.glove
         wait_until_homed(ros, self.diagnostics, MOTOR_NAMES)
-        ros.wait_until_keeping_up(self.joints, self.wrenches["thumb"], lag_sec=0.05, checks=10, timeout_sec=90.0)
+        ros.wait_until_keeping_up(self.joints, self.wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
         glove.move(OPEN)
         self.assertTrue(ros.wait_for_log(name="manipulation", contains="teleop goal started", timeout_sec=60.0))
         closing_ns = time.time_ns()
         glove.move(FIST, 1.5)
         ros.spin_for(6.0)  # closes at up to 40 rpm (4.2 rad/s) onto the ball, then holds
         held = self.positions()
-        peaks = {f: max(w.wrench.force.z for w in self.wrenches[f] if stamp_ns(w) >= closing_ns) for f in FINGERS}
+        peaks = pad_force_peaks(self.wrenches, closing_ns)
         print(f"emulated: the hand stopped at { {m: round(v, 3) for m, v in held.items()} }, peak Fz "
               f"{ {f: round(v, 3) for f, v in peaks.items()} }")
         for f, peak in peaks.items():

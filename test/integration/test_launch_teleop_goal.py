@@ -32,6 +32,7 @@ from prisma_testing.launch_case import (
     assert_clean_shutdown,
     graph_under_test,
     include_launch,
+    pad_force_peaks,
 )
 from prisma_testing.ros_harness import (
     SIM_STOPPED_RAD_S,
@@ -52,8 +53,7 @@ from prisma_msgs.action import Teleoperate  # noqa: E402
 from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
-from prisma_manipulation.ros_conversions import hand_wrench_samples  # noqa: E402
+from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
 OVERSHOOT_N = 0.15
@@ -165,8 +165,7 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         ros.spin_for(2.0)  # holding: nothing creeps on
         fb = self.latest_feedback(handle)
         at = self.positions()
-        pads = [pad for m in self.wrenches for pad in hand_wrench_samples(m) if stamp_ns(pad[1]) >= closing_ns]
-        peaks = {f: max(w.wrench.force.z for g, w in pads if g == f) for f in FINGERS}
+        peaks = pad_force_peaks(self.wrenches, closing_ns)
         rounded = {m: round(v, 3) for m, v in at.items()}
         print(f"held after closing: phase {fb.phase}, force_limited {list(fb.force_limited)}, positions {rounded}, "
               f"feedback pad_forces {[round(v, 3) for v in fb.pad_forces]}, peak Fz "

@@ -19,17 +19,19 @@ to `launch_log_path(<test id>)` and names the file in the failure message.
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 import tempfile
 import time
 import unittest
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from prisma_common.hand import MOTOR_NAMES
+from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_testing.repo_paths import ROOT
-from prisma_testing.ros_harness import NodeProcess, RosHarness, joint
+from prisma_testing.ros_harness import NodeProcess, RosHarness, joint, stamp_ns
 
 LOG_DIR_VARIABLE = "PRISMA_LAUNCH_LOG_DIR"
 # rclpy's field checks (the root conftest.py turns them on for this process) cost the idle sim graph a
@@ -139,6 +141,24 @@ class MotorPositions:
 
 
 # ---- after the launch ---------------------------------------------------------------------------------
+def pad_force_peaks(hand_wrenches: Sequence, since_ns: int, fingers: Sequence[str] = FINGERS) -> dict[str, float]:
+    """Each pad's highest estimated Fz in a /prisma/hand/wrench collection, over its own estimates
+    stamped `since_ns` or later (a HandWrench's header is the newest of its pads' stamps);
+    AssertionError naming the fingers with none."""
+    from prisma_manipulation.ros_conversions import hand_wrench_samples
+
+    peaks: dict[str, float] = {}
+    for message in hand_wrenches:
+        for finger, wrench in hand_wrench_samples(message):
+            if stamp_ns(wrench) >= since_ns:
+                peaks[finger] = max(peaks.get(finger, -math.inf), wrench.wrench.force.z)
+    missing = [f for f in fingers if f not in peaks]
+    if missing:
+        raise AssertionError(f"no wrench of {', '.join(missing)} stamped at or after {since_ns} ns "
+                             f"in {len(hand_wrenches)} HandWrench messages")
+    return {f: peaks[f] for f in fingers}
+
+
 def process_outputs(proc_output: Any) -> dict[str, str]:
     """A launch test's captured output, stdout and stderr together, per process name ('motor_driver-2')."""
     texts: dict[str, list[str]] = {}
