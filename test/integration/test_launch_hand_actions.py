@@ -36,6 +36,7 @@ from prisma_testing.ros_harness import (
     gripper_goal,
     require_ros,
     stamp_ns,
+    stamped_after,
     stopped,
 )
 
@@ -209,17 +210,10 @@ class TestHandActions(GraphTestCase):
 
     def contacts_after(self, t_ns: int, count: int = 20) -> list:
         """ContactStates stamped after `t_ns`: at least `count` of them."""
-        def newest() -> list:  # from the end: the list grows by 100 a second
-            found = []
-            for m in reversed(self.contacts):
-                if stamp_ns(m) <= t_ns:
-                    break
-                found.append(m)
-            return found[::-1]
         # this process may receive the stream seconds late on a busy machine
-        self.assertTrue(self.ros.spin_until(lambda: len(newest()) >= count, 30.0),
-                        f"{len(newest())} ContactStates stamped after {t_ns}")
-        return newest()
+        self.assertTrue(self.ros.spin_until(lambda: len(stamped_after(self.contacts, t_ns)) >= count, 30.0),
+                        f"{len(stamped_after(self.contacts, t_ns))} ContactStates stamped after {t_ns}")
+        return stamped_after(self.contacts, t_ns)
 
     def test_5_k_at_run_time(self):
         ros = self.ros

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
-from prisma_testing.ros_harness import gripper_goal, joint, require_ros, stamp_ns
+from prisma_testing.ros_harness import gripper_goal, joint, require_ros, stamp_ns, stamped_after
 
 require_ros()
 
@@ -64,15 +64,6 @@ class TestHandGripper(GraphTestCase):
         """The finger's WrenchStamped estimates collected so far, in the order they were published."""
         return [w for m in self.hand_wrenches for f, w in hand_wrench_samples(m) if f == finger]
 
-    def published_after(self, ns: int) -> list:
-        """The HandWrench messages collected so far stamped after `ns` (walked from the newest)."""
-        after = []
-        for m in reversed(self.hand_wrenches):
-            if stamp_ns(m) <= ns:
-                break
-            after.append(m)
-        return after[::-1]
-
     def bias(self) -> Trigger.Response:
         return self.ros.call(Trigger, "/force_estimator/bias", Trigger.Request())
 
@@ -91,8 +82,8 @@ class TestHandGripper(GraphTestCase):
             recent = np.mean([w.wrench.force.z for w in self.wrenches(f)[-BIAS_SAMPLES:]])
             self.assertAlmostEqual(float(offsets[f].rstrip(" N")), recent, delta=0.002)
         biased_ns = time.time_ns()
-        self.assertTrue(ros.spin_until(lambda: len(self.published_after(biased_ns)) >= 200, 30.0))
-        scans = self.published_after(biased_ns)
+        self.assertTrue(ros.spin_until(lambda: len(stamped_after(self.hand_wrenches, biased_ns)) >= 200, 30.0))
+        scans = stamped_after(self.hand_wrenches, biased_ns)
         for f in FINGERS:
             after = [w.wrench.force.z for m in scans for g, w in hand_wrench_samples(m)
                      if g == f and stamp_ns(w) > biased_ns]

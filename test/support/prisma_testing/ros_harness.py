@@ -99,6 +99,17 @@ def stamp_ns(msg: Any) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
+def stamped_after(received: Sequence, t_ns: int) -> list:
+    """The messages of a `collect` sequence (in stamp order) stamped after `t_ns`, oldest first;
+    walked from the newest, so a wait that asks at every spin costs what it finds, not the whole list."""
+    found = []
+    for m in reversed(received):
+        if stamp_ns(m) <= t_ns:
+            break
+        found.append(m)
+    return found[::-1]
+
+
 @contextlib.contextmanager
 def _this_thread_at_nice(nice: int) -> Iterator[None]:
     """This thread at niceness `nice` inside the block (Linux keeps niceness per thread), where
