@@ -4,8 +4,8 @@ One GroupSyncRead per cycle of the block from Hardware Error Status (70) through
 (135), which holds Bus Watchdog (98) and Present Current/Velocity/Position (126..135): one
 transaction, not one per register (each costs the adapter's USB round trip, and on an emulated bus
 a wake-up of the emulator: three of them made a tick take 20-80 ms there); goals go out with
-GroupSyncWrite. Mode changes follow the
-firmware rule: torque off, write Operating Mode (EEPROM), torque on. Communication errors (no status
+GroupSyncWrite. Mode changes follow the firmware rule (torque off, write Operating Mode: EEPROM,
+torque on), for every servo at once in sync writes, and are read back. Communication errors (no status
 packet, corrupt status, a sync read answered with a block of another length: the late status of an
 earlier instruction) are retried a bounded number of times and counted; exhausting the retries raises
 BusError. A port that fails underneath (the adapter unplugged: EIO from the read, the write or the
@@ -32,31 +32,14 @@ from prisma_common.os_errors import describe_os_error
 
 from . import control_table as ct
 from .backend import BusError, BusStats, MotorConfig, MotorState, ServoInfo, check_velocity
+from .dynamixel_port import WaitingPortHandler
 
 # Results worth another attempt: the packet may simply have been lost or garbled on the wire.
 _RETRYABLE = {sdk.COMM_RX_TIMEOUT, sdk.COMM_RX_CORRUPT, sdk.COMM_RX_FAIL, sdk.COMM_TX_FAIL}
-# How long one read of the port waits for the status packet's bytes (the SDK's packet timeout,
-# ~34 ms, still bounds the whole wait).
-READ_WAIT_S = 0.002
 # The block each tick reads: Hardware Error Status (70) through Present Position (135), Bus Watchdog
 # (98) and the present state (126..135) inside it
 CYCLE_START = ct.ADDR_HARDWARE_ERROR_STATUS
 CYCLE_LENGTH = ct.STATE_START + ct.STATE_LENGTH - CYCLE_START
-
-
-class WaitingPortHandler(sdk.PortHandler):
-    """dynamixel-sdk's PortHandler with reads that wait up to READ_WAIT_S for bytes.
-
-    The SDK opens the port non-blocking and polls it in a loop until the status packet is complete:
-    at the driver's real-time priority that loop holds a core for the whole transaction, and
-    whatever else needs it (the servos' emulator, the tactile driver) waits. A read that sleeps in
-    select until the bytes come costs nothing while the servo answers.
-    """
-
-    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
-        opened = super().setupPort(cflag_baud)
-        self.ser.timeout = READ_WAIT_S
-        return opened
 
 
 class DynamixelBus:
@@ -155,26 +138,9 @@ class DynamixelBus:
 
     # ---- reading ---------------------------------------------------------------------------
     def read_state(self, stamp_ns: int = 0) -> dict[str, MotorState]:
-        attempts = self.retries + 1
-        for attempt in range(attempts):
-            self._retry(self._state_reader.txRxPacket, "sync read present state")
-            wrong = self._wrong_length_blocks()
-            if wrong is None:
-                break
-            # a status packet of another length: the late answer of an earlier instruction to that
-            # servo (one that timed out on a busy computer), taken by the SDK for this one's
-            self.stats.corrupt_status += 1
-            if attempt + 1 < attempts:
-                self.stats.retries += 1
-        else:
-            self.stats.comm_failures += 1
-            raise BusError(f"sync read: {wrong} after {attempts} attempts")
-        self.stats.reads += 1
         states = {}
-        for name, c in self.motors.items():
-            if not self._state_reader.isAvailable(c.servo_id, CYCLE_START, CYCLE_LENGTH):
-                raise BusError(f"sync read: no present state from {name} (id {c.servo_id})")
-            block = self._state_reader.data_dict[c.servo_id]
+        for name, block in self._read_blocks().items():
+            c = self.motors[name]
             present = ct.PresentState.from_bytes(bytes(block[ct.STATE_START - CYCLE_START:]))
             error = block[ct.ADDR_HARDWARE_ERROR_STATUS - CYCLE_START]
             watchdog = ct.to_signed(block[ct.ADDR_BUS_WATCHDOG - CYCLE_START], 1)
@@ -192,6 +158,30 @@ class DynamixelBus:
                 servo_reset=watchdog == 0,
             )
         return states
+
+    def _read_blocks(self) -> dict[str, list[int]]:
+        """One sync read of every servo's block from Hardware Error Status through Present Position."""
+        attempts = self.retries + 1
+        for attempt in range(attempts):
+            self._retry(self._state_reader.txRxPacket, "sync read present state")
+            wrong = self._wrong_length_blocks()
+            if wrong is None:
+                break
+            # a status packet of another length: the late answer of an earlier instruction to that
+            # servo (one that timed out on a busy computer), taken by the SDK for this one's
+            self.stats.corrupt_status += 1
+            if attempt + 1 < attempts:
+                self.stats.retries += 1
+        else:
+            self.stats.comm_failures += 1
+            raise BusError(f"sync read: {wrong} after {attempts} attempts")
+        self.stats.reads += 1
+        blocks = {}
+        for name, c in self.motors.items():
+            if not self._state_reader.isAvailable(c.servo_id, CYCLE_START, CYCLE_LENGTH):
+                raise BusError(f"sync read: no present state from {name} (id {c.servo_id})")
+            blocks[name] = self._state_reader.data_dict[c.servo_id]
+        return blocks
 
     def _wrong_length_blocks(self) -> str | None:
         """What the last sync reads got of another length than asked, None if nothing."""
@@ -259,27 +249,26 @@ class DynamixelBus:
             if current_ma > c.current_limit_ma:
                 raise ValueError(f"motor {name}: homing current {current_ma} mA above its current limit "
                                  f"{c.current_limit_ma} mA")
+        # every servo in one burst of sync writes (see _change_mode), each from where it stands
+        ticks = self._present_ticks_of(names)
+        for name in names:
+            self.homed[name] = False
+        self._sync_write(ct.ADDR_LED, 1, {n: 0 for n in names})
+        goals = {}
         for name in names:
             c = self._config(name)
-            self.homed[name] = False
-            self._write1(c, ct.ADDR_LED, 0)
             # far enough toward the open end to reach it from anywhere, a lost turn included
             span_rad = c.max_position_rad - c.min_position_rad + 2.0 * math.pi + 1.0
-            self._write1(c, ct.ADDR_TORQUE_ENABLE, 0)
-            self._write1(c, ct.ADDR_OPERATING_MODE, ct.MODE_CURRENT_BASED_POSITION)
-            self._write2(c, ct.ADDR_GOAL_CURRENT, ct.ma_to_current_units(current_ma))
-            self._write4(c, ct.ADDR_PROFILE_VELOCITY, ct.rpm_to_units(abs(rpm)))
-            self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c) - c.direction * ct.rad_to_ticks(span_rad))
-            self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)
-            self._modes[name] = ct.MODE_CURRENT_BASED_POSITION
-            self.stats.mode_changes += 1
-            self.servo_info[name] = dataclasses.replace(
-                self.servo_info.get(name, ServoInfo()), operating_mode=ct.MODE_NAMES[ct.MODE_CURRENT_BASED_POSITION])
+            goals[name] = ticks[name] - c.direction * ct.rad_to_ticks(span_rad)
+        self._change_mode(names, ct.MODE_CURRENT_BASED_POSITION, [
+            (ct.ADDR_GOAL_CURRENT, 2, {n: ct.ma_to_current_units(current_ma) for n in names}),
+            (ct.ADDR_PROFILE_VELOCITY, 4, {n: ct.rpm_to_units(abs(rpm)) for n in names}),
+            (ct.ADDR_GOAL_POSITION, 4, goals)])
 
     def finish_homing(self, name: str) -> int:
         c = self._config(name)
         # the end stop is the motor's minimum position
-        zero = self._present_ticks(c) - c.direction * ct.rad_to_ticks(c.min_position_rad)
+        zero = self._present_ticks_of([name])[name] - c.direction * ct.rad_to_ticks(c.min_position_rad)
         self.motors[name] = dataclasses.replace(c, zero_ticks=zero)
         self._ensure_mode([name], ct.MODE_VELOCITY)
         self._write1(c, ct.ADDR_LED, 1)
@@ -309,22 +298,46 @@ class DynamixelBus:
             raise ValueError(f"unknown motor {name!r}; configured: {sorted(self.motors)}") from None
 
     def _ensure_mode(self, names: list[str], mode: int) -> None:
+        changing = [n for n in names if self._modes.get(n) != mode]
+        if not changing:
+            return
+        if mode == ct.MODE_VELOCITY:
+            self._change_mode(changing, mode, [(ct.ADDR_GOAL_VELOCITY, 4, {n: 0 for n in changing})])
+        else:  # held where each stands
+            self._change_mode(changing, mode, [(ct.ADDR_GOAL_POSITION, 4, self._present_ticks_of(changing))])
+
+    def _change_mode(self, names: list[str], mode: int, writes: list[tuple[int, int, dict[str, int]]]) -> None:
+        """Operating Mode (EEPROM: torque off), then `writes` (address, size, values), then torque on, in
+        sync writes: a round trip per servo and register (16 ms each behind a U2D2 at its default
+        latency timer) left the servos not yet reached without an instruction past their Bus Watchdog.
+        A sync write has no status packet: Operating Mode is read back, so that a mode a servo refused
+        (the torque-off lost on the wire) fails here, not as a goal that never moves."""
+        self._sync_write(ct.ADDR_TORQUE_ENABLE, 1, {n: 0 for n in names})
+        self._sync_write(ct.ADDR_OPERATING_MODE, 1, {n: mode for n in names})
+        for address, size, values in writes:
+            self._sync_write(address, size, values)
+        self._sync_write(ct.ADDR_TORQUE_ENABLE, 1, {n: 1 for n in names})
+        reader = sdk.GroupSyncRead(self._port, self._packet, ct.ADDR_OPERATING_MODE, 1)
         for name in names:
-            if self._modes.get(name) == mode:
-                continue
+            reader.addParam(self._config(name).servo_id)
+        self._retry(reader.txRxPacket, "sync read operating mode")
+        for name in names:
             c = self._config(name)
-            # Operating Mode lives in EEPROM, writable only with torque off.
-            self._write1(c, ct.ADDR_TORQUE_ENABLE, 0)
-            self._write1(c, ct.ADDR_OPERATING_MODE, mode)
-            if mode == ct.MODE_VELOCITY:
-                self._write4(c, ct.ADDR_GOAL_VELOCITY, 0)
-            else:
-                self._write4(c, ct.ADDR_GOAL_POSITION, self._present_ticks(c))
-            self._write1(c, ct.ADDR_TORQUE_ENABLE, 1)
+            found = reader.getData(c.servo_id, ct.ADDR_OPERATING_MODE, 1)
+            if not reader.isAvailable(c.servo_id, ct.ADDR_OPERATING_MODE, 1) or found != mode:
+                raise BusError(f"{name} (id {c.servo_id}) did not take operating mode {ct.MODE_NAMES[mode]}: it "
+                               f"reads {ct.MODE_NAMES.get(found, found)}")
             self._modes[name] = mode
             self.stats.mode_changes += 1
-            if name in self.servo_info:
-                self.servo_info[name] = dataclasses.replace(self.servo_info[name], operating_mode=ct.MODE_NAMES[mode])
+            self.servo_info[name] = dataclasses.replace(self.servo_info.get(name, ServoInfo()),
+                                                        operating_mode=ct.MODE_NAMES[mode])
+
+    def _present_ticks_of(self, names: list[str]) -> dict[str, int]:
+        """Present Position of each motor (raw ticks), from one sync read of every servo (it feeds
+        every servo's watchdog)."""
+        blocks = self._read_blocks()
+        return {n: ct.PresentState.from_bytes(bytes(blocks[n][ct.STATE_START - CYCLE_START:])).position_ticks
+                for n in names}
 
     def _write1(self, c: MotorConfig, address: int, value: int) -> None:
         self._retry(lambda: self._packet.write1ByteTxRx(self._port, c.servo_id, address, value),
@@ -334,11 +347,6 @@ class DynamixelBus:
         value, _, _ = self._retry(lambda: self._packet.read1ByteTxRx(self._port, c.servo_id, address),
                                   f"read {what} of {c.name} (id {c.servo_id})", result_index=1, error_index=2)
         return int(value)
-
-    def _present_ticks(self, c: MotorConfig) -> int:
-        value = self._retry(lambda: self._packet.read4ByteTxRx(self._port, c.servo_id, ct.ADDR_PRESENT_POSITION),
-                            f"read present position of {c.name}", result_index=1, error_index=2)[0]
-        return ct.to_signed(value, 4)
 
     def _write2(self, c: MotorConfig, address: int, value: int) -> None:
         self._retry(lambda: self._packet.write2ByteTxRx(self._port, c.servo_id, address, ct.to_unsigned(value, 2)),

@@ -123,6 +123,46 @@ def test_a_driver_that_falls_silent_is_stopped_by_the_servos_and_nothing_moves_u
     assert emu.present()[1].mechanical_ticks > stopped_at
 
 
+def slow_round_trips(emu, clock, seconds: float) -> None:
+    """Each instruction answered by a status packet costs the host `seconds` before it sends the next
+    (a U2D2's FTDI adapter at its default 16 ms latency timer): the servos' clock runs on meanwhile."""
+    handle = emu._handle
+
+    def answered_late(packet):
+        reply = handle(packet)
+        if reply:
+            clock.advance(seconds)
+        return reply
+
+    emu._handle = answered_late
+
+
+def test_a_goal_that_changes_every_servos_mode_starts_without_starving_a_watchdog(hand):
+    """Velocity to position mode on all three servos (torque off, Operating Mode, Goal Position from
+    where each stands, torque on) at 16 ms a round trip: a round trip per servo and register left the
+    last servo unaddressed for 10 of them (160 ms), past its 100 ms watchdog, and the goal's first
+    write to it was refused. Sync writes and one sync read reach every servo within one round trip."""
+    emu, clock = hand
+    light_leds(emu)
+    core = make_core(emu, zeros={name: 0 for name in IDS})
+    run(core, emu, clock, 0.05)
+    slow_round_trips(emu, clock, 0.016)
+    before = clock.now_s
+    goal = MoveGoal(list(IDS), "position", [1.0, 1.0, 0.5])
+    assert core.validate(goal) is None
+    outcome = core.start(goal, round(clock.now_s * 1e9))
+    emu.sync()
+    assert outcome.failed is None and emu.watchdog_firings == []
+    assert clock.now_s - before <= 0.032 + 1e-9  # the sync reads' round trips, no more
+    assert [s.table[ct.ADDR_OPERATING_MODE] for s in emu.servos.values()] == [ct.MODE_EXTENDED_POSITION] * 3
+    assert all(s.torque_on for s in emu.servos.values())
+    ticks = run(core, emu, clock, 3.0, until=lambda tick: tick.result is not None)
+    assert ticks[-1].result is not None and ticks[-1].result.success, ticks[-1].result
+    assert emu.watchdog_firings == []
+    states = core.bus.read_state()
+    assert [states[n].position_rad for n in IDS] == pytest.approx([1.0, 1.0, 0.5], abs=0.02)
+
+
 def test_a_servo_that_powers_up_mid_goal_ends_the_goal_and_is_no_longer_homed(hand):
     emu, clock = hand
     light_leds(emu)
