@@ -221,11 +221,7 @@ class DynamixelBus:
         if velocity:
             self._sync_write4(ct.ADDR_GOAL_VELOCITY, {n: 0 for n in velocity})
         if holding:
-            states = self.read_state()
-            self._sync_write4(ct.ADDR_GOAL_POSITION, {
-                n: self._config(n).zero_ticks + ct.rad_to_ticks(self._config(n).direction * states[n].position_rad)
-                for n in holding
-            })
+            self._sync_write4(ct.ADDR_GOAL_POSITION, self._present_ticks_of(holding))
 
     def torque_off(self, name: str) -> None:
         self._write1(self._config(name), ct.ADDR_TORQUE_ENABLE, 0)
@@ -323,8 +319,10 @@ class DynamixelBus:
         self._retry(reader.txRxPacket, "sync read operating mode")
         for name in names:
             c = self._config(name)
+            if not reader.isAvailable(c.servo_id, ct.ADDR_OPERATING_MODE, 1):
+                raise BusError(f"sync read: no operating mode from {name} (id {c.servo_id})")
             found = reader.getData(c.servo_id, ct.ADDR_OPERATING_MODE, 1)
-            if not reader.isAvailable(c.servo_id, ct.ADDR_OPERATING_MODE, 1) or found != mode:
+            if found != mode:
                 raise BusError(f"{name} (id {c.servo_id}) did not take operating mode {ct.MODE_NAMES[mode]}: it "
                                f"reads {ct.MODE_NAMES.get(found, found)}")
             self._modes[name] = mode
