@@ -3,8 +3,10 @@
 glove_driver) through glove_driver and glove_perception, the sim hand with the pinch ball:
 
 1. the session's held poses start the mapped goals on the manipulation node, in the session's order
-   (its log): Grasp pinch, the open GripperCommand, Grasp power, open, Grasp lateral; the pinch grasp
-   runs (the fingers close past 3 rad, where the index first touches the ball; a lateral fist earlier
+   (its log): Grasp pinch, the open GripperCommand, Grasp power, open, Grasp lateral, taken from the
+   first pass whose pinch ran for at least half the session's pinch pose (the replay is already running
+   when the teleop node engages, so the first pass may start with a pinch seen only at its end); the
+   pinch grasp runs (the fingers close past 3 rad, where the index first touches the ball; a lateral fist earlier
    in the replay may have pushed the sim ball off its place, so whether it ends force_reached or at
    the joint limit is printed, not asserted), and the power pose, pressed harder than the pinch, asks
    for more force.
@@ -33,11 +35,14 @@ from rcl_interfaces.msg import Log  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from prisma_teleop.stag_session import write_session  # noqa: E402
+from prisma_teleop.stag_session import SESSION, write_session  # noqa: E402
+from stag_glove.node_config import GloveDriverConfig  # noqa: E402
 
 SESSION_DIR = Path(tempfile.mkdtemp(prefix="prisma_stag_session_"))
 SESSION_FILE = SESSION_DIR / "poses.h5"
 EXPECTED = ["pinch", "open", "power", "open", "lateral"]
+# a pinch the teleop node saw whole runs for most of the pose's frames; one it saw only the end of, far less
+WHOLE_PINCH_NS = int(0.5 * dict(SESSION)["pinch"] / GloveDriverConfig().frame_rate_hz * 1e9)
 STARTED = re.compile(r"^(grasp|gripper) goal started: (?:GraspRequest\(grasp='(\w+)', finger_force=([\d.]+)|"
                      r"GripperRequest\(position=0\.0)")
 
@@ -63,10 +68,11 @@ def started_goals(logs: list) -> list[tuple[str, float | None, int]]:
 
 
 def find_in_order(goals: list[tuple[str, float | None, int]], wanted: list[str]) -> list[int] | None:
-    """The indices of the first run of `wanted`, in a row, among `goals`."""
+    """The indices of the first run of `wanted`, in a row, among `goals`, whose first goal ran for at
+    least WHOLE_PINCH_NS before the next one started."""
     names = [g[0] for g in goals]
     for i in range(len(names) - len(wanted) + 1):
-        if names[i:i + len(wanted)] == wanted:
+        if names[i:i + len(wanted)] == wanted and goals[i + 1][2] - goals[i][2] >= WHOLE_PINCH_NS:
             return list(range(i, i + len(wanted)))
     return None
 
@@ -92,7 +98,8 @@ class TestTeleopStag(GraphTestCase):
         # the graph comes up during the first pass (goals refused not_ready are sent again); the replay loops
         found = ros.spin_until(lambda: find_in_order(self.goals(), EXPECTED) is not None, 150.0)
         goals = self.goals()
-        print(f"goals started: {[g[:2] for g in goals]}")
+        t0 = goals[0][2] if goals else 0
+        print(f"goals started (name, finger force, s): {[(g[0], g[1], round((g[2] - t0) * 1e-9, 2)) for g in goals]}")
         print(f"teleop: {ros.logs(name='teleop', contains='held')[:8]}")
         self.assertTrue(found, goals)
         index = find_in_order(goals, EXPECTED)
