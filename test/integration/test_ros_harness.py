@@ -137,7 +137,8 @@ def test_dds_threads_run_on_their_rung_and_this_thread_and_its_children_do_not(r
 def test_publishing_keeps_its_rate_while_this_process_does_not_spin(ros):
     received = ros.collect(JointState, "other_driver")
     names = [["a"], ["b", "c"], []]
-    with ros.publishing(JointState, "other_driver", lambda i: JointState(name=names[i % 3]), 100.0) as sent:
+    with ros.publishing(JointState, "other_driver", lambda i: JointState(name=names[i % 3]), 100.0,
+                        wait_for_subscribers=1) as sent:
         time.sleep(0.5)  # the executor is not spun: a probe timer would have sent nothing
         during_sleep = len(sent)
     assert 25 <= during_sleep <= 52, during_sleep  # 50 on time; half of it would still be no timer
@@ -167,7 +168,7 @@ def test_a_collection_apart_holds_every_message_while_this_process_does_not_spin
     received = apart.collect(JointState, "apart")
     names = [["thumb"], ["index", "middle"], []]
     with apart.publishing(JointState, "apart", lambda i: JointState(name=names[i % 3], position=[i * 0.5]),
-                          100.0) as sent:
+                          100.0, wait_for_subscribers=1) as sent:
         time.sleep(0.5)  # nothing spins the executor: the collector's process takes them
     assert len(sent) >= 25, len(sent)
     deadline = time.monotonic() + 10.0

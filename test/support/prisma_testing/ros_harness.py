@@ -377,15 +377,25 @@ class RosHarness:
 
     @contextlib.contextmanager
     def publishing(self, msg_type: type, topic: str, message: Callable[[int], Any], rate_hz: float,
-                   qos_profile: Any = 10) -> Iterator[list[int]]:
+                   qos_profile: Any = 10, wait_for_subscribers: int = 0) -> Iterator[list[int]]:
         """Inside the block, `message(i)` (stamped now) published on `topic` at `rate_hz` as another
         process on the robot would: from a thread of its own at the control path's real-time
         priority where permitted, so that the stream keeps its rate however busy this process's
         executor is (a probe timer beside the load harness ran at a fifth of its rate). Yields the
-        send instants (time_ns), growing while the block runs."""
+        send instants (time_ns), growing while the block runs. With `wait_for_subscribers`, the first
+        message waits until that many subscriptions matched (up to 10 s, then TimeoutError): DDS
+        drops what a volatile writer sends before discovery matched a reader, and a collector in
+        another process matched 10 ms after the first send beside the load harness."""
         from builtin_interfaces.msg import Time
 
         publisher = self.probe.create_publisher(msg_type, topic, qos_profile)
+        deadline = time.monotonic() + 10.0
+        while publisher.get_subscription_count() < wait_for_subscribers:  # discovery runs in DDS's threads
+            if time.monotonic() > deadline:
+                self.probe.destroy_publisher(publisher)
+                raise TimeoutError(f"{topic}: {publisher.get_subscription_count()} of {wait_for_subscribers} "
+                                   f"subscription(s) matched in 10 s")
+            time.sleep(0.005)
         sent: list[int] = []
         stop = threading.Event()
 
