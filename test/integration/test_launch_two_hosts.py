@@ -47,7 +47,7 @@ import time
 
 import pytest
 
-from prisma_testing.ros_harness import NodeProcess, require_ros, stop_process
+from prisma_testing.ros_harness import NodeProcess, process_deaths, require_ros, stop_process
 
 require_ros()
 
@@ -269,7 +269,7 @@ def graph(hosts):
     for name, text in outputs.items():
         assert text.startswith("exit 0\n"), f"{name} part: {text[:200]} ... {text[-3000:]}"
         assert "Traceback" not in text, f"{name} part: {text[text.index('Traceback'):][:2000]}"
-        assert "process has died" not in text, f"{name} part:\n{text[-3000:]}"
+        assert not process_deaths(text), f"{name} part: {process_deaths(text)}\n{text[-3000:]}"
     assert outputs["robot"].count("torque off: fingers, thumb_flexion, thumb_rotation") == 2, outputs["robot"][-3000:]
     # goals the link held back and delivered after their lease (not every outage catches one in flight)
     refused = [line for line in outputs["robot"].splitlines() if "ended before it arrived" in line]

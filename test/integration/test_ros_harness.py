@@ -15,7 +15,7 @@ import subprocess
 import time
 
 from prisma_common.scheduling import TEST_COLLECTOR_NICE, TEST_DDS_NICE
-from prisma_testing.ros_harness import RosHarness, require_ros
+from prisma_testing.ros_harness import RosHarness, process_deaths, require_ros
 
 require_ros()
 
@@ -201,3 +201,14 @@ def test_a_silent_collection_apart_says_so_and_shutdown_removes_its_files():
         apart.shutdown()
     assert "silent_apart: 0 publisher(s), a fresh subscription received nothing in 2.0 s" in str(nothing.value)
     assert not os.path.exists(folder)
+
+
+def test_process_deaths_leaves_out_only_the_exit_code_asyncio_made_up_for_a_reaped_pid():
+    lost = "Unknown child process pid 23652, will report returncode 255"
+    died = "[ERROR] [manipulation-2]: process has died [pid 23652, exit code 255, cmd '/x/manipulation --ros-args']."
+    other = "[ERROR] [rviz2-7]: process has died [pid 23660, exit code -6, cmd 'rviz2 -d hand.rviz']."
+    same_code_other_pid = "[ERROR] [tactile_driver-1]: process has died [pid 23650, exit code 255, cmd 'td']."
+    clean = "[INFO] [motor_driver-3]: process has finished cleanly [pid 23654]"
+    assert process_deaths("\n".join([clean, lost, died])) == []
+    assert process_deaths("\n".join([died, clean])) == [died]  # no warning: a real 255
+    assert process_deaths("\n".join([lost, died, other, same_code_other_pid])) == [other, same_code_other_pid]

@@ -17,6 +17,7 @@ import contextlib
 import functools
 import math
 import os
+import re
 import signal
 import subprocess
 import threading
@@ -832,6 +833,22 @@ def stop_process(proc: NodeProcess, timeout_sec: float = 30.0) -> ProcessResult:
             continue
     proc.kill()  # SIGKILL only if both signals were ignored; joins the output reader
     return ProcessResult(proc.proc.returncode, proc.output)
+
+
+# Python 3.11's asyncio child watcher reports 255 for a child that another waitpid reaped first. Ctrl-C
+# reaches every node of a launch twice, from the terminal's SIGINT to the process group and from
+# launch's own SIGINT; the second goes through Popen.send_signal, whose poll() reaps a node that the first
+# had already ended, and the watcher's waitpid then finds no child. The node's own exit status is lost.
+_EXIT_LOST = re.compile(r"Unknown child process pid (\d+), will report returncode 255")
+_DIED = re.compile(r"process has died \[pid (\d+), exit code (-?\d+)")
+
+
+def process_deaths(output: str) -> list[str]:
+    """The `process has died` lines of a launch's output, less those whose exit code 255 asyncio's
+    child watcher made up for a pid it found already reaped (its warning names the pid)."""
+    lost = set(_EXIT_LOST.findall(output))
+    return [line for line in output.splitlines()
+            if (died := _DIED.search(line)) and not (died[2] == "255" and died[1] in lost)]
 
 
 def stamp_rate_hz(msgs: Iterable[Any], start_ns: int, end_ns: int) -> float:
