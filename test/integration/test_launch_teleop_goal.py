@@ -70,12 +70,15 @@ def generate_test_description():
 
 # The glove a teleop node would be: a process of its own on the teleop node's rung (teleop.launch.py
 # runs it on the control path's), publishing `positions` every GLOVE_PERIOD_S while `on`, each stamped
-# when published. Published from a thread of this test process instead, the targets fell silent for
+# when published; turned off, it prints the stamp of the last one (this process does not take the
+# targets: beside the load harness its five streams, 370 messages a second, were more than it took, and
+# /joint_states fell 10 s behind). Published from a thread of this test process instead, the targets fell silent for
 # 162 ms once on a loaded machine and the goal ended input_stale while the "glove" ran: that thread
 # shares Python's lock with the test's executor, busy with its 100 Hz collections at the default
 # priority.
 GLOVE = f"""
 import rclpy
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -88,12 +91,22 @@ names = node.declare_parameter("names", {list(MOTOR_NAMES)!r}).value
 node.declare_parameter("positions", [0.0, 0.0, 0.0])
 node.declare_parameter("on", False)
 publisher = node.create_publisher(JointState, "/prisma/teleop/motor_targets", 10)
+last_ns = [0]
 
 def publish():
     if node.get_parameter("on").value:
         msg = JointState(name=names, position=list(node.get_parameter("positions").value))
         msg.header.stamp = node.get_clock().now().to_msg()
         publisher.publish(msg)
+        last_ns[0] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+def turned_off(params):
+    # one thread runs this and the timer: no target is published between this line and the new value
+    if any(p.name == "on" and not p.value for p in params):
+        print(f"last target {{last_ns[0]}}", flush=True)
+    return SetParametersResult(successful=True)
+
+node.add_on_set_parameters_callback(turned_off)
 
 node.create_timer({GLOVE_PERIOD_S}, publish)
 print("glove ready", flush=True)
@@ -111,9 +124,6 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         # the five pads in one stream, as manipulation takes them: five 100 Hz streams more would be
         # more than this process takes beside the load harness
         cls.wrenches = ros.collect(HandWrench, "/prisma/hand/wrench")
-        # every goal's feedback, as published (send_until_started keeps its own per send)
-        cls.feedback = ros.collect(Teleoperate.Impl.FeedbackMessage, "/prisma/teleoperate/_action/feedback")
-        cls.targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
         cls.glove = NodeProcess([sys.executable, "-c", GLOVE])
         if not cls.glove.wait_for_output("glove ready", 60.0):
             raise AssertionError(f"the test's glove did not start:\n{cls.glove.output}")
@@ -132,13 +142,14 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
 
     def glove_stops(self) -> int:
         """The glove falls silent: when its last target was published (its stamp)."""
+        said = self.glove.output.count("last target ")
         results = self.ros.set_parameters("/teleop_test_glove", on=False)
         self.assertTrue(all(r.successful for r in results), results)
-        off_ns = self.ros.now_ns()  # its publishing timer runs in the thread that answered: none after this
-        # this process takes the streams late on a busy machine: once it has the /joint_states of
-        # 0.1 s later, the targets before them (same executor, each ready stream taken in turn) are in
-        self.ros.message_stamped(self.joints, off_ns + 100_000_000, 30.0)
-        return stamp_ns(self.targets[-1])
+        deadline = time.monotonic() + 5.0  # printed before the glove answered: here within ms
+        while self.glove.output.count("last target ") == said:
+            self.assertLess(time.monotonic(), deadline, f"the glove did not say its last target:\n{self.glove.output}")
+            time.sleep(0.01)
+        return int(self.glove.output.rsplit("last target ", 1)[1].split()[0])
 
     def start_goal(self):
         """A Teleoperate goal with the parameters' settings (2 N, 40 rpm, 0.15 s), sent again only while
@@ -146,8 +157,8 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         return self.ros.send_until_started(self.client, Teleoperate.Goal(), timeout_sec=90.0)
 
     def latest_feedback(self, handle):
-        mine = [m.feedback for m in self.feedback if bytes(m.goal_id.uuid) == bytes(handle.goal_id.uuid)]
-        return mine[-1] if mine else None
+        mine = self.ros.feedback_of(handle)
+        return mine[-1].feedback if mine else None
 
     def test_1_closes_on_the_ball_and_stops_at_the_force_limit(self):
         ros = self.ros

@@ -187,6 +187,7 @@ class RosHarness:
         self._log: Sequence | None = None
         self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
         self._collecting: dict[int, Any] = {}  # id of a collect() list -> its subscription
+        self._feedback: dict[bytes, list] = {}  # goal id of a send_until_started goal -> its feedback messages
         self._collect_apart = collect_apart
         self._wait_spin_sec = self.APART_SPIN_SEC if collect_apart else self.SPIN_SEC  # spin_for, spin_until
         self._collector: Any = None  # the collector process, started by the first collect
@@ -488,6 +489,7 @@ class RosHarness:
             feedback: list = []
             logged = len(self._gripper_refusals()) if _has_no_reason(goal) else 0
             handle = self.send_goal(client, goal, feedback)
+            self._feedback[bytes(handle.goal_id.uuid)] = feedback
             if not handle.accepted:
                 raise AssertionError(f"{type(goal).__name__} rejected: the hand's servers accept every goal")
             result = handle.get_result_async()
@@ -498,6 +500,12 @@ class RosHarness:
             if time.monotonic() > deadline:
                 raise AssertionError(f"{type(goal).__name__} still refused after {timeout_sec} s: {reason}")
             self.spin_for(retry_sec)
+
+    def feedback_of(self, handle: Any) -> list:
+        """Every feedback message of a goal `send_until_started` sent, in arrival order (filled as the
+        executor spins): the action client takes them anyway, so a test need not collect the
+        feedback topic a second time."""
+        return self._feedback[bytes(handle.goal_id.uuid)]
 
     def _not_ready(self, goal: Any, result: Any, logged: int) -> str | None:
         """refusal_for_now of a goal's result; for a GripperCommand, of the refusal the node logged
