@@ -704,11 +704,12 @@ class NodeProcess:
 
     started: ClassVar[list[NodeProcess]] = []
 
-    def __init__(self, args: Sequence[str], env: dict[str, str] | None = None, cwd: str | Path | None = None) -> None:
+    def __init__(self, args: Sequence[str], env: dict[str, str] | None = None, cwd: str | Path | None = None,
+                 preexec: Callable[[], None] | None = None) -> None:
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "RCUTILS_COLORIZED_OUTPUT": "0", **(env or {})}
         self.args = list(args)
         self.proc = subprocess.Popen(self.args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     env=full_env, cwd=cwd, start_new_session=True)
+                                     env=full_env, cwd=cwd, start_new_session=True, preexec_fn=preexec)
         self._lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -819,11 +820,12 @@ def external_shutdown_command(module: str, *args: str) -> list[str]:
 
 
 # ---- launch files and long-running ros2 verbs in their own process group ----------------------------
-def ros2_launch(package: str, launch_file: str, *arguments: str, env: dict[str, str] | None = None) -> NodeProcess:
+def ros2_launch(package: str, launch_file: str, *arguments: str, env: dict[str, str] | None = None,
+                cwd: str | Path | None = None, preexec: Callable[[], None] | None = None) -> NodeProcess:
     """`ros2 launch <package> <launch_file> name:=value ...` in its own process group, as an operator
     starts it in a terminal; stop it with `stop_process` (the environment, ROS_DOMAIN_ID included,
-    is the test process's)."""
-    return NodeProcess(["ros2", "launch", package, launch_file, *arguments], env=env)
+    is the test process's; `cwd` and `preexec` as NodeProcess takes them)."""
+    return NodeProcess(["ros2", "launch", package, launch_file, *arguments], env=env, cwd=cwd, preexec=preexec)
 
 
 def stop_process(proc: NodeProcess, timeout_sec: float = 30.0) -> ProcessResult:
