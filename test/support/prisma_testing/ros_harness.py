@@ -391,13 +391,10 @@ class RosHarness:
         from builtin_interfaces.msg import Time
 
         publisher = self.probe.create_publisher(msg_type, topic, qos_profile)
-        deadline = time.monotonic() + 10.0
-        while publisher.get_subscription_count() < wait_for_subscribers:  # discovery runs in DDS's threads
-            if time.monotonic() > deadline:
-                self.probe.destroy_publisher(publisher)
-                raise TimeoutError(f"{topic}: {publisher.get_subscription_count()} of {wait_for_subscribers} "
-                                   f"subscription(s) matched in 10 s")
-            time.sleep(0.005)
+        if not self.spin_until(lambda: publisher.get_subscription_count() >= wait_for_subscribers, 10.0):
+            matched = publisher.get_subscription_count()
+            self.probe.destroy_publisher(publisher)
+            raise TimeoutError(f"{topic}: {matched} of {wait_for_subscribers} subscription(s) matched in 10 s")
         sent: list[int] = []
         stop = threading.Event()
 
