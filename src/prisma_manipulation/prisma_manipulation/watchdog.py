@@ -13,9 +13,14 @@ A goal is granted `stale_ns` from its start before a stream that never arrived c
 A check that comes more than half of `stale_ns` after the previous one was held up with the node
 (its process got no CPU): messages that arrived meanwhile still wait in the node's queues, behind
 this check, so their streams only look silent. Silence is then counted from the end of the hold-up,
-as from a goal's start; ages by stamp are judged as always. Only an isolated hold-up is forgiven: a
-check held up right after another one judges silence by receipt alone, so a node starved for good
-still stops the motors (and the motor driver's goal lease stops them in any case).
+as from a goal's start. Ages by stamp are judged as always, except for a stream that has not
+delivered since the hold-up ended: its newest stamp is from before the hold-up, and against a
+/joint_states taken first after it that reads as old as the hold-up was long (a loaded pass ended a
+teleop goal `taxels/thumb 405 ms older than /joint_states` so, the motor driver's lease having
+expired 7 ms before). Such a stream is judged by silence alone until it delivers or its grace ends.
+Only an isolated hold-up is forgiven: a check held up right after another one judges silence by
+receipt alone, so a node starved for good still stops the motors (and the motor driver's goal lease
+stops them in any case).
 
 `fresh` asks the same two questions before a goal is accepted, without that grace: a goal is only
 accepted once every stream it needs (and /joint_states) is flowing.
@@ -107,11 +112,17 @@ class SensorWatchdog:
             if now_ns - max(receipt if receipt is not None else grace_from, grace_from) > self.stale_ns:
                 silent = (now_ns - receipt) / 1e6 if receipt is not None else (now_ns - grace_from) / 1e6
                 return f"{name} silent for {silent:.0f} ms"
-            if s and self._reference_ns is not None:
+            if s and self._reference_ns is not None and not self._awaited_after_hold_up(s, now_ns, self.stale_ns):
                 age = self._reference_ns - s.stamp_ns
                 if age > self.stale_ns:
                     return f"{name} {age / 1e6:.0f} ms older than /joint_states"
         return None
+
+    def _awaited_after_hold_up(self, s: _Stream, now_ns: int, timeout_ns: int) -> bool:
+        """The stream has not delivered since a forgiven hold-up ended, less than `timeout_ns` ago: its
+        newest stamp dates from before the hold-up, so its age says how long the hold-up was."""
+        return (self._resumed_ns is not None and s.receipt_ns < self._resumed_ns
+                and now_ns - self._resumed_ns <= timeout_ns)
 
     def oldest_receipt(self, streams: tuple[str, ...] | list[str]) -> int | None:
         """When the least recent of /joint_states and `streams` last arrived: a decision taken now rests
@@ -130,13 +141,15 @@ class SensorWatchdog:
         """A goal kind's input during a goal, after `check` of the same tick: None while it has not
         come since `timeout_ns` before the goal's start (the goal waits for it), else as `check` with
         `timeout_ns`: silent by receipt (counted from the end of a forgiven hold-up), or older than
-        /joint_states by stamp. The description names it `label` (its topic), else `stream`."""
+        /joint_states by stamp (once it delivered after a forgiven hold-up). The description names it
+        `label` (its topic), else `stream`."""
         s = self._streams.get(stream)
         if s is None or not self.arrived(stream, timeout_ns):
             return None
         name = label or stream
         if now_ns - max(s.receipt_ns, self._resumed_ns or s.receipt_ns) > timeout_ns:
             return f"{name} silent for {(now_ns - s.receipt_ns) / 1e6:.0f} ms"
-        if self._reference_ns is not None and self._reference_ns - s.stamp_ns > timeout_ns:
+        if (self._reference_ns is not None and self._reference_ns - s.stamp_ns > timeout_ns
+                and not self._awaited_after_hold_up(s, now_ns, timeout_ns)):
             return f"{name} {(self._reference_ns - s.stamp_ns) / 1e6:.0f} ms older than /joint_states"
         return None

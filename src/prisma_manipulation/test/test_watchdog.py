@@ -63,6 +63,54 @@ def test_a_check_held_up_with_the_node_does_not_count_the_hold_up_as_silence():
     assert verdicts[-1] == (450, "/joint_states silent for 270 ms")
 
 
+def test_after_a_hold_up_a_stream_that_has_not_delivered_yet_is_not_judged_by_its_stamp():
+    # the whole machine stood still from 180 to 585 ms; the motor driver ran first after it, so the
+    # /joint_states stamped 585 ms is taken, and checked, before any taxel frame of after the hold-up
+    # (a loaded pass: "taxels/thumb 405 ms older than /joint_states")
+    streams = ["taxels/thumb"]
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    tick(w, streams, 0, 200)
+    w.reference(585 * MS, 586 * MS)
+    assert w.check(streams, 586 * MS) is None
+    w.sample("taxels/thumb", 587 * MS, 588 * MS)  # the tactile driver's first frame after it
+    assert w.check(streams, 590 * MS) is None
+    assert tick(w, streams, 600, 700) == [None] * 5
+    # a frame from before the hold-up, delivered after it, is as stale as ever
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    tick(w, streams, 0, 200)
+    w.reference(585 * MS, 586 * MS)
+    w.check(streams, 586 * MS)
+    w.sample("taxels/thumb", 181 * MS, 588 * MS)
+    assert w.check(streams, 590 * MS) == "taxels/thumb 404 ms older than /joint_states"
+    # a stream that stopped at the hold-up is reported silent a stale window after the node resumed
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    tick(w, streams, 0, 200)
+    verdicts = []
+    for t in range(586, 720, 20):
+        w.reference(t * MS, t * MS)
+        verdicts.append((t, w.check(streams, t * MS)))
+    assert [t for t, v in verdicts if v is None] == [586, 606, 626, 646, 666, 686]
+    assert verdicts[-1] == (706, "taxels/thumb silent for 526 ms")
+
+
+def test_after_a_hold_up_an_input_that_has_not_delivered_yet_is_not_judged_by_its_stamp():
+    w = SensorWatchdog(100 * MS)
+    w.arm(0)
+    for t in range(0, 200, 20):
+        w.reference(t * MS, t * MS)
+        w.sample("targets", t * MS, t * MS)
+        assert w.check([], t * MS) is None and w.check_input("targets", 200 * MS, t * MS) is None
+    w.reference(585 * MS, 586 * MS)  # after a 405 ms hold-up, before the glove's next target
+    assert w.check([], 586 * MS) is None
+    assert w.check_input("targets", 200 * MS, 586 * MS) is None
+    assert w.check_input("targets", 200 * MS, 787 * MS) == "targets silent for 607 ms"
+    w.sample("targets", 360 * MS, 790 * MS)  # delivered after it, but from during the hold-up
+    assert w.check_input("targets", 200 * MS, 790 * MS) == "targets 225 ms older than /joint_states"
+
+
 def test_a_node_held_up_check_after_check_is_not_forgiven():
     w = SensorWatchdog(100 * MS)
     w.arm(0)
