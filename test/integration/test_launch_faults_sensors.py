@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prisma_testing.launch_case import GraphTestCase, graph_under_test
+from prisma_testing.launch_case import GraphTestCase, graph_under_test, installed_config
 from prisma_testing.ros_harness import (
     SIM_STOPPED_RAD_S,
     NodeProcess,
@@ -39,7 +39,6 @@ from prisma_testing.ros_harness import (
 require_ros()
 
 from action_msgs.msg import GoalStatus  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch.substitutions import PathJoinSubstitution  # noqa: E402
@@ -181,9 +180,8 @@ class TestMissingParts(GraphTestCase):
         self.assertIn(f"Grasp goal refused: {REFUSED_NO_DRIVER}",
                       ros.wait_for_log(name="manipulation", contains="Grasp goal refused"))
 
-        config = Path(get_package_share_directory("prisma_bringup")) / "config"
         type(self).motor_driver = NodeProcess(["ros2", "run", "prisma_motor_driver", "motor_driver", "--ros-args",
-                                               "--params-file", str(config / "motor_driver.yaml"),
+                                               "--params-file", str(installed_config() / "motor_driver.yaml"),
                                                "-p", "backend:=sim"], env=CONTROL_PATH_PRIORITY)
         handle = ros.send_until_started(self.grasp, goal, timeout_sec=60.0)
         canceled = handle.cancel_goal_async()

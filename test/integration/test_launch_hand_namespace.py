@@ -29,7 +29,13 @@ from pathlib import Path
 import pytest
 import yaml
 
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+    installed_parameters,
+)
 from prisma_testing.ros_harness import require_ros
 
 require_ros()
@@ -37,7 +43,6 @@ require_ros()
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from launch_ros.actions import SetParametersFromFile  # noqa: E402
@@ -69,29 +74,12 @@ def generate_test_description():
                             include_launch("hand.launch.py", sim="true", namespace="left"))
 
 
-def yaml_parameters(node: str) -> dict:
-    """The installed config/<node>.yaml's parameters (what hand.launch.py gives the node), nested ones
-    flattened as ROS names them (a.b)."""
-    config = Path(get_package_share_directory("prisma_bringup")) / "config"
-    (body,) = yaml.safe_load((config / f"{node}.yaml").read_text()).values()
-    flat: dict = {}
-
-    def walk(prefix: str, values: dict) -> None:
-        for key, value in values.items():
-            if isinstance(value, dict):
-                walk(f"{prefix}{key}.", value)
-            else:
-                flat[f"{prefix}{key}"] = value
-    walk("", body["ros__parameters"])
-    return flat
-
-
 class TestHandNamespace(GraphTestCase):
     def test_1_yaml_parameters_apply_under_the_namespace(self):
         ros = self.ros
         decoyed = set()
         for node in NODES:
-            expected = {k: v for k, v in yaml_parameters(node).items() if k not in INLINE[node]}
+            expected = {k: v for k, v in installed_parameters(node).items() if k not in INLINE[node]}
             request = GetParameters.Request(names=list(expected))
             response = ros.call(GetParameters, f"{NS}/{node}/get_parameters", request, timeout_sec=60.0)
             got = {name: parameter_value_to_python(value) for name, value in zip(expected, response.values)}

@@ -21,25 +21,29 @@ from __future__ import annotations
 import collections
 import time
 import unittest
-from pathlib import Path
 
 import pytest
 
 from prisma_testing.host_probe import HostProbe
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+    installed_parameters,
+    output_of,
+)
 from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
 import launch_testing  # noqa: E402
 import launch_testing.actions  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES  # noqa: E402
 from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY  # noqa: E402
-from prisma_testing.repo_paths import node_parameters  # noqa: E402
 from prisma_testing.topic_table import topic_table  # noqa: E402
 
 HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
@@ -47,12 +51,6 @@ HAND_NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation
 # tendon_stretch) and the RViz markers
 LAUNCHED = (*HAND_NODES, "robot_state_publisher", "tendon_stretch", "tactile_markers")
 MOTORS = MOTOR_NAMES
-
-def shipped_parameters(node: str) -> dict:
-    """The node's parameters in the installed config/<node>.yaml, the file hand.launch.py gives it."""
-    config = Path(get_package_share_directory("prisma_bringup")) / "config"
-    return node_parameters(config / f"{node}.yaml", node)
-
 
 # the sampled streams, by topic: their types, as the probe process takes them, and the driver whose
 # timer sets their rate (wrench and contact follow each taxel sample)
@@ -63,7 +61,10 @@ STREAMS = {**{f"/prisma/{f}/{kind}": msg_type for f in FINGERS
            "/joint_states": "sensor_msgs/msg/JointState"}
 WINDOW_S = 3.0
 WINDOWS = 5
-RATE_HZ = {topic: shipped_parameters("motor_driver" if topic == "/joint_states" else "tactile_driver")["rate_hz"]
+# the installed config of the drivers whose timers set the streams' rates and publish /diagnostics
+DRIVER_PARAMETERS = {driver: installed_parameters(driver)
+                     for driver in ("tactile_driver", "force_estimator", "motor_driver")}
+RATE_HZ = {topic: DRIVER_PARAMETERS["motor_driver" if topic == "/joint_states" else "tactile_driver"]["rate_hz"]
            for topic in STREAMS}
 # Two measures of a window: the commonest period between stamps is what the driver's timer does (a
 # period it ran late for is skipped, the next runs on time), the count is how much of the machine the
@@ -200,7 +201,7 @@ class TestHandSim(GraphTestCase):
                       if self.first_window_ns <= stamp_ns(m) < self.window[1] and driver_of(m) == driver]
             self.assertGreaterEqual(len(stamps), 3, f"{driver}: {len(stamps)} /diagnostics")
             period = (stamps[-1] - stamps[0]) * 1e-9 / (len(stamps) - 1)
-            nominal = shipped_parameters(driver)["diagnostics_period"]
+            nominal = DRIVER_PARAMETERS[driver]["diagnostics_period"]
             print(f"{driver} /diagnostics every {period:.3f} s ({nominal} s configured)")
             self.assertLessEqual(abs(period - nominal), DIAGNOSTICS_TOLERANCE * nominal, f"{driver}: {period:.3f} s")
 

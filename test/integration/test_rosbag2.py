@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prisma_testing.launch_case import installed_config
 from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
 
 require_ros()
 
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import ContactState, TaxelArray  # noqa: E402
 
@@ -41,7 +41,7 @@ ACTION_TOPICS = [f"/prisma/{a}/_action/{k}"
                  for a in ("grasp", "manipulate", "motors/move") for k in ("feedback", "status")]
 SENSOR_TOPICS = ["/joint_states"] + [f"/prisma/{f}/taxels" for f in FINGERS]
 OUTPUT_TOPICS = [f"/prisma/{f}/{kind}" for f in FINGERS for kind in ("wrench", "contact")]
-CONFIG = Path(get_package_share_directory("prisma_bringup")) / "config"
+CONFIG = installed_config()
 
 
 def start_recorder(bag: Path, topics: list[str], hidden: list[str] = (), timeout_sec: float = 60.0) -> NodeProcess:

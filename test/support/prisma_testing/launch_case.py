@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
-from prisma_testing.repo_paths import ROOT
+from prisma_testing.repo_paths import ROOT, node_parameters
 from prisma_testing.ros_harness import NodeProcess, RosHarness, joint, stamp_ns
 
 LOG_DIR_VARIABLE = "PRISMA_LAUNCH_LOG_DIR"
@@ -58,6 +58,28 @@ def include_launch(launch_file: str, package: str = "prisma_bringup", **argument
     return IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([FindPackageShare(package), "launch", launch_file])),
         launch_arguments=arguments.items())
+
+
+def installed_config() -> Path:
+    """config/ of the installed prisma_bringup: the parameter files hand.launch.py gives its nodes."""
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory("prisma_bringup")) / "config"
+
+
+def installed_parameters(node: str) -> dict[str, Any]:
+    """The node's parameters in the installed config/<node>.yaml, nested ones flattened as ROS names
+    them (a.b)."""
+    flat: dict[str, Any] = {}
+
+    def walk(prefix: str, values: dict[str, Any]) -> None:
+        for key, value in values.items():
+            if isinstance(value, dict):
+                walk(f"{prefix}{key}.", value)
+            else:
+                flat[f"{prefix}{key}"] = value
+    walk("", node_parameters(installed_config() / f"{node}.yaml", node))
+    return flat
 
 
 def graph_under_test(*actions: Any):
