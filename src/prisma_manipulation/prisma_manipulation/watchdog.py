@@ -112,17 +112,17 @@ class SensorWatchdog:
             if now_ns - max(receipt if receipt is not None else grace_from, grace_from) > self.stale_ns:
                 silent = (now_ns - receipt) / 1e6 if receipt is not None else (now_ns - grace_from) / 1e6
                 return f"{name} silent for {silent:.0f} ms"
-            if s and self._reference_ns is not None and not self._awaited_after_hold_up(s, now_ns, self.stale_ns):
+            if s and self._reference_ns is not None and not self._awaited_after_hold_up(s):
                 age = self._reference_ns - s.stamp_ns
                 if age > self.stale_ns:
                     return f"{name} {age / 1e6:.0f} ms older than /joint_states"
         return None
 
-    def _awaited_after_hold_up(self, s: _Stream, now_ns: int, timeout_ns: int) -> bool:
-        """The stream has not delivered since a forgiven hold-up ended, less than `timeout_ns` ago: its
-        newest stamp dates from before the hold-up, so its age says how long the hold-up was."""
-        return (self._resumed_ns is not None and s.receipt_ns < self._resumed_ns
-                and now_ns - self._resumed_ns <= timeout_ns)
+    def _awaited_after_hold_up(self, s: _Stream) -> bool:
+        """The stream has not delivered since a forgiven hold-up ended: its newest stamp dates from
+        before the hold-up, so its age says how long the hold-up was. (Its grace is the silence check's,
+        which runs first: past the timeout from the resume the stream is already silent.)"""
+        return self._resumed_ns is not None and s.receipt_ns < self._resumed_ns
 
     def oldest_receipt(self, streams: tuple[str, ...] | list[str]) -> int | None:
         """When the least recent of /joint_states and `streams` last arrived: a decision taken now rests
@@ -150,6 +150,6 @@ class SensorWatchdog:
         if now_ns - max(s.receipt_ns, self._resumed_ns or s.receipt_ns) > timeout_ns:
             return f"{name} silent for {(now_ns - s.receipt_ns) / 1e6:.0f} ms"
         if (self._reference_ns is not None and self._reference_ns - s.stamp_ns > timeout_ns
-                and not self._awaited_after_hold_up(s, now_ns, timeout_ns)):
+                and not self._awaited_after_hold_up(s)):
             return f"{name} {(self._reference_ns - s.stamp_ns) / 1e6:.0f} ms older than /joint_states"
         return None
