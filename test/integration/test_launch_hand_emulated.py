@@ -250,7 +250,14 @@ class TestHandEmulated(GraphTestCase):
                                          contains=f"grasp goal ended: motor_fault ({fault_reason}"))
         self.assertTrue(ros.spin_until(lambda: not emulator_status()["servos"]["fingers"]["torque_on"], 2.0),
                         "the overloaded servo's torque is still on")
+        cleared_ns = ros.now_ns()
         fault("servo-clear")
+        # the motor driver takes the servo back once it reads the cleared status (torque on again) and
+        # refuses a move before that, motor_fault, as it should: a CI run's Grasp sent 15 ms after the
+        # clear ended so. Its /diagnostics say when it holds no fault for the servo any more
+        self.assertTrue(ros.spin_until(lambda: (self.diagnostic("motor_driver: fingers", cleared_ns) or {})
+                                       .get("hardware_error") == "0", 5.0),
+                        "the motor driver still holds the fingers' overload after servo-clear")
         fault("world", "pinch_grasp")
         self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
