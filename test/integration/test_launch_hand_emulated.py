@@ -244,10 +244,9 @@ class TestHandEmulated(GraphTestCase):
         fault("servo-error", "--motor", "fingers", "--bit", "overload")
         self.addCleanup(fault, "servo-clear")  # the tests after this one need the servo back
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with an overloaded servo")
-        self.assertEqual(goal_outcome(result.result()), ("ABORTED", "motor_fault"))
         fault_reason = "motor_fault: fingers (id 1) hardware error bit 5 overload"
-        self.assertTrue(ros.wait_for_log(name="manipulation",
-                                         contains=f"grasp goal ended: motor_fault ({fault_reason}"))
+        self.assertEqual(goal_outcome(result.result()), ("ABORTED", fault_reason))  # the driver's words
+        self.assertTrue(ros.wait_for_log(name="manipulation", contains=f"grasp goal ended: {fault_reason}"))
         self.assertTrue(ros.spin_until(lambda: not emulator_status()["servos"]["fingers"]["torque_on"], 2.0),
                         "the overloaded servo's torque is still on")
         cleared_ns = ros.now_ns()
@@ -272,7 +271,7 @@ class TestHandEmulated(GraphTestCase):
         fault("servo-silent", "--motor", "thumb_flexion", "--seconds", "1.0")
         self.assertTrue(ros.spin_until(result, 5.0), "the grasp went on with a servo off the bus")
         status, reason = goal_outcome(result.result())
-        self.assertIn((status, reason), {("ABORTED", "sensor_stale"), ("ABORTED", "motor_fault")})
+        self.assertIn((status, reason.partition(":")[0]), {("ABORTED", "sensor_stale"), ("ABORTED", "motor_fault")})
         ros.spin_for(0.5)
         fingers = emulator_status()["servos"]["fingers"]
         self.assertTrue(fingers["velocity_rpm"] == 0 or not fingers["torque_on"], f"fingers still driven: {fingers}")

@@ -290,14 +290,16 @@ class ManipulationCore:
         return [] if self.controller is None else self._abort(now_ns, CANCELED)
 
     def on_move_result(self, reason: str, now_ns: int) -> list:
-        """Result of our current MoveMotors goal: a motor fault, or the driver refusing the goal
-        (its bus down), ends the goal with motor_fault; a timeout (the refresh came too late) sends
-        the command again; at a joint limit the driver stopped the motors, so the command is no
-        longer refreshed (the controller ends on the position it sees)."""
+        """Result of our current MoveMotors goal. The driver refusing it ends the goal with the
+        driver's refusal as its reason, code and why (`not_homed: fingers (id 1) not homed ...`,
+        `not_ready: homing (...)`): the client learns what to do, as if it had sent the MoveMotors
+        goal itself; a motor fault ends it with the driver's `motor_fault: <what failed>`. A timeout
+        (the refresh came too late) sends the command again; at a joint limit the driver stopped the
+        motors, so the command is no longer refreshed (the controller ends on the position it sees)."""
         if self.controller is None:
             return []
-        if reason.startswith(MOTOR_FAULT) or refusal_code(reason) is not None:
-            return self._abort(now_ns, MOTOR_FAULT, reason)
+        if refusal_code(reason) is not None or reason.startswith(MOTOR_FAULT):
+            return self._abort(now_ns, reason)
         if reason == TIMEOUT:
             renewed = self.lease.renew(now_ns, self._data_ns(now_ns))
             return [renewed] if renewed is not None else []

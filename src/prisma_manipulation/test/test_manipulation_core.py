@@ -1,5 +1,6 @@
 """ManipulationCore without ROS: goal admission and refusals (invalid, busy, not_ready,
-no_contact), one goal at a time, foreign /joint_states, stops, a gripper goal (the MoveMotors lease:
+no_contact), one goal at a time, foreign /joint_states, stops, the motor driver's refusals and faults as
+every kind's end reason, a gripper goal (the MoveMotors lease:
 test_move_lease.py)."""
 from __future__ import annotations
 
@@ -8,9 +9,11 @@ import pytest
 
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal
 from prisma_common.messages import make_header
-from prisma_common.typestore import get_typestore
+from prisma_common.typestore import get_typestore, types
 from prisma_hand_sim.pad_model import PadParams
 from prisma_manipulation.controllers import JointSample
+from prisma_manipulation.grasp_goal import GRASP_GOAL
+from prisma_manipulation.gripper_goal import GRIPPER_GOAL
 from prisma_manipulation.manipulation_core import (
     MOVE_LEASE_S,
     Feedback,
@@ -29,6 +32,7 @@ from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.ros_conversions import (
     joint_sample_from_msg,
 )
+from prisma_manipulation.teleop_goal import TeleopRequest
 from prisma_testing.core_inputs import core_at_rest, pressed_pad
 
 MS = 1_000_000
@@ -209,7 +213,8 @@ def test_core_grasp_waits_for_the_wrench_of_the_same_scan():
 
 
 def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
-    for trigger, reason in (("stale", "sensor_stale"), ("cancel", "canceled"), ("fault", "motor_fault")):
+    overload = "motor_fault: fingers (id 1) hardware error bit 5 overload"
+    for trigger, reason in (("stale", "sensor_stale"), ("cancel", "canceled"), ("fault", overload)):
         core = core_at_rest()
         core.start(GraspRequest("pinch"), 0)
         if trigger == "stale":
@@ -219,7 +224,7 @@ def test_core_stale_and_cancel_and_motor_fault_stop_the_motors():
         elif trigger == "cancel":
             actions = core.cancel(5 * MS)
         else:
-            actions = core.on_move_result("motor_fault: fingers (id 1) hardware error bit 5 overload", 5 * MS)
+            actions = core.on_move_result(overload, 5 * MS)
         assert isinstance(actions[0], StopMotors)
         assert actions[-1].reason == reason and not actions[-1].success
         assert not core.busy
@@ -272,13 +277,42 @@ def test_a_manipulation_that_loses_its_contact_ends_no_contact():
     assert (done.status.finger_force, done.status.thumb_force) == (0.0, 0.0)
 
 
-def test_a_move_goal_the_driver_refuses_ends_the_goal_motor_fault():
+NOT_HOMED_FINGERS = ("not_homed: fingers (id 1) not homed since the servo powered up (the zero may be a turn off): "
+                     "home first (the HomeMotors action prisma/motors/home, or home:=true at launch)")
+
+
+@pytest.mark.parametrize("reason", [
+    NOT_HOMED_FINGERS,
+    "not_ready: homing (fingers, thumb_flexion, thumb_rotation): send it again when the homing has ended",
+    "not_ready: motor bus not connected: [Errno 2] No such file",
+    "busy: MoveMotors held by /other: its goal holds the motors for 120 ms more unless renewed"])
+@pytest.mark.parametrize("request_", [GraspRequest("pinch"), ManipulateRequest("horizontal"), TeleopRequest(),
+                                      GripperRequest(3.0)], ids=lambda r: type(r).__name__)
+def test_a_move_goal_the_driver_refuses_ends_every_kind_with_the_drivers_refusal(request_, reason):
+    """The driver's code and why, not motor_fault, in the goal's end and in its result's text."""
+    core = core_at_rest()
+    core.start(request_, 0)
+    kind = core.goal
+    done = core.on_move_result(reason, 5 * MS)[-1]
+    assert (done.kind, done.success, done.reason, done.detail) == (kind.name, False, reason, "")
+    assert not core.busy
+    if kind is not GRIPPER_GOAL:  # GripperCommand's result has no text (the node's log and /diagnostics say it)
+        result = roundtrip(kind.result_to_msg(types, done))
+        assert getattr(result, "stop_reason", getattr(result, "reason", None)) == reason
+
+
+def test_a_motor_fault_ends_the_goal_with_the_drivers_words_and_a_bare_one_stays_bare():
     core = core_at_rest()
     core.start(GraspRequest("pinch"), 0)
-    actions = core.on_move_result("not_ready: motor bus not connected: [Errno 2] No such file", 5 * MS)
-    assert isinstance(actions[0], StopMotors)
-    assert (actions[-1].reason, actions[-1].detail) == ("motor_fault", "not_ready: motor bus not connected: "
-                                                                      "[Errno 2] No such file")
+    overload = "motor_fault: fingers (id 1) hardware error bit 5 overload"
+    done = core.on_move_result(overload, 5 * MS)[-1]
+    assert (done.reason, roundtrip(GRASP_GOAL.result_to_msg(types, done)).reason) == (overload, overload)
+    core.start(GraspRequest("pinch"), 10 * MS)
+    assert core.on_move_result("motor_fault", 15 * MS)[-1].reason == "motor_fault"
+    core.start(GraspRequest("pinch"), 20 * MS)
+    # the driver's own ends of a goal it ran are not refusals: a timeout is renewed, a joint limit ends nothing
+    assert not any(isinstance(a, Finished) for a in core.on_move_result("timeout", 25 * MS))
+    assert core.on_move_result("joint_limit", 30 * MS) == [] and core.busy
 
 
 def test_gripper_goal_through_thecore_at_rest():
