@@ -40,8 +40,8 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, HomeMotors, MoveMotors  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from prisma_common.control_socket import send  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
-from prisma_hand_emulator.emulator_control import send  # noqa: E402
 
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_servo_safety_{os.getpid()}"
 STOP_LIMIT_S = 0.3  # the bound; the watchdog is armed at 0.1 s

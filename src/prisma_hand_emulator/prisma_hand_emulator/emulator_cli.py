@@ -5,6 +5,7 @@
     prisma-hand-fault hub-unplug --seconds 1      # another shell, while it runs
     prisma-hand-fault servo-error --motor fingers --bit overload
     prisma-hand-fault status
+    prisma-hand-fault replace-object              # the ball the hand let go back between the fingers
 
 `ros2 launch prisma_bringup hand.launch.py hardware:=emulated` starts the emulator with the drivers
 on its devices; prisma-hand-fault reaches it with the same --dir (`emulator_dir:=` of the launch).
@@ -27,6 +28,7 @@ from prisma_common.cli_args import (
     non_negative_int,
     positive_float,
 )
+from prisma_common.control_socket import reply_text, send
 from prisma_common.scheduling import apply_priority_from_env
 from prisma_motor_driver.dynamixel_emulator import stderr_log
 
@@ -138,18 +140,29 @@ def fault_request(argv: list[str] | None = None) -> str:
     for an emulator that cannot be reached or refuses. A test sends its faults through this in its own
     process: a process started per fault took seconds beside a control path at real-time priority."""
     args = fault_parser().parse_args(argv)
-
-    from .emulator_control import send
-
     values = {k: v for k, v in vars(args).items() if k not in ("dir", "command")}
     try:
         reply = send(EmulatorPaths(args.dir).control, args.command, values)
-    except (ConnectionError, OSError) as exc:
+    except ConnectionError as exc:
+        raise UserError(f"{exc}: {unreachable_hint(args.dir)}") from None
+    except OSError as exc:
         raise UserError(str(exc)) from None
-    if not reply.get("ok"):
-        error = str(reply.get("error", reply))
-        raise UserError(error if error.startswith(f"{args.command}: ") else f"{args.command}: {error}")
-    return json.dumps(reply["status"], indent=2) if "status" in reply else str(reply["message"])
+    if "status" in reply:
+        return json.dumps(reply["status"], indent=2)
+    ok, text = reply_text(reply)
+    if not ok:
+        raise UserError(text if text.startswith(f"{args.command}: ") else f"{args.command}: {text}")
+    return text
+
+
+def unreachable_hint(directory: Path) -> str:
+    """How to reach the emulator prisma-hand-fault did not find in `directory`: the one a launch
+    started is in its emulator_dir, or start one."""
+    default = f" (default {DEFAULT_DIR})" if directory == DEFAULT_DIR else ""
+    return (f"a hand launched with `hardware:=emulated emulator_dir:=DIR` is reached with `prisma-hand-fault "
+            f"--dir DIR ...` (the launch's emulator_dir{default}); or start one here: "
+            f"`prisma-hand-emulator --dir {directory}` or "
+            f"`ros2 launch prisma_bringup hand.launch.py hardware:=emulated emulator_dir:={directory}`")
 
 
 @command("prisma-hand-fault")

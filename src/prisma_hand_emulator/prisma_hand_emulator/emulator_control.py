@@ -1,22 +1,17 @@
-"""The emulated hand's control socket: one JSON request per connection, one JSON reply.
-
-Request: `{"command": "<name>", "args": {...}}` (a line of UTF-8 JSON). Reply:
-`{"ok": true, "message": "..."}`, `{"ok": true, "status": {...}}` for `status`, or
-`{"ok": false, "error": "..."}` naming what was refused and why. The socket file is created and
-removed by the emulator; `send` is the client `prisma-hand-fault` uses.
+"""The emulated hand's control socket served: one request per connection, one reply, in the wire
+format of prisma_common.control_socket (its clients: prisma-hand-fault, the tactile driver's
+~/replace_object). The socket file is created and removed by the emulator.
 """
 from __future__ import annotations
 
-import json
 import socket
 import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from prisma_common.control_socket import decode_request, encode_reply, read_line, refused
 from prisma_common.unix_socket import bind_unix_socket, release_unix_socket
-
-MAX_REQUEST_BYTES = 65536
 
 
 class ControlServer:
@@ -67,47 +62,13 @@ class ControlServer:
             with connection:
                 connection.settimeout(5.0)
                 try:
-                    reply = self._reply(_read_line(connection))
-                    connection.sendall(json.dumps(reply).encode() + b"\n")
+                    connection.sendall(encode_reply(self._reply(read_line(connection))))
                 except OSError:
                     continue  # the client went away
 
     def _reply(self, line: bytes) -> dict[str, Any]:
         try:
-            request = json.loads(line)
+            command, args = decode_request(line)
         except ValueError as exc:
-            return {"ok": False, "error": f"request is not JSON ({exc})"}
-        if not isinstance(request, dict) or not isinstance(request.get("command"), str) \
-                or not isinstance(request.get("args", {}), dict):
-            return {"ok": False, "error": 'request must be {"command": "<name>", "args": {...}}'}
-        return self._handle(request["command"], request.get("args", {}))
-
-
-def send(path: str | Path, command: str, args: dict[str, Any] | None = None,
-         timeout_s: float = 5.0) -> dict[str, Any]:
-    """One request to the emulator at `path`; ConnectionError naming the path when nobody answers."""
-    path = Path(path)
-    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as client:
-        client.settimeout(timeout_s)
-        try:
-            client.connect(str(path))
-        except (FileNotFoundError, ConnectionRefusedError) as exc:
-            raise ConnectionError(f"no emulated hand at {path} ({exc.strerror}): start one with "
-                                  f"`prisma-hand-emulator --dir {path.parent}` or "
-                                  f"`ros2 launch prisma_bringup hand.launch.py hardware:=emulated`") from None
-        client.sendall(json.dumps({"command": command, "args": args or {}}).encode() + b"\n")
-        reply = _read_line(client)
-    try:
-        return json.loads(reply)
-    except ValueError:
-        raise ConnectionError(f"the emulator at {path} answered {reply[:80]!r}, not JSON") from None
-
-
-def _read_line(connection: socket.socket) -> bytes:
-    data = bytearray()
-    while not data.endswith(b"\n") and len(data) < MAX_REQUEST_BYTES:
-        chunk = connection.recv(4096)
-        if not chunk:
-            break
-        data += chunk
-    return bytes(data)
+            return refused(str(exc))
+        return self._handle(command, args)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from prisma_common.cli_args import non_negative_float, non_negative_int, positive_int
+from prisma_common.control_socket import REPLACE_OBJECT
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_motor_driver import control_table as ct
 
@@ -98,6 +99,10 @@ FAULTS: dict[str, Fault] = {
         FaultArg("name", str, ", ".join(WORLDS), positional=True),
         FaultArg("pushes", on_off, "the world's timed pushes: on, as its scenario times them from now, or off "
                  "(then `push` them when you want them, e.g. once a goal runs)", "on"))),
+    # the sim hand's ~/replace_object, carried out by the emulator's world (the emulated hand's
+    # tactile_driver forwards its ~/replace_object here)
+    REPLACE_OBJECT: Fault("put the object the hand let go (it fell) back between the open fingers, as between "
+                          "trials; refused while a finger touches it (open the hand first)"),
 }
 # Each motor's mechanical end stops (rad of the motor shaft from its zero): the open end is its
 

@@ -24,9 +24,10 @@ link, sequence restarting at 0 as a powered-down Arduino does), garbage bytes an
 frames on the hub link, a pad's ADC not acknowledging or glitching on I2C, a servo hardware error
 bit, a servo off the bus, a servo power cycle (`power-cycle`: RAM reset, the turn count lost, the
 hand keeps its pose), a servo at another baud rate (`servo-baud`), a motor turned by hand
-(`servo-place`), an external push on the object, and a new scenario world (the experimenter placing
-another object). A fault of the tactile link the hand is not wired with (`i2c-nack` on the serial
-hub) is refused with the reason.
+(`servo-place`), an external push on the object, a new scenario world (the experimenter placing
+another object) and the object the hand let go put back between the open fingers (`replace-object`,
+which the emulated hand's tactile_driver forwards its ~/replace_object to). A fault of the tactile
+link the hand is not wired with (`i2c-nack` on the serial hub) is refused with the reason.
 
 Nothing here reads ROS. Time is `clock_ns()` (monotonic); the world's time starts at 0 with each
 scenario, so the scenarios' disturbances keep their timing.
@@ -42,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.control_socket import done, refused
 from prisma_common.hand import FINGERS
 from prisma_hand_sim.contact_source import HandWorldContactSource
 from prisma_hand_sim.hand_world import Disturbance
@@ -195,11 +197,11 @@ class EmulatedHand:
         if name == "status":
             return {"ok": True, "status": self.status()}
         try:
-            return {"ok": True, "message": self.apply(name, **args)}
+            return done(self.apply(name, **args))
         except FaultError as exc:
-            return {"ok": False, "error": str(exc)}
+            return refused(str(exc))
         except TypeError as exc:  # an argument the command does not take, or one it needs missing
-            return {"ok": False, "error": f"{name}: {exc}"}
+            return refused(f"{name}: {exc}")
 
     def status(self) -> dict[str, Any]:
         """What the emulated hardware is doing, as plain data (JSON-ready)."""
@@ -258,6 +260,15 @@ class EmulatedHand:
             start_s = self.world.elapsed_s(self.clock_ns() - self._world_start_ns)
             self.world.add_disturbance(Disturbance(start_s, duration_s, dx_mm, dy_mm, dwidth_mm))
         return f"push dx {dx_mm:g} mm, dy {dy_mm:g} mm, width {dwidth_mm:+g} mm over {duration_s:g} s"
+
+    def _fault_replace_object(self) -> str:
+        """The world's object back where it was presented (HandWorld.replace_object: refused while a
+        finger touches it, or in an empty hand), as the sim hand's tactile_driver does in its world."""
+        with self.lock:
+            try:
+                return self.world.replace_object()
+            except ValueError as exc:
+                raise FaultError(str(exc)) from None  # the sim hand's words (prisma-hand-fault names the command)
 
     def _fault_world(self, name: str, pushes: str) -> str:
         try:

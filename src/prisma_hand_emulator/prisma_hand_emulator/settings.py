@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from prisma_common.control_socket import CONTROL_SOCKET_NAME
 from prisma_hand_sim.hand_world import HandWorld
 from prisma_hand_sim.sim_objects import OBJECTS
 from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
@@ -50,7 +51,7 @@ class EmulatorPaths:
 
     @property
     def control(self) -> Path:
-        return self.root / "control.sock"
+        return self.root / CONTROL_SOCKET_NAME
 
     def tactile(self, link: str) -> Path:
         """Where the pads' link appears: the hub's pty or the I2C bus socket."""

@@ -23,6 +23,9 @@ from prisma_testing.ros_harness import console_script
 def test_cli_refuses_a_missing_hand_and_a_file_as_dir(tmp_path):
     done = run_cli("prisma-hand-fault", "--dir", str(tmp_path), "status")  # an empty directory
     assert done.returncode == 2 and "no emulated hand at" in done.stderr and "Traceback" not in done.stderr
+    # the way to the emulator a launch started: its emulator_dir is this --dir
+    assert "hardware:=emulated emulator_dir:=DIR` is reached with `prisma-hand-fault --dir DIR ...`" in done.stderr
+    assert f"prisma-hand-emulator --dir {tmp_path}`" in done.stderr
     (regular := tmp_path / "a_file").write_text("x")
     done = run_cli("prisma-hand-emulator", "--dir", str(regular), "--seconds", "1")
     assert done.returncode == 2 and str(regular) in done.stderr and "Traceback" not in done.stderr

@@ -2,7 +2,7 @@
 without ROS, one per test in pytest's tmp_path on a manual clock (`rig`, conftest.py), reached
 through the real host-side driver code: device creation and removal (what start made, and only
 that) and refusal of a foreign file, one world driving the servos and either tactile link alike,
-motion closing the grasp and loading the servos, push and world commands, and the one fault table
+motion closing the grasp and loading the servos, push, world and replace-object commands, and the one fault table
 behind the emulator and its CLI (faults themselves: test_emulator_faults.py; the console scripts:
 test_emulator_cli.py).
 """
@@ -206,6 +206,51 @@ def test_a_world_without_its_timed_pushes_is_pushed_by_the_push_command(rig):
     assert thumb_force_after(1.0) == pytest.approx(held, abs=0.01)  # no push
     assert r.hand.apply("push", dx_mm=-4.0, dwidth_mm=-6.0).startswith("push dx -4 mm, dy 0 mm, width -6 mm")
     assert thumb_force_after(0.5) < held - 0.1
+
+
+def test_replace_object_puts_the_rolled_ball_back_and_is_refused_while_touched(rig, tmp_path):
+    """`replace-object` over the control socket (prisma-hand-fault's request, and the one the emulated
+    hand's tactile_driver forwards its ~/replace_object as): refused with the touching fingers named
+    while the ball is held, then the ball the thumb rolled 3 mm off the pad's middle is put back there."""
+    from prisma_common.control_socket import REPLACE_OBJECT, send
+    from prisma_hand_emulator.emulator_cli import fault_request
+
+    r = rig("pinch_ball")
+    pose = r.hand.world.grasp_pose(1.0)  # a balanced 1 N pinch
+
+    def place(**positions: float) -> None:
+        for motor, rad in positions.items():
+            r.hand.apply("servo-place", motor=motor, rad=rad)
+        r.tick()
+
+    place(**pose)
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
+    assert send(r.paths.control, REPLACE_OBJECT) == {
+        "ok": False, "error": "the object cannot be re-placed while index, thumb touch it: open the hand first "
+                              "(GripperCommand position 0)"}
+    for step in range(1, 101):  # the thumb turns 1 rad under the ball: it rolls toward the pad's edge
+        place(thumb_rotation=step * 0.01)
+    # 3 mm per rad of the thumb's rotation, to the servo's resolution (0.0015 rad a tick)
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(3.0, abs=0.01)
+    place(fingers=0.0, thumb_flexion=0.0, thumb_rotation=0.0)  # opened and turned back: the ball stays
+    place(fingers=pose["fingers"], thumb_flexion=pose["thumb_flexion"])
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(-3.0, abs=0.01)  # met off-centre
+
+    place(fingers=0.0, thumb_flexion=0.0)
+    assert fault_request(["--dir", str(tmp_path), REPLACE_OBJECT]) == \
+        "pinch_ball re-placed at the thumb pad's middle (thumb rotation +0.000 rad)"
+    place(fingers=pose["fingers"], thumb_flexion=pose["thumb_flexion"])
+    assert r.hand.world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
+    assert r.hand.status()["forces_n"]["thumb"] == pytest.approx(1.0, rel=0.01)
+
+
+def test_replace_object_in_an_empty_hand_says_how_to_start_one_with_an_object(rig):
+    from prisma_common.control_socket import REPLACE_OBJECT, send
+
+    r = rig("none")
+    assert send(r.paths.control, REPLACE_OBJECT) == {
+        "ok": False, "error": "no object to put back: the hand is empty (object 'none'); start it with one: "
+                              "sim_object:=pinch_ball|power_ball|lateral_card"}
 
 
 def test_the_emulator_places_the_sim_graphs_objects_too(rig):

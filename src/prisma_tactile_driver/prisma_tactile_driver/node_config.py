@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from prisma_common.control_socket import CONTROL_SOCKET_NAME
 from prisma_common.hand import FINGERS
 from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
 from prisma_common.unix_socket import MAX_PATH_BYTES
@@ -71,6 +72,9 @@ class TactileDriverConfig(Params):
     sim_seed: int = parameter(0, "seed of the simulated pads' noise", bounds=(0, 2**31 - 1))
     object_frame_id: str = parameter("prisma_hand_base", "hand_world: the frame of the object's marker "
                                                          "(prisma/sim/object), the hand's base with its frame prefix")
+    # the emulated hand (hand.launch.py hardware:=emulated): its world is the emulator's
+    emulator_control: str = parameter("", "absolute path of prisma-hand-emulator's control socket: ~/replace_object "
+                                          "puts the emulator's object back ('' = no emulator)")
 
     def check_rules(self) -> None:
         check_fingers(self.fingers)
@@ -83,7 +87,15 @@ class TactileDriverConfig(Params):
             raise ParameterError("reconnect_backoff_max", self.reconnect_backoff_max,
                                  f"must be >= reconnect_backoff_initial ({self.reconnect_backoff_initial})")
         if self.i2c_socket:
-            self._check_i2c_socket()
+            _check_socket_path("i2c_socket", self.i2c_socket, "the absolute path of the emulator's Unix socket (the "
+                               "node may start in any directory), or empty for /dev/i2c-<i2c_bus>")
+        if self.emulator_control:
+            _check_socket_path("emulator_control", self.emulator_control, "the absolute path of the emulator's "
+                               f"control socket (<emulator_dir>/{CONTROL_SOCKET_NAME}), or empty without an emulator")
+        if self.emulator_control and self.backend == "sim" and self.contact_source == "hand_world":
+            raise ParameterError("emulator_control", self.emulator_control,
+                                 "the simulated hand (contact_source hand_world) has its own world: leave it empty, "
+                                 "or use backend serial|i2c on the emulator's devices")
         if len(self.finger_channels) != len(self.fingers):
             raise ParameterError("finger_channels", self.finger_channels,
                                  f"one mux channel per finger ({len(self.fingers)})")
@@ -94,18 +106,18 @@ class TactileDriverConfig(Params):
         if duplicates:
             raise ParameterError("finger_channels", self.finger_channels, f"duplicate mux channel(s) {duplicates}")
 
-    def _check_i2c_socket(self) -> None:
-        path = self.i2c_socket
-        if not isinstance(path, str) or "\0" in path or not path.startswith("/"):
-            raise ParameterError("i2c_socket", path, "the absolute path of the emulator's Unix socket (the node "
-                                                     "may start in any directory), or empty for /dev/i2c-<i2c_bus>")
-        size = len(os.fsencode(path))
-        if size > MAX_PATH_BYTES:
-            raise ParameterError("i2c_socket", path, f"a Unix socket path has at most {MAX_PATH_BYTES} bytes, "
-                                                     f"this one {size}: choose a shorter path")
-
     def frame_id(self, finger: str) -> str:
         return self.frame_id_format.format(finger=finger)
+
+
+def _check_socket_path(name: str, path: Any, what: str) -> None:
+    """A Unix socket path the node may open from any directory: absolute, and short enough."""
+    if not isinstance(path, str) or "\0" in path or not path.startswith("/"):
+        raise ParameterError(name, path, what)
+    size = len(os.fsencode(path))
+    if size > MAX_PATH_BYTES:
+        raise ParameterError(name, path, f"a Unix socket path has at most {MAX_PATH_BYTES} bytes, "
+                                         f"this one {size}: choose a shorter path")
 
 
 def make_backend(config: TactileDriverConfig, contact_source: ContactSource | None = None) -> HubBackend:

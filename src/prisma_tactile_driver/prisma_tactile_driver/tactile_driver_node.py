@@ -2,9 +2,11 @@
 the same samples once per poll on /prisma/hand/taxels (for the nodes that take all five fingers),
 and /diagnostics at 1 Hz with the link counters. With the simulated hand (contact_source
 hand_world), ~/replace_object (std_srvs/Trigger) puts the object back between the open fingers for
-the next trial, and prisma/sim/object (visualization_msgs/Marker, 10 Hz while someone subscribes)
-draws the object where the simulated world has it, in object_frame_id (the hand's base), placed
-from the description on robot_description (none for sim_object none). Zeroing the fingertip forces is the force
+the next trial (on the emulated hand, hand.launch.py hardware:=emulated, the same service asks the
+emulator's world through its control socket, `emulator_control`), and prisma/sim/object
+(visualization_msgs/Marker, 10 Hz while someone subscribes) draws the object where the simulated
+world has it, in object_frame_id (the hand's base), placed from the description on
+robot_description (none for sim_object none). Zeroing the fingertip forces is the force
 estimator's ~/bias: the taxel voltages stay raw (Algorithm 1 needs them).
 
     ros2 run prisma_tactile_driver tactile_driver --ros-args --params-file config/tactile_driver.yaml
@@ -27,9 +29,11 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
+from prisma_common.control_socket import REPLACE_OBJECT, reply_text, send
 from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
+from prisma_common.os_errors import describe_os_error
 from prisma_common.parameters import ParameterError
 from prisma_hand_sim.contact_source import HandWorldContactSource
 from prisma_hand_sim.hand_world import HandWorld
@@ -42,6 +46,7 @@ from .ros_conversions import hand_taxels_to_msg, object_marker_to_msg, taxel_fra
 from .tactile_driver_core import TactileHub
 
 OBJECT_MARKER_HZ = 10.0  # a display's rate: the object moves with the grasp, at most a few mm/s
+EMULATOR_REPLY_TIMEOUT_S = 1.0  # the emulator answers a request in milliseconds
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -63,6 +68,8 @@ class TactileDriverNode(Node):
                 self._description_sub = self.create_subscription(String, "robot_description",
                                                                  self._on_description, LATCHED)
                 self._object_timer = self.create_timer(1.0 / OBJECT_MARKER_HZ, self._on_object_marker)
+        elif cfg.emulator_control:  # the emulated hand: its world, and its object, are the emulator's
+            self._replace_service = self.create_service(Trigger, "~/replace_object", self._on_replace_emulated)
         self._source = source
         self.hub = TactileHub(make_backend(cfg, source), cfg.fingers, vref=cfg.vref,
                               stale_timeout_ns=int(cfg.stale_timeout * 1e9),
@@ -162,6 +169,24 @@ class TactileDriverNode(Node):
             response.success = True
         except ValueError as exc:
             response.message = str(exc)
+        self.get_logger().info(f"replace_object: {response.message}")
+        return response
+
+    def _on_replace_emulated(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """The same service on the emulated hand, carried out by the emulator's world: its control
+        socket's replace-object request, answered in a few ms (the wait is bounded: the executor
+        serves the I2C poll timer too)."""
+        path = self.config.emulator_control
+        try:
+            response.success, response.message = reply_text(
+                send(path, REPLACE_OBJECT, timeout_s=EMULATOR_REPLY_TIMEOUT_S))
+        except ConnectionError as exc:
+            response.message = (f"{exc}: is the emulator this hand was launched with running? "
+                                f"(emulator_control {path})")
+        except TimeoutError:
+            response.message = f"the emulator at {path} did not answer within {EMULATOR_REPLY_TIMEOUT_S:g} s"
+        except OSError as exc:
+            response.message = f"the emulator at {path} cannot be asked: {describe_os_error(exc)}"
         self.get_logger().info(f"replace_object: {response.message}")
         return response
 

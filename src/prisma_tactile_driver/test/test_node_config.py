@@ -34,6 +34,12 @@ def test_defaults_are_valid_and_arrays_become_lists():
     ({"contact_source": "glove"}, "expected one of scripted|hand_world"),
     ({"i2c_socket": "i2c.sock"}, "'i2c_socket' = 'i2c.sock': the absolute path of the emulator's Unix socket"),
     ({"i2c_socket": "/" + "s" * 107}, "a Unix socket path has at most 107 bytes, this one 108"),
+    ({"backend": "serial", "emulator_control": "control.sock"},
+     "'emulator_control' = 'control.sock': the absolute path of the emulator's control socket "
+     "(<emulator_dir>/control.sock)"),
+    ({"backend": "serial", "emulator_control": "/" + "c" * 107}, "at most 107 bytes, this one 108"),
+    ({"contact_source": "hand_world", "emulator_control": "/tmp/e/control.sock"},
+     "'emulator_control' = '/tmp/e/control.sock': the simulated hand (contact_source hand_world) has its own world"),
 ])
 def test_bad_values_are_named(values, message):
     with pytest.raises(ParameterError) as info:

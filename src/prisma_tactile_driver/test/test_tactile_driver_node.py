@@ -279,3 +279,78 @@ def test_replace_object_answers_what_it_did_or_why_not(ros, node_cls, sim_object
     ros.node(node_cls, params={"contact_source": "hand_world", "sim_object": sim_object}, sim_time=True)
     answer = ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
     assert answer.success is success and answer.message.startswith(says), answer.message
+
+
+class FakeEmulatorControl:
+    """An emulator's control socket at `path` that answers each request with the next of `replies`
+    (None: accepts and never answers), recording the requests it decoded, in the wire format of
+    prisma_common.control_socket."""
+
+    def __init__(self, path, replies):
+        import socket
+        import threading
+
+        self.requests, self._replies = [], list(replies)
+        self._listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self._listener.bind(str(path))
+        self._listener.listen(1)
+        self._silent = []  # connections left unanswered, closed with the fake
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self):
+        from prisma_common.control_socket import decode_request, encode_reply, read_line
+
+        while self._replies:
+            connection, _ = self._listener.accept()
+            self.requests.append(decode_request(read_line(connection)))
+            reply = self._replies.pop(0)
+            if reply is None:
+                self._silent.append(connection)
+                continue
+            with connection:
+                connection.sendall(encode_reply(reply))
+
+    def close(self):
+        self._thread.join(timeout=5.0)
+        for connection in self._silent:
+            connection.close()
+        self._listener.close()
+
+
+def test_emulated_hand_forwards_replace_object_to_the_emulators_world(ros, node_cls, tmp_path):
+    """hand.launch.py hardware:=emulated passes `emulator_control`: ~/replace_object (under the hand's
+    namespace) asks the emulator's world through its control socket and answers with its words,
+    success or refusal; nobody at the path, or an emulator that does not answer, is said so."""
+    from std_srvs.srv import Trigger
+
+    from prisma_common.control_socket import REPLACE_OBJECT
+
+    path = tmp_path / "control.sock"
+    put_back = "pinch_ball re-placed at the thumb pad's middle (thumb rotation +0.000 rad)"
+    touched = "the object cannot be re-placed while index, thumb touch it: open the hand first (GripperCommand position 0)"
+    ros.node(node_cls, namespace="left", params={"emulator_control": str(path)})
+    service = "/left/tactile_driver/replace_object"
+
+    answer = ros.call(Trigger, service, Trigger.Request())
+    assert (answer.success, answer.message) == (False, f"no emulated hand at {path} (No such file or directory): is the "
+                                                       f"emulator this hand was launched with running? "
+                                                       f"(emulator_control {path})")
+    fake = FakeEmulatorControl(path, [{"ok": True, "message": put_back}, {"ok": False, "error": touched}, None])
+    try:
+        answer = ros.call(Trigger, service, Trigger.Request())
+        assert (answer.success, answer.message) == (True, put_back)
+        answer = ros.call(Trigger, service, Trigger.Request())
+        assert (answer.success, answer.message) == (False, touched)
+        answer = ros.call(Trigger, service, Trigger.Request())
+        assert (answer.success, answer.message) == (False, f"the emulator at {path} did not answer within 1 s")
+    finally:
+        fake.close()
+    assert fake.requests == [(REPLACE_OBJECT, {})] * 3
+
+
+def test_no_replace_object_without_a_world(ros, node_cls):
+    """The scripted pads (no world, no emulator) offer no ~/replace_object: nothing to put back."""
+    ros.node(node_cls)
+    ros.spin_for(0.5)
+    assert "/tactile_driver/replace_object" not in {name for name, _ in ros.probe.get_service_names_and_types()}
