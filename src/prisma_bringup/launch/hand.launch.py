@@ -207,6 +207,9 @@ def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCo
                          "port": ParameterValue(PathJoinSubstitution([emulator_dir, "hub"]), value_type=str),
                          "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]),
                                                       value_type=str),
+                         # ~/replace_object puts the emulator's object back, as the sim hand's does its own
+                         "emulator_control": ParameterValue(PathJoinSubstitution([emulator_dir, "control.sock"]),
+                                                            value_type=str),
                          "frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}]),
         control_path_node(
             package="prisma_motor_driver", executable="motor_driver", namespace=namespace, condition=condition,
