@@ -6,12 +6,13 @@
     ros2 launch prisma_bringup all.launch.py parts:=robot         # the drivers; parts:=workstation the rest
     ros2 launch prisma_bringup all.launch.py sim:=false hand_config:=~/hands/pad7   # the hand's directory
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.conditions import IfCondition
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.substitutions import FindPackageShare
+
+from prisma_bringup.launch_nodes import checked_launch_description
 
 
 def generate_launch_description():
@@ -46,4 +47,4 @@ def generate_launch_description():
                           "parts": LaunchConfiguration("parts")}.items(),
         condition=IfCondition(LaunchConfiguration("glove")),
     )
-    return LaunchDescription(declared_arguments + [hand, glove])
+    return checked_launch_description(declared_arguments, [hand, glove])

@@ -13,12 +13,13 @@ three between two computers as hand.launch.py and glove.launch.py do (docs/archi
 "Across machines"). Each hand has its own directory (hand_config, hand.launch.py): by default
 ~/.config/prisma_hand/left and .../right on the hardware, none in sim.
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction, IncludeLaunchDescription
 from launch.conditions import IfCondition
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.substitutions import FindPackageShare
+
+from prisma_bringup.launch_nodes import checked_launch_description
 
 
 def generate_launch_description():
@@ -65,4 +66,4 @@ def generate_launch_description():
         launch_arguments={"parts": parts}.items(),
         condition=IfCondition(LaunchConfiguration("glove")),
     )
-    return LaunchDescription(declared_arguments + hands + [glove])
+    return checked_launch_description(declared_arguments, hands + [glove])

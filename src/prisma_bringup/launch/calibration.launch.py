@@ -10,13 +10,13 @@ and records both into one MCAP bag:
 
 The trainer pairs each taxel sample with the reference wrench nearest in header stamp (5 ms).
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
+from prisma_bringup.launch_nodes import checked_launch_description, required
 from prisma_common.hand import FINGERS
 
 
@@ -37,16 +37,17 @@ def generate_launch_description():
         DeclareLaunchArgument("bag", default_value="calibration", description="Output bag directory"),
     ]
 
-    tactile_driver = Node(
+    # required, both: a recording without either is no calibration
+    tactile_driver = required(Node(
         package="prisma_tactile_driver", executable="tactile_driver", name="tactile_driver",
         output="screen",
         parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
                     {"backend": LaunchConfiguration("tactile_backend"),
                      "port": ParameterValue(LaunchConfiguration("tactile_port"), value_type=str)}],
-    )
-    record = ExecuteProcess(
+    ))
+    record = required(ExecuteProcess(
         cmd=["ros2", "bag", "record", "-s", "mcap", "-o", LaunchConfiguration("bag"),
              ["/prisma/", finger, "/taxels"], LaunchConfiguration("reference_topic"), "/diagnostics"],
         output="screen",
-    )
-    return LaunchDescription(declared_arguments + [tactile_driver, record])
+    ))
+    return checked_launch_description(declared_arguments, [tactile_driver, record])

@@ -11,13 +11,14 @@ glove_driver (beside the readout board), workstation glove_perception (the netwo
 
 Every parameter not given here comes from config/glove_driver.yaml and config/glove_perception.yaml.
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
+
+from prisma_bringup.launch_nodes import checked_launch_description, required
 
 
 def generate_launch_description():
@@ -40,7 +41,8 @@ def generate_launch_description():
     ]
     parts = LaunchConfiguration("parts")
 
-    driver = Node(
+    # required: a glove that cannot read its board or load its networks stops the launch with its reason
+    driver = required(Node(
         package="stag_glove", executable="glove_driver", name="glove_driver",
         namespace=namespace, output="screen",
         parameters=[PathJoinSubstitution([config, "glove_driver.yaml"]),
@@ -48,12 +50,12 @@ def generate_launch_description():
                      "port": ParameterValue(LaunchConfiguration("port"), value_type=str),
                      "replay_file": ParameterValue(LaunchConfiguration("replay_file"), value_type=str)}],
         condition=IfCondition(PythonExpression(["'", parts, "' != 'workstation'"])),
-    )
-    perception = Node(
+    ))
+    perception = required(Node(
         package="stag_glove", executable="glove_perception", name="glove_perception",
         namespace=namespace, output="screen",
         parameters=[PathJoinSubstitution([config, "glove_perception.yaml"])],
         condition=IfCondition(PythonExpression(["'", LaunchConfiguration("perception"), "' == 'true' and '",
                                                 parts, "' != 'robot'"])),
-    )
-    return LaunchDescription(declared_arguments + [driver, perception])
+    ))
+    return checked_launch_description(declared_arguments, [driver, perception])

@@ -5,6 +5,7 @@
     ros2 launch prisma_bringup hand.launch.py sim:=false tactile_backend:=i2c
     ros2 launch prisma_bringup hand.launch.py model_bundle:=/path/to/bundle namespace:=left
     ros2 launch prisma_bringup hand.launch.py hardware:=emulated   # + tactile_backend:=i2c
+    ros2 launch prisma_bringup hand.launch.py hardware:=robot      # = sim:=false
     ros2 launch prisma_bringup hand.launch.py parts:=robot         # on the robot; parts:=workstation beside it
     ros2 launch prisma_bringup hand.launch.py sim:=false hand_config:=~/hands/pad7   # this hand's directory
 
@@ -20,6 +21,9 @@ motor_driver and force_estimator and written there by the services that find the
 not hold comes from config/. auto (the default): ~/.config/prisma_hand/<namespace or default>
 ($XDG_CONFIG_HOME) with sim:=false, none with sim:=true or hardware:=emulated; none: the shipped
 config only.
+
+hardware:= says which hand, in the words teleop.launch.py uses too: sim (the drivers' sim backends),
+robot (the hardware) or emulated; auto (the default) follows sim:= (true: sim, false: robot).
 
 hardware:=emulated (whatever sim is) starts prisma-hand-emulator: the Dynamixel servos on a
 pseudo-terminal and the pads on the link tactile_backend names (serial: the fingertip hub on a
@@ -53,11 +57,16 @@ sensor_stale (prisma_common/scheduling.py). Where real-time scheduling is not pe
 `rtprio` limit in /etc/security/limits.conf; README, "On the robot") the nodes run at nice:=-5 if
 that is permitted, else at the default priority, and say so in their first log line. rt_priority:=0
 asks for niceness only.
+
+The hand starts whole or not at all (prisma_bringup/launch_nodes.py): an argument this file does not
+declare is refused, with the ones it does; a hand whose nodes already run in the namespace is refused
+before anything starts; a node of the control path (or the emulator) that exits on its own stops
+every node of the launch, and the launch's last line names it and its reason (exit 1).
 """
 import tempfile
 from pathlib import Path
 
-from launch import LaunchContext, LaunchDescription, Substitution
+from launch import LaunchContext, Substitution
 from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
 from launch.event_handlers import OnShutdown
@@ -66,7 +75,13 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
-from prisma_bringup.launch_nodes import control_path_env, control_path_node
+from prisma_bringup.launch_nodes import (
+    checked_launch_description,
+    control_path_env,
+    control_path_node,
+    refuse_a_second_hand,
+    required,
+)
 from prisma_common.hand_config import launch_hand_config
 from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY
 
@@ -117,9 +132,10 @@ def declared_arguments(config) -> list[DeclareLaunchArgument]:
                               description="Force estimator model bundle directory (model.pt + metadata.json)"),
         DeclareLaunchArgument("namespace", default_value="",
                               description="Namespace for every node of the hand (topics follow it)"),
-        DeclareLaunchArgument("hardware", default_value="robot", choices=["robot", "emulated"],
-                              description="emulated: the drivers' hardware paths on prisma-hand-emulator's "
-                                          "devices (overrides sim)"),
+        DeclareLaunchArgument("hardware", default_value="auto", choices=["auto", "sim", "robot", "emulated"],
+                              description="Which hand (overrides sim): sim (the drivers' sim backends), robot "
+                                          "(the hardware), emulated (the drivers' hardware paths on "
+                                          "prisma-hand-emulator's devices); auto: as sim:= says"),
         DeclareLaunchArgument("emulator_dir", default_value="/tmp/prisma_hand_emulator",
                               description="Where the emulator's devices appear, an absolute path (hardware:=emulated)"),
         DeclareLaunchArgument("sim_object", default_value="pinch_ball",
@@ -191,13 +207,13 @@ def robot_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondi
 def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:
     """hardware:=emulated: prisma-hand-emulator, then the drivers' hardware paths on its devices."""
     emulator_dir = LaunchConfiguration("emulator_dir")
-    emulator = ExecuteProcess(
+    emulator = required(ExecuteProcess(
         cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_hand_emulator"), "lib", "prisma_hand_emulator",
                                    "prisma-hand-emulator"]),
              "--dir", emulator_dir, "--world", LaunchConfiguration("sim_object"),
              "--tactile-link", LaunchConfiguration("tactile_backend")],
         name="hand_emulator", output="screen", additional_env=control_path_env(), condition=condition,
-    )
+    ))
     return [
         emulator,
         control_path_node(
@@ -260,11 +276,11 @@ def generate_launch_description():
     parts = LaunchConfiguration("parts")
     robot_side = ["'", parts, "' != 'workstation'"]
     workstation_side = ["'", parts, "' != 'robot'"]
+    is_sim = ["('", hardware, "' == 'sim' or ('", hardware, "' == 'auto' and '", sim, "' == 'true'))"]
+    is_robot = ["('", hardware, "' == 'robot' or ('", hardware, "' == 'auto' and '", sim, "' == 'false'))"]
     emulated = IfCondition(PythonExpression(["'", hardware, "' == 'emulated' and ", *robot_side]))
-    simulated = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'true' and ",
-                                              *robot_side]))
-    on_robot = IfCondition(PythonExpression(["'", hardware, "' != 'emulated' and '", sim, "' == 'false' and ",
-                                             *robot_side]))
+    simulated = IfCondition(PythonExpression([*is_sim, " and ", *robot_side]))
+    on_robot = IfCondition(PythonExpression([*is_robot, " and ", *robot_side]))
     # "auto" is resolved here, not in the argument's default: a default computed from another argument
     # would leak from the first of two hands included in one launch file into the second
     given_prefix = LaunchConfiguration("frame_prefix")
@@ -272,7 +288,7 @@ def generate_launch_description():
                                      "if '", given_prefix, "' == 'auto' else '", given_prefix, "'"])
     on_workstation = IfCondition(PythonExpression(workstation_side))
     hand_dir = ParameterValue(HandConfigDir(LaunchConfiguration("hand_config"), namespace, PythonExpression(
-        ["'", hardware, "' == 'emulated' or '", sim, "' == 'true'"])), value_type=str)
+        ["'", hardware, "' == 'emulated' or ", *is_sim])), value_type=str)
 
     force_estimator = control_path_node(
         package="prisma_force_estimator", executable="force_estimator", namespace=namespace, condition=on_workstation,
@@ -283,10 +299,22 @@ def generate_launch_description():
         package="prisma_manipulation", executable="manipulation", namespace=namespace, condition=on_workstation,
         parameters=[PathJoinSubstitution([config, "manipulation.yaml"]),
                     {"frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}])
-    return LaunchDescription(
-        declared_arguments(config)
+    return checked_launch_description(
+        declared_arguments(config),
+        [refuse_a_second_hand(namespace, hand_nodes)]
         + simulated_hardware(config, namespace, frame_prefix, hand_dir, simulated)
         + robot_hardware(config, namespace, frame_prefix, hand_dir, on_robot)
         + emulated_hardware(config, namespace, frame_prefix, hand_dir, emulated)
         + [force_estimator, manipulation]
         + beside_the_hand(config, namespace, frame_prefix, robot_side, workstation_side))
+
+
+# the nodes of each computer's share (parts:=), those a second hand in the namespace would duplicate
+ROBOT_SIDE_NODES = ["tactile_driver", "motor_driver", "robot_state_publisher", "tendon_stretch"]
+WORKSTATION_SIDE_NODES = ["force_estimator", "manipulation", "tactile_markers"]
+
+
+def hand_nodes(context: LaunchContext) -> list[str]:
+    """The nodes this launch starts, by parts:= (refuse_a_second_hand looks for them)."""
+    parts = LaunchConfiguration("parts").perform(context)
+    return (ROBOT_SIDE_NODES if parts != "workstation" else []) + (WORKSTATION_SIDE_NODES if parts != "robot" else [])

@@ -7,14 +7,17 @@
     ros2 launch prisma_bringup teleop.launch.py hardware:=emulated             # the hand's hardware paths, emulated
 
 Starts hand.launch.py (hardware:=sim: the simulated hand holding sim_object; hardware:=emulated:
-prisma-hand-emulator's servos and pads, homed at start), the teleop node (prisma_teleop, parameters
-from config/teleop.yaml) and the glove: with input:=joint_states the synthetic_glove node (a scripted
-operator closing around the ball, holding, opening, sweeping the thumb) unless glove:=none; with
-input:=stag glove.launch.py (glove_driver with glove_backend, glove_perception) unless glove:=none.
-engage:=true (the default here) has the teleop node take the hand as soon as the glove's input
-flows; engage:=false waits for `ros2 service call /teleop/engage std_srvs/srv/SetBool "{data: true}"`.
+prisma-hand-emulator's servos and pads, homed at start; hand.launch.py's hardware:= in the same words),
+the teleop node (prisma_teleop, parameters from config/teleop.yaml) and the glove: with
+input:=joint_states the synthetic_glove node (a scripted operator closing around the ball, holding,
+opening, sweeping the thumb) unless glove:=none; with input:=stag glove.launch.py (glove_driver with
+glove_backend, glove_perception) unless glove:=none. engage:=true (the default here) has the teleop
+node take the hand as soon as the glove's input flows; engage:=false waits for
+`ros2 service call /teleop/engage std_srvs/srv/SetBool "{data: true}"`.
+
+It starts whole or not at all, as hand.launch.py does (prisma_bringup/launch_nodes.py): an argument it
+does not declare is refused, the teleop node and the glove are required with the hand's nodes.
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.conditions import IfCondition
 from launch.launch_description_sources import PythonLaunchDescriptionSource
@@ -22,7 +25,7 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, Pyth
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 
-from prisma_bringup.launch_nodes import control_path_node
+from prisma_bringup.launch_nodes import checked_launch_description, control_path_node
 from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY
 
 
@@ -75,8 +78,7 @@ def generate_launch_description():
     emulated = PythonExpression(["'", LaunchConfiguration("hardware"), "' == 'emulated'"])
     hand = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([launch_dir, "hand.launch.py"])),
-        launch_arguments={"sim": "true",
-                          "hardware": PythonExpression(["'emulated' if ", emulated, " else 'robot'"]),
+        launch_arguments={"hardware": LaunchConfiguration("hardware"),
                           "home": PythonExpression(["'true' if ", emulated, " else 'false'"]),
                           "emulator_dir": LaunchConfiguration("emulator_dir"),
                           "sim_object": LaunchConfiguration("sim_object"),
@@ -106,4 +108,4 @@ def generate_launch_description():
                     {"input": teleop_input,
                      "engage_at_start": ParameterValue(LaunchConfiguration("engage"), value_type=bool),
                      "calibration_file": ParameterValue(LaunchConfiguration("calibration_file"), value_type=str)}])
-    return LaunchDescription(declared_arguments() + [hand, stag_glove, synthetic_glove, teleop])
+    return checked_launch_description(declared_arguments(), [hand, stag_glove, synthetic_glove, teleop])
