@@ -129,7 +129,9 @@ class MotorDriverCore:
         """Why the goal is refused (the node aborts it at once with this reason), else None:
         not_ready while the bus is not connected, invalid for a malformed goal or (given the time it
         arrives) one whose timeout ended on the way, busy while another controller holds the motors
-        (motor_goals.py). A goal naming a faulted motor is valid: it fails at start with the fault reason."""
+        (motor_goals.py), not_ready while the homing runs or is about to (`homing_refusal`), not_homed
+        for a motor whose zero is not known. A goal naming a faulted motor is valid: it fails at start
+        with the fault reason."""
         if not self.connected:
             return Refusal(NOT_READY, f"motor bus not connected: {self.last_error or 'not opened yet'}")
         reason = validate_goal(goal, self.bus.motors) or (goal_expired(goal, now_ns) if now_ns is not None else None)
@@ -138,14 +140,28 @@ class MotorDriverCore:
         busy = self.runner.busy_reason(goal, now_ns)
         if busy:
             return Refusal(BUSY, busy)
-        if self.homing.run is not None:
-            return Refusal(NOT_HOMED, f"homing {', '.join(self.homing.run.motors)}: send it when the homing has ended")
+        homing = self.homing_refusal()
+        if homing is not None:
+            return homing
         unhomed = self.unhomed(goal.motors)
         if unhomed:
             return Refusal(NOT_HOMED, f"{self._named(unhomed)} not homed since the servo powered up (the zero may be "
                                       f"a turn off): home first (the HomeMotors action prisma/motors/home, or "
                                       f"home:=true at launch)")
         return None
+
+    def homing_refusal(self) -> Refusal | None:
+        """not_ready while a homing runs or one asked for (at start, or again after an interruption) is
+        about to start: it takes every motor, and the goal can run once it has ended (send it again).
+        Without this, a goal sent at start-up before the homing began would be refused `not_homed`,
+        which asks the client to home: the driver is doing that already."""
+        if self.homing.run is not None:
+            motors = list(self.homing.run.motors)
+        elif self.homing.wanted:
+            motors = list(self.bus.motors)
+        else:
+            return None
+        return Refusal(NOT_READY, f"homing ({', '.join(motors)}): send it again when the homing has ended")
 
     def _named(self, motors: list[str]) -> str:
         return ", ".join(f"{m} (id {self.bus.motors[m].servo_id})" for m in motors)
@@ -202,6 +218,9 @@ class MotorDriverCore:
         if not self.connected:
             if self.connect(now_ns) is not None:
                 return TickResult(None)
+        # a goal whose timeout passed since the last tick (this tick late: the driver held up) has its
+        # motors stopped before they are read; it ends below (timeout, or a fault the states show)
+        self.runner.stop_if_expired(now_ns)
         try:
             states = self.bus.read_state(now_ns)
             stopped = self._servo_safety(states)

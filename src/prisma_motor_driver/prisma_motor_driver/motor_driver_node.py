@@ -33,7 +33,7 @@ from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 from .backend import BusError
 from .homing_job import HomingResult
 from .motor_driver_core import MotorDriverCore, make_bus
-from .motor_goals import MoveResult
+from .motor_goals import MoveResult, end_severity
 from .node_config import MotorDriverConfig
 from .ros_conversions import (
     homing_feedback_to_msg,
@@ -173,11 +173,11 @@ class MotorDriverNode(Node):
             handle.succeed()
         else:
             handle.abort()
-        # a client refreshes its goal by sending the next one (preempted) and stops the motors by
-        # canceling: both are routine. rclpy fixes a call site's severity: one call site per severity
-        if result.success or result.reason == "canceled":
+        # rclpy fixes a call site's severity: one call site per severity
+        severity = end_severity(result)  # None: routine (a refresh, a stop)
+        if severity == "info":
             self.get_logger().info(f"MoveMotors goal ended: {result.reason}")
-        elif result.reason != "preempted":
+        elif severity == "warn":
             self.get_logger().warning(f"MoveMotors goal ended: {result.reason}")
         done.set_result(move_result_to_msg(self.types, result))
 

@@ -76,6 +76,19 @@ class MoveResult:
     reason: str
 
 
+# ends a client brings about in its normal work: a refresh (the next goal preempts this one, every
+# 0.1 s) and a stop (a cancel, at the end of every manipulation goal): the log keeps quiet about them
+ROUTINE_ENDS = ("preempted", "canceled")
+
+
+def end_severity(result: MoveResult) -> str | None:
+    """How the motor driver logs a goal's end: "info" for a success, "warn" for a failure, None for a
+    routine end (ROUTINE_ENDS)."""
+    if result.reason in ROUTINE_ENDS:
+        return None
+    return "info" if result.success else "warn"
+
+
 def validate_goal(goal: MoveGoal, motors: dict[str, MotorConfig], faults: dict[str, int] | None = None) -> str | None:
     """None when the goal is acceptable, else the rejection reason naming the bad value."""
     if not goal.motors:
@@ -263,6 +276,22 @@ class MoveGoalRunner:
         if self.goal is None:
             return None
         return self._finish(False, f"motor_fault: communication: {error}", stop=False)
+
+    def stop_if_expired(self, now_ns: int) -> None:
+        """Stop the running goal's motors when its timeout has passed at `now_ns`. The driver calls it
+        before it reads the motors: a tick that comes late (the driver held up: SIGSTOP, a starved
+        process) stops them first, so nothing moves after the goal's lease ended, not even until that
+        tick's end (the sim's motors would be integrated on at the goal's velocity up to now). The goal
+        itself ends in `tick` (timeout), or for a fault the states show."""
+        goal = self.goal
+        if goal is None or goal.timeout_s <= 0 or now_ns < self.deadline_ns:
+            return
+        try:
+            healthy = [m for m in goal.motors if m not in self.faults]
+            if healthy:
+                self.bus.stop(healthy)
+        except BusError as exc:
+            self.fault_log.append(f"stop failed: {exc}")
 
     def tick(self, states: dict[str, MotorState], stamp_ns: int) -> tuple[MoveFeedback | None, MoveResult | None]:
         """Check faults, limits, completion and timeout against fresh states."""

@@ -169,3 +169,39 @@ def test_a_second_controllers_goal_is_refused_busy_and_the_holders_goal_goes_on(
     assert core.runner.goal is held
     assert core.tick(60 * MS).states["fingers"].velocity_rpm == pytest.approx(10.0, abs=0.1)  # still driven
     assert core.validate(intruder, 300 * MS) is None  # the lease ran out: the motors are free again
+
+
+def test_a_tick_after_a_long_gap_stops_the_motors_before_it_reads_them():
+    """The driver held up (SIGSTOP) for 2 s mid-rotation with a 0.3 s lease: its first tick after the
+    thaw stops the sim motors before reading them, so that tick's state already stands still (the
+    velocity loop's 10 ms lag is all that moves) and no tick after it moves; the goal ends timeout."""
+    core = MotorDriverCore(MotorDriverConfig())  # the sim motors
+    assert core.connect(0) is None
+    goal = MoveGoal(["thumb_rotation"], "velocity", [30.0], timeout_s=0.3, controller="/manipulation")
+    assert core.validate(goal, 0) is None
+    core.start(goal, 0)
+    for t_ms in range(10, 110, 10):
+        tick = core.tick(t_ms * MS)
+    moving = tick.states["thumb_rotation"]
+    assert moving.velocity_rpm == pytest.approx(30.0, rel=1e-3) and tick.result is None
+    thawed = core.tick(2100 * MS)  # the next tick 2 s later: the lease ended at 300 ms
+    at_thaw = thawed.states["thumb_rotation"]
+    assert thawed.result is not None and thawed.result.reason == "timeout"
+    assert at_thaw.velocity_rpm == 0.0
+    # 30 rpm = 3.14 rad/s: only the lag's 3.14 x 0.01 s = 0.031 rad beyond the last sample, not 6.3 rad
+    assert at_thaw.position_rad - moving.position_rad == pytest.approx(0.0314, abs=1e-3)
+    after = [core.tick(t_ms * MS).states["thumb_rotation"] for t_ms in range(2110, 2200, 10)]
+    assert [(s.position_rad, s.velocity_rpm) for s in after] == [(at_thaw.position_rad, 0.0)] * len(after)
+
+
+def test_move_goals_are_refused_not_ready_while_the_homing_at_start_is_due_or_runs():
+    """`home:=true`: from the moment the bus is open until the homing has ended a goal is refused
+    not_ready naming the motors (send it again), never not_homed (which asks the client to home)."""
+    core = MotorDriverCore(MotorDriverConfig(home_at_start=True))  # the sim motors: homed at the first tick
+    assert core.connect(0) is None
+    goal = MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3)
+    assert str(core.validate(goal, 0)) == ("not_ready: homing (fingers, thumb_flexion, thumb_rotation): send it "
+                                           "again when the homing has ended")
+    tick = core.tick(10 * MS)
+    assert tick.homing_result is not None and tick.homing_result.success
+    assert core.validate(goal, 10 * MS) is None

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from prisma_motor_driver.backend import BusError, default_motors
-from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner, goal_expired
+from prisma_motor_driver.motor_goals import MoveGoal, MoveGoalRunner, MoveResult, end_severity, goal_expired
 from prisma_motor_driver.sim_backend import SimMotorBus
 
 MS = 1_000_000
@@ -181,3 +181,11 @@ def test_a_velocity_goal_ended_at_its_joint_limit_keeps_its_lease_until_its_time
     runner.start(MoveGoal(["fingers"], "velocity", [10.0], timeout_s=0.3, controller=MANIP), 400 * MS)
     assert runner.communication_failure(BusError("port gone")).reason.startswith("motor_fault")
     assert runner.lease_holder(410 * MS) is None
+
+
+def test_the_log_keeps_quiet_about_a_refresh_and_a_stop():
+    """A client's refresh (preempted) and stop (canceled, after every manipulation goal) are not news;
+    a success is info, any other end a warning."""
+    ends = [MoveResult(False, [], "preempted"), MoveResult(False, [], "canceled"), MoveResult(True, [], "timeout"),
+            MoveResult(True, [], "joint_limit"), MoveResult(False, [], "motor_fault: fingers (id 1) overload")]
+    assert [end_severity(r) for r in ends] == [None, None, "info", "info", "warn"]

@@ -262,17 +262,21 @@ def test_a_homing_at_start_that_the_watchdog_interrupted_goes_again(hand):
     bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=1)
     core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", home_at_start=True), bus=bus)
     assert core.connect(0) is None
+    homing = "not_ready: homing (fingers, thumb_flexion, thumb_rotation): send it again when the homing has ended"
+    assert str(core.validate(close_fingers())) == homing  # due: the bus is open, the first tick starts it
     run(core, emu, clock, 0.5)  # homing: the fingers on their way to the open stop
     assert core.homing.run is not None
+    assert str(core.validate(close_fingers())) == homing  # never not_homed: the driver is homing already
     clock.advance(0.5)  # the driver held up past its watchdog mid-homing
     tick = core.tick(round(clock.now_s * 1e9))
     assert tick.homing_result is not None and not tick.homing_result.success
     assert "stopped by their bus watchdogs" in tick.homing_result.reason
+    assert str(core.validate(close_fingers())) == homing  # interrupted: it goes again on the next tick
     # the servos still homing went back to velocity mode, none left pulling in current-based position
     assert {s.read_int(ct.ADDR_OPERATING_MODE, 1) for s in emu.servos.values()} == {ct.MODE_VELOCITY}
     ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None)
     assert ticks[-1].homing_result is not None and ticks[-1].homing_result.success
-    assert core.unhomed() == []
+    assert core.unhomed() == [] and core.validate(close_fingers()) is None
     assert ct.ticks_to_rad(emu.present()[1].mechanical_ticks) == pytest.approx(0.0, abs=0.05)
 
 
