@@ -13,11 +13,13 @@ Whichever way a glove counts its angles, the captures fix the direction.
 
 The file (`save_calibration`, `load_calibration`) is written whole or not at all (staged and
 renamed, prisma_common.atomic); a file that cannot be read or holds a bad value raises
-`CalibrationError` naming the file, the entry and the value.
+`CalibrationError` naming the file, the entry and the value, and what to do (fix or delete it);
+`unwritable` says at start why a file could not be written.
 """
 from __future__ import annotations
 
 import math
+import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -146,22 +148,50 @@ def load_calibration(path: str | Path) -> OperatorCalibration:
     except yaml.YAMLError as exc:
         where = getattr(exc, "problem_mark", None)
         line = f" at line {where.line + 1}" if where is not None else ""
-        raise CalibrationError(f"{path}: not valid YAML{line}; fix the file or capture the calibration again") from None
+        raise _bad_file(path, f"not valid YAML{line}") from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise CalibrationError(f"{path}: not a {FORMAT} file (no 'format: {FORMAT}')")
+        raise _bad_file(path, f"not a {FORMAT} file (no 'format: {FORMAT}')")
     if document.get("version") != VERSION:
-        raise CalibrationError(f"{path}: version {document.get('version')!r}, this program reads version {VERSION}")
+        raise _bad_file(path, f"version {document.get('version')!r}, this program reads version {VERSION}")
     poses = {pose: _angles(path, pose, document.get(pose)) for pose in POSES}
     operator = document.get("operator", "")
     return OperatorCalibration(**poses, operator="" if operator is None else str(operator))
 
 
+def _bad_file(path: Path, what: str) -> CalibrationError:
+    """A file that cannot be used, with what to do: the node that read it has exited, so the remedy is
+    the file (or another one), not a capture."""
+    return CalibrationError(f"{path}: {what}; fix or delete {path} (without it the teleop node starts with the "
+                            "nominal hand, and the ~/capture_* services write it anew), or give another "
+                            "calibration_file")
+
+
 def _angles(path: Path, pose: str, value: Any) -> dict[str, float]:
     if not isinstance(value, dict) or not value:
-        raise CalibrationError(f"{path}: '{pose}' must map joint names to angles in rad, got {value!r}")
+        raise _bad_file(path, f"'{pose}' must map joint names to angles in rad, got {value!r}")
     angles = {}
     for joint, angle in value.items():
         if isinstance(angle, bool) or not isinstance(angle, (int, float)) or not math.isfinite(angle):
-            raise CalibrationError(f"{path}: {pose}.{joint} = {angle!r} is not a finite angle in rad")
+            raise _bad_file(path, f"{pose}.{joint} = {angle!r} is not a finite angle in rad")
         angles[str(joint)] = float(angle)
     return angles
+
+
+def unwritable(path: str | Path) -> str | None:
+    """None when `save_calibration` could write `path` (its directory, or the nearest one that exists
+    and would hold the new ones, takes a new file), else why not: for the node to say at start, not
+    at the operator's last capture."""
+    target = Path(path).expanduser()
+    if target.is_dir():
+        return f"{target} is a directory"
+    folder = target.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        return f"{folder} is not a directory"
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".prisma_teleop_probe_"):
+            pass
+    except OSError as exc:
+        return f"cannot create a file in {folder} ({describe_os_error(exc)})"
+    return None

@@ -2,16 +2,17 @@
 config/synthetic_glove.yaml), their descriptions and ranges, validation naming the bad parameter and
 value, and the core settings they make.
 
-Live on teleop: the deadband, what each new goal asks for (the Teleoperate goal's pad force, speed
-and input timeout; the STAG grasps' speed and forces) and the STAG pose hysteresis, from the next
-sample or goal. Read-only: the input, the joint names, the calibration file, the motor ranges and
-the filter, which the node is built with at start.
+Live on teleop: the deadband, the stamp limits of the glove's samples, what each new goal asks for
+(the Teleoperate goal's pad force, speed and input timeout; the STAG grasps' speed and forces) and the
+STAG pose hysteresis, from the next sample or goal. Read-only: the input, the joint names, the
+calibration file, the motor ranges and the filter, which the node is built with at start.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from prisma_common.parameters import ParameterError, Params, parameter
+from prisma_common.sample_stamps import StampLimits
 
 from .retargeting import DEFAULT_JOINTS, JointGroups, MotorRanges, TargetFilter
 from .stag_poses import PoseMapping
@@ -32,6 +33,12 @@ class TeleopConfig(Params):
                                              "~/engage)")
     retry_period: float = parameter(0.5, "wait before sending a goal again that the hand refused for now "
                                          "(not_ready, busy)", unit="s", bounds=(0.0, 10.0), open_low=True)
+    max_input_age: float = parameter(0.5, "a glove sample (or STAG pose estimate) stamped longer than this before it "
+                                          "arrives is refused: nothing moves on it", unit="s", bounds=(0.0, 60.0),
+                                     open_low=True, live=True)
+    max_input_ahead: float = parameter(0.5, "a glove sample stamped further than this ahead of this node's clock is "
+                                            "refused (the glove's clock is not synchronised)", unit="s",
+                                       bounds=(0.0, 60.0), open_low=True, live=True)
     # --- input joint_states
     finger_flexion_joints: list = parameter(list(DEFAULT_JOINTS.finger_flexion),
                                             "glove joints whose mean flexion closes the fingers motor",
@@ -123,6 +130,9 @@ class TeleopConfig(Params):
     def target_filter(self) -> TargetFilter:
         return TargetFilter(self.motor_ranges(), self.glove_rate_hz, self.filter_cutoff_hz, self.filter_order,
                             self.deadband, self.filter_reset_gap)
+
+    def stamp_limits(self) -> StampLimits:
+        return StampLimits.of_seconds(self.max_input_age, self.max_input_ahead)
 
     def pose_mapping(self) -> PoseMapping:
         return PoseMapping(self.pose_frames, self.pose_confidence, self.empty_pressure, self.pressure_low,

@@ -15,8 +15,11 @@ input stag: subscribes stag/hand_pose (prisma_msgs/ObjectEstimate) and stag/fram
 the total pressure) and sends prisma/grasp goals for held poses and a prisma/gripper_cmd goal at
 position 0 for the empty hand.
 Both: ~/engage (std_srvs/SetBool) engages (true) or disengages (false, cancelling the running goal);
-parameter engage_at_start. Every parameter is described (node_config.py); the deadband, the goals'
-fields and the STAG hysteresis and forces change at run time.
+parameter engage_at_start. A sample whose header stamp is 0, ahead of this node's clock or older than
+max_input_age on arrival is refused (nothing moves on it), logged once per episode. /diagnostics every
+second: status `teleop` (engaged, the input's rate and age, a refusal and why, the last goal's end,
+the calibration in use). Every parameter is described (node_config.py); the deadband, the stamp
+limits, the goals' fields and the STAG hysteresis and forces change at run time.
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ from typing import Any
 
 from action_msgs.msg import GoalStatus
 from control_msgs.action import GripperCommand
+from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.action import Grasp, Teleoperate
 from prisma_msgs.msg import GloveFrame, ObjectEstimate
 from rclpy.action import ActionClient
@@ -33,6 +37,7 @@ from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
@@ -40,7 +45,7 @@ from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import stream_publisher, stream_subscription
 from stag_glove.ros_conversions import estimate_from_msg
 
-from .calibration import POSES, CalibrationError, load_calibration, save_calibration
+from .calibration import POSES, CalibrationError, load_calibration, save_calibration, unwritable
 from .node_config import TeleopConfig
 from .retargeting import nominal_calibration
 from .ros_conversions import (
@@ -69,7 +74,9 @@ class TeleopNode(Node):
         self._cancel_on_arrival = False
         self.core: HandPoseTeleop | StagTeleop
         if config.input == "joint_states":
-            self.core = HandPoseTeleop(config, self._calibration())
+            calibration, loaded = self._calibration()
+            glove = self.resolve_topic_name("glove/joint_states")
+            self.core = HandPoseTeleop(config, calibration, captured=loaded, input_topic=glove)
             self._targets = stream_publisher(self, JointState, "prisma/teleop/motor_targets")
             stream_subscription(self, JointState, "glove/joint_states", self._on_hand_pose)
             for pose in POSES:
@@ -79,29 +86,39 @@ class TeleopNode(Node):
             started = (f"input joint_states: glove/joint_states -> prisma/teleop/motor_targets, filter delay "
                        f"{self.core.filter.delay_s * 1e3:.1f} ms, calibration {self.core.calibration.operator!r}")
         else:
-            self.core = StagTeleop(config)
+            self.core = StagTeleop(config, self.resolve_topic_name("stag/hand_pose"),
+                                   self.resolve_topic_name("tactile_driver/replace_object"))
             self.create_subscription(GloveFrame, "stag/frame", self._on_glove_frame, 10)
             self.create_subscription(ObjectEstimate, "stag/hand_pose", self._on_pose, 10)
             kinds = ("grasp", "open")
             started = "input stag: stag/hand_pose and stag/frame -> prisma/grasp, prisma/gripper_cmd"
         self._goal_clients = {kind: ActionClient(self, *ACTIONS[kind]) for kind in kinds}
         self.create_service(SetBool, "~/engage", self._on_engage)
-        # no timer of its own: every input sample and goal end looks at the goal to keep (a retry is
-        # sent with the first sample after retry_period), and a wake-up of rclpy's executor costs more
-        # than the sample's own work (bench/bench_teleop.py)
+        # every input sample and goal end looks at the goal to keep (a retry is sent with the first
+        # sample after retry_period); the status timer once a second looks too (a wake-up of rclpy's
+        # executor per sample would cost more than the sample's own work: bench/bench_teleop.py)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diag_timer = self.create_timer(1.0, self._on_status)
         accept_live_changes(self, TeleopConfig, self._reconfigure)
         self.get_logger().info(f"{started}; {'engaged' if self.core.engaged else 'disengaged (~/engage)'}")
+        if config.input == "joint_states" and config.calibration_file:
+            why = unwritable(config.calibration_file)
+            if why is not None:
+                self.get_logger().warning(f"calibration_file {config.calibration_file} cannot be written: {why}. "
+                                          "Captures will be in use but NOT saved; give a writable calibration_file")
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
     def _calibration(self):
+        """(the calibration to start with, whether it is the operator's own from calibration_file)."""
         path = self.config.calibration_file
         if path and Path(path).expanduser().is_file():
-            return load_calibration(path)  # CalibrationError naming file and value: exit 1
+            return load_calibration(path), True  # CalibrationError naming file, value and what to do: exit 1
         if path:
-            self.get_logger().info(f"no calibration at {path} yet: the nominal hand until the operator's is captured")
-        return nominal_calibration(self.config.joint_groups())
+            self.get_logger().info(f"no calibration at {path} yet: the nominal hand until the operator has captured "
+                                   "all four poses")
+        return nominal_calibration(self.config.joint_groups()), False
 
     def _reconfigure(self, config: TeleopConfig) -> None:
         self.config = config
@@ -129,6 +146,12 @@ class TeleopNode(Node):
         estimate = estimate_from_msg(msg)
         self._carry_out(self.core.on_pose(ns_from_stamp(msg.header.stamp), estimate.label, estimate.confidence,
                                           self._now_ns()))
+
+    def _on_status(self) -> None:
+        now = self._now_ns()
+        self._carry_out(self.core.tick(now))  # a goal the rate limit held back, with no sample coming
+        statuses = in_namespace([self.core.diagnostics(now)], self.get_namespace())
+        self._diag_pub.publish(diagnostics_to_msg(self.types, now, statuses))
 
     # ---- services --------------------------------------------------------------------------
     def _on_engage(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
@@ -163,8 +186,10 @@ class TeleopNode(Node):
         # rclpy fixes a call site's severity at its first call: one call site per severity
         if note.level == "error":
             self.get_logger().error(note.text)
-        elif note.level == "warning":
+        elif note.level == "warning" and note.throttled:
             self.get_logger().warning(note.text, throttle_duration_sec=2.0)
+        elif note.level == "warning":
+            self.get_logger().warning(note.text)
         else:
             self.get_logger().info(note.text)
 

@@ -3,6 +3,7 @@ written whole, every bad file named with the entry and the value)."""
 from __future__ import annotations
 
 import math
+import os
 import re
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from prisma_teleop.calibration import (
     OperatorCalibration,
     load_calibration,
     save_calibration,
+    unwritable,
 )
 from prisma_teleop.retargeting import DEFAULT_JOINTS, nominal_calibration
 
@@ -122,3 +124,27 @@ def test_nominal_calibration_of_a_gloves_own_joint_names():
     assert cal.fist["f1"] == pytest.approx(math.pi / 2)
     assert (cal.thumb_adducted["abd"], cal.open_hand["abd"], cal.thumb_opposed["abd"]) == pytest.approx(
         (-math.pi / 4, 0.0, math.pi / 4))
+
+
+def test_a_corrupt_file_says_to_fix_or_delete_it_not_to_capture(tmp_path):
+    path = tmp_path / "op.yaml"
+    path.write_text("format: [")
+    with pytest.raises(CalibrationError) as err:
+        load_calibration(path)
+    assert str(err.value) == (f"{path}: not valid YAML at line 1; fix or delete {path} (without it the teleop node "
+                              "starts with the nominal hand, and the ~/capture_* services write it anew), or give "
+                              "another calibration_file")
+
+
+def test_unwritable_says_why_before_any_capture(tmp_path):
+    assert unwritable(tmp_path / "alice.yaml") is None
+    assert unwritable(tmp_path / "new" / "dir" / "alice.yaml") is None  # save_calibration makes the folders
+    assert not (tmp_path / "new").exists() and list(tmp_path.iterdir()) == []  # the probe leaves nothing
+    a_file = tmp_path / "not_a_dir"
+    a_file.write_text("")
+    assert unwritable(a_file / "alice.yaml") == f"{a_file} is not a directory"
+    assert unwritable(tmp_path) == f"{tmp_path} is a directory"
+    if os.geteuid() != 0:  # root writes into a read-only folder all the same
+        read_only = tmp_path / "ro"
+        read_only.mkdir(mode=0o555)
+        assert unwritable(read_only / "alice.yaml").startswith(f"cannot create a file in {read_only} ([Errno 13]")

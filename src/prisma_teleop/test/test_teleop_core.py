@@ -3,14 +3,18 @@ once the glove is back, retried after a refusal for now, cancelled for another, 
 reason otherwise), the captures that build the calibration, and the STAG grasps."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
+from prisma_common.diagnostics import OK, WARN
 from prisma_teleop.calibration import POSES
 from prisma_teleop.node_config import TeleopConfig
 from prisma_teleop.retargeting import DEFAULT_JOINTS, nominal_calibration
 from prisma_teleop.stag_poses import GraspCommand, OpenCommand
 from prisma_teleop.synthetic_glove_core import Synergies, hand_pose
 from prisma_teleop.teleop_core import (
+    MIN_SEND_INTERVAL_NS,
     RESUME_SAMPLES,
     CancelGoal,
     GoalKeeper,
@@ -19,6 +23,7 @@ from prisma_teleop.teleop_core import (
     SendGoal,
     StagTeleop,
     TeleopGoal,
+    describe,
 )
 
 NS = 1_000_000_000
@@ -67,7 +72,8 @@ def test_goal_keeper_sends_cancels_and_retries():
     assert cancels(keeper.want(power, 3))
     assert keeper.want(power, 4) == []  # until the cancel ended it
     assert keeper.ended("canceled", True, 5) == (pinch, False)
-    assert keeper.want(power, 5) == [SendGoal(power)]
+    assert keeper.want(power, 5) == []  # at most one goal per MIN_SEND_INTERVAL_NS
+    assert keeper.want(power, MIN_SEND_INTERVAL_NS) == [SendGoal(power)]
     assert keeper.ended("busy: a grasp goal is running", False, NS) == (power, False)
     assert keeper.want(power, NS + NS // 2 - 1) == []  # not before retry_period
     assert keeper.want(power, NS + NS // 2) == [SendGoal(power)]
@@ -141,33 +147,132 @@ def test_disengaging_cancels_the_running_goal():
     assert core.engage(False, glove.t_ns)[0] == "already disengaged"
 
 
-def test_captures_build_the_calibration_in_use_once_complete():
+def capture(core: HandPoseTeleop, glove: Glove, pose: str, command: Synergies) -> tuple:
+    glove.samples(core.config.capture_samples, command)
+    return core.capture(pose)
+
+
+OPERATOR_POSES = {"open_hand": OPEN, "fist": Synergies(0.8, 0.8, 0.0), "thumb_adducted": Synergies(0.0, 0.0, -0.9),
+                  "thumb_opposed": Synergies(0.0, 0.0, 0.9)}
+
+
+def test_captures_build_the_calibration_in_use_once_the_operator_captured_all_four_poses():
     core = HandPoseTeleop(TeleopConfig(capture_samples=5), CAL)
     assert core.capture("fist") == (False, "no glove sample yet on glove/joint_states: nothing to capture", None)
     operator_fist = {j: 0.8 * CAL.fist[j] for j in DEFAULT_JOINTS.flexion()}  # a stiffer hand than the nominal
     glove = Glove(core)
-    glove.samples(5, Synergies(0.8, 0.8, 0.0))  # the operator's fist: 80 % of the nominal one
-    ok, message, complete = core.capture("fist")
-    assert ok and message == "captured fist (5 samples); calibration in use"
-    assert complete is not None
+    ok, message, complete = capture(core, glove, "fist", OPERATOR_POSES["fist"])
+    assert (ok, complete) == (True, None)  # the nominal hand's other three poses are not the operator's
+    assert message == ("captured fist (5 samples); the calibration in use (nominal hand) is unchanged until open hand, "
+                       "thumb adducted, thumb opposed are captured too")
+    for pose in ("open_hand", "thumb_adducted"):
+        assert capture(core, glove, pose, OPERATOR_POSES[pose])[2] is None
+    assert core.calibration == CAL and core.diagnostics(glove.t_ns).values["calibration_complete"] == \
+        "no: thumb opposed to capture"
+    ok, message, complete = capture(core, glove, "thumb_opposed", OPERATOR_POSES["thumb_opposed"])
+    assert ok and message == "captured thumb opposed (5 samples); calibration in use"
+    assert complete is not None and complete.operator == "captured" and core.calibration == complete
     assert {j: complete.fist[j] for j in operator_fist} == pytest.approx(operator_fist, abs=1e-9)
+    values = core.diagnostics(glove.t_ns).values
+    assert (values["calibration_operator"], values["calibration_complete"]) == ("captured", "yes")
     targets, _ = core.on_sample(glove.t_ns + NS, hand_pose(Synergies(0.8, 0.8, 0.0), CAL), glove.t_ns + NS)
     assert targets["fingers"] == pytest.approx(9.0) and targets["thumb_flexion"] == pytest.approx(7.0)
 
 
-def test_an_incomplete_calibration_is_not_used():
+def test_an_operators_file_recaptured_pose_by_pose_is_in_use_at_once():
+    loaded = replace(CAL, operator="alice")
+    core = HandPoseTeleop(TeleopConfig(capture_samples=3), loaded, captured=True)
+    ok, message, complete = capture(core, Glove(core), "fist", OPERATOR_POSES["fist"])
+    assert message == "captured fist (3 samples); calibration in use"
+    assert complete is not None and complete.operator == "alice"
+
+
+def test_an_unusable_calibration_is_not_used():
     core = HandPoseTeleop(TeleopConfig(capture_samples=3), CAL)
     glove = Glove(core)
-    glove.samples(3, Synergies(1.0, 1.0, 0.0))  # a fist, captured as the open hand
-    ok, message, complete = core.capture("open_hand")
-    assert ok and complete is None
-    assert message.startswith("captured open hand (3 samples); the calibration in use is unchanged until the rest is "
-                              "captured: index_mcp: fist 1.396 rad and open hand 1.396 rad are less than 0.1 rad apart")
-    assert core.calibration == CAL
-    glove.samples(3, Synergies(0.0, 0.0, 0.0))
-    ok, message, complete = core.capture("fist")  # the open hand as the fist: the range reversed, and complete
-    assert complete is not None and core.calibration.open_hand["index_mcp"] == pytest.approx(CAL.fist["index_mcp"])
+    for pose in ("open_hand", "fist"):  # a fist captured as the open hand, the open hand as the fist: both the fist
+        capture(core, glove, pose, Synergies(1.0, 1.0, 0.0))
+    capture(core, glove, "thumb_adducted", OPERATOR_POSES["thumb_adducted"])
+    ok, message, complete = capture(core, glove, "thumb_opposed", OPERATOR_POSES["thumb_opposed"])
+    assert ok and complete is None and core.calibration == CAL
+    assert message.startswith("captured thumb opposed (3 samples); the calibration in use (nominal hand) is unchanged: "
+                              "index_mcp: fist 1.396 rad and open hand 1.396 rad are less than 0.1 rad apart")
     assert set(POSES) == {"open_hand", "fist", "thumb_adducted", "thumb_opposed"}
+
+
+class BadGlove(Glove):
+    """A glove whose stamps are `stamp(receipt)`: 0, or seconds old."""
+
+    def stamped(self, n: int, stamp, command: Synergies = OPEN) -> tuple[list, list]:
+        actions: list = []
+        targets: list = []
+        for _ in range(n):
+            self.t_ns += PERIOD_NS
+            out, more = self.core.on_sample(stamp(self.t_ns), hand_pose(command, CAL), self.t_ns)
+            targets += [out] if out is not None else []
+            actions += more
+        return targets, actions
+
+
+def test_a_glove_stamped_0_then_5_s_old_moves_nothing_and_is_said_once_each():
+    core = engaged_core()
+    glove = BadGlove(core, t_ns=1_796_664_778 * NS)
+    targets, actions = glove.stamped(600, lambda t: 0, Synergies(1.0, 1.0, 0.0))  # 10 s of a fist at 60 Hz
+    assert (targets, sends(actions)) == ([], [])
+    assert notes(actions, "warning") == ["glove/joint_states stamped 0: publish header.stamp (ros2 topic pub: "
+                                         "header: auto); its samples are refused until then"]
+    status = core.diagnostics(glove.t_ns)
+    assert status.level == WARN and status.message.startswith("input refused: glove/joint_states stamped 0")
+    assert (status.values["input_age_ms"], status.values["goals_sent"]) == ("stamped 0", "0")
+    targets, actions = glove.stamped(600, lambda t: t - 5 * NS, Synergies(1.0, 1.0, 0.0))
+    assert (targets, sends(actions)) == ([], [])
+    (line,) = notes(actions, "warning")
+    assert line.startswith("glove/joint_states stamped 5.00 s before it arrived (limit 0.5 s): stamp each sample")
+    status = core.diagnostics(glove.t_ns)
+    assert status.values["input_rate_hz"] == "60.0" and status.values["input_age_ms"] == "5000"
+    assert core.capture("fist")[1].startswith("nothing to capture: glove/joint_states stamped 5.00 s")
+    # stamped when taken: accepted again, and the goal follows
+    targets, actions = glove.stamped(RESUME_SAMPLES, lambda t: t)
+    assert len(targets) == RESUME_SAMPLES and sends(actions) == [TeleopGoal()]
+    assert notes(actions, "info") == ["glove/joint_states accepted again (1200 samples refused: stamped 5.00 s "
+                                      "before it arrived)"]
+    assert core.diagnostics(glove.t_ns).values["input_refused"] == "no"
+
+
+def test_goals_that_end_at_once_are_sent_at_most_four_a_second():
+    core = engaged_core(retry_period=0.01)
+    glove = Glove(core)
+    sent = 0
+    for _ in range(600):  # 10 s; every goal refused for now as soon as it is sent
+        actions = glove.samples(1)
+        while sends(actions):
+            sent += len(sends(actions))
+            actions = core.on_goal_ended("not_ready: prisma/teleop/motor_targets not received yet", False, glove.t_ns)
+    # one per MIN_SEND_INTERVAL_NS (0.25 s: the 16th sample of 16.7 ms after the last), not one per sample
+    assert sent == 38 and MIN_SEND_INTERVAL_NS == NS // 4
+    assert core.diagnostics(glove.t_ns).values["last_goal_end"] == "not_ready: prisma/teleop/motor_targets not " \
+                                                                    "received yet"
+
+
+def test_the_status_of_an_engaged_teleop():
+    core = engaged_core()
+    glove = Glove(core)
+    assert core.diagnostics(glove.t_ns).message == "engaged, no input on glove/joint_states"
+    glove.samples(RESUME_SAMPLES + 57)
+    status = core.diagnostics(glove.t_ns)
+    assert (status.name, status.level, status.message) == ("teleop", OK, "engaged: Teleoperate running")
+    assert status.values == {
+        "engaged": "true", "input": "glove/joint_states", "input_rate_hz": "60.0", "input_age_ms": "0",
+        "input_silent_ms": "0", "input_refused": "no", "input_refused_samples": "0", "goals_sent": "1",
+        "goal_running": "Teleoperate", "last_goal": "none", "last_goal_end": "none",
+        "calibration_operator": "nominal hand", "calibration_complete": "no: open hand, fist, thumb adducted, "
+                                                                        "thumb opposed to capture"}
+    core.on_goal_ended("sensor_stale: taxels/index silent for 110 ms", False, glove.t_ns)
+    status = core.diagnostics(glove.t_ns + NS)
+    assert status.message == "disengaged (~/engage)"
+    assert (status.values["last_goal"], status.values["last_goal_end"]) == (
+        "Teleoperate", "sensor_stale: taxels/index silent for 110 ms")
+    assert status.values["input_rate_hz"] == "0.0"
 
 
 def stag(**params) -> StagTeleop:
@@ -200,3 +305,28 @@ def test_stag_without_its_frame_pressure_says_so():
     core = stag()
     assert notes(core.on_pose(NS, "pinch", 0.9, NS), "warning") == [
         "pose estimate ignored: no glove frame (stag/frame) for its pressure yet"]
+
+
+def test_stag_a_grasp_the_hand_was_not_ready_for_waits_for_the_pose_formed_anew():
+    core = stag(pose_frames=3)
+    (pinch,) = sends(poses(core, ["pinch"] * 3))
+    actions = core.on_goal_ended("not_ready: no action server prisma/grasp (is the manipulation node running?)",
+                                 False, 2 * NS)
+    assert notes(actions, "warning") == [
+        f"{describe(pinch)} ended not_ready: no action server prisma/grasp (is the manipulation node running?): not "
+        "sent again; form the pose anew once the hand is ready"]
+    assert sends(poses(core, ["pinch"] * 10, start_ns=3 * NS)) == []  # the pose held on: its end, not a grasp
+    assert sends(poses(core, ["empty"] * 3, pressure=1.0, start_ns=5 * NS)) == [OpenCommand("empty")]
+    core.on_goal_ended("succeeded", True, 6 * NS)
+    assert [c.grasp for c in sends(poses(core, ["pinch"] * 3, start_ns=7 * NS))] == ["pinch"]  # formed anew
+
+
+def test_stag_a_grasp_at_the_joint_limit_says_the_object_is_gone_and_how_to_put_it_back():
+    core = StagTeleop(TeleopConfig(input="stag", engage_at_start=True, pose_frames=3), "/left/stag/hand_pose",
+                      "/left/tactile_driver/replace_object")
+    (pinch,) = sends(poses(core, ["pinch"] * 3))
+    (line,) = notes(core.on_goal_ended("joint_limit", False, 2 * NS), "warning")
+    assert line == (f"{describe(pinch)} ended joint_limit: the fingers closed to their limit without touching "
+                    "anything, the object is not between them (an open hand lets it fall). Put it back (the sim "
+                    "and emulated hand: ros2 service call /left/tactile_driver/replace_object std_srvs/srv/Trigger), "
+                    "then form the pose again")

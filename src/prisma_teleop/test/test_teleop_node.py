@@ -13,6 +13,7 @@ from prisma_testing.ros_harness import require_ros, stamp_ns
 require_ros()
 
 from control_msgs.action import GripperCommand  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Teleoperate  # noqa: E402
 from prisma_msgs.msg import GloveFrame, ObjectEstimate  # noqa: E402
 from rclpy.action import ActionServer, CancelResponse  # noqa: E402
@@ -21,6 +22,7 @@ from rosidl_runtime_py.utilities import get_action, get_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
+from prisma_common.diagnostics import WARN, diagnostics_from_msg  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 from prisma_common.messages import make_header, robot_types  # noqa: E402
 from prisma_teleop.calibration import CalibrationError, load_calibration  # noqa: E402
@@ -72,12 +74,14 @@ class FakeServer:
         done.set_result(self.result(reason))
 
 
-def publish_glove(ros, command: Synergies, seconds: float, rate_hz: float = 60.0) -> list[int]:
-    """The operator holding `command` for `seconds` on glove/joint_states; the stamps sent."""
+def publish_glove(ros, command: Synergies, seconds: float, rate_hz: float = 60.0, age_s: float | None = 0.0
+                  ) -> list[int]:
+    """The operator holding `command` for `seconds` on glove/joint_states, stamped `age_s` before
+    it is sent (None: stamped 0); the stamps sent."""
     sent = []
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        stamp = ros.now_ns()
+        stamp = 0 if age_s is None else ros.now_ns() - int(age_s * 1e9)
         ros.publish("/glove/joint_states", hand_pose_to_msg(TYPES, stamp, hand_pose(command, CAL)))
         sent.append(stamp)
         ros.spin_for(1.0 / rate_hz)
@@ -116,8 +120,17 @@ def test_captures_are_saved_and_loaded_at_the_next_start(ros, tmp_path):
     assert not reply.success and reply.message.startswith("no glove sample yet")
     publish_glove(ros, Synergies(0.9, 0.7, 0.0), 0.3)  # a fist that closes less than the nominal one
     reply = ros.call(Trigger, capture["fist"], Trigger.Request())
-    assert reply.success and reply.message == f"captured fist (5 samples); calibration in use; saved to {path}"
+    assert reply.success and reply.message.endswith("unchanged until open hand, thumb adducted, thumb opposed are "
+                                                    "captured too")
+    for pose, synergies in (("open_hand", Synergies(0.0, 0.0, 0.0)), ("thumb_adducted", Synergies(0.0, 0.0, -1.0))):
+        publish_glove(ros, synergies, 0.3)
+        assert ros.call(Trigger, capture[pose], Trigger.Request()).success
+    assert not path.exists()  # the nominal hand's thumb opposed is not the operator's: nothing saved yet
+    publish_glove(ros, Synergies(0.0, 0.0, 1.0), 0.3)
+    reply = ros.call(Trigger, capture["thumb_opposed"], Trigger.Request())
+    assert reply.success and reply.message == f"captured thumb opposed (5 samples); calibration in use; saved to {path}"
     saved = load_calibration(path)
+    assert saved.operator == "captured"
     assert saved.fist["index_pip"] == pytest.approx(0.9 * CAL.fist["index_pip"])
     assert saved.fist["thumb_ip"] == pytest.approx(0.7 * CAL.fist["thumb_ip"])
     ros.destroy_node(node)
@@ -126,6 +139,38 @@ def test_captures_are_saved_and_loaded_at_the_next_start(ros, tmp_path):
     publish_glove(ros, Synergies(0.9, 0.7, 0.0), 0.3)
     assert ros.spin_until(lambda: bool(targets), 5.0)
     assert list(targets[-1].position)[:2] == [9.0, 7.0]  # this operator's fist closes the hand fully
+
+
+def test_a_calibration_file_that_cannot_be_written_is_said_at_start(ros, tmp_path):
+    a_file = tmp_path / "not_a_dir"
+    a_file.write_text("")
+    ros.capture_logs()
+    ros.node(TeleopNode, {"calibration_file": str(a_file / "operator.yaml")}, params_files=[PARAMS])
+    assert ros.wait_for_log(name="teleop", contains="cannot be written", timeout_sec=5.0)
+    assert ros.logs(name="teleop", contains="cannot be written") == [
+        f"calibration_file {a_file / 'operator.yaml'} cannot be written: {a_file} is not a directory. Captures will "
+        "be in use but NOT saved; give a writable calibration_file"]
+
+
+def test_a_glove_stamped_0_sends_no_target_and_no_goal_says_so_once_and_on_diagnostics(ros):
+    server = FakeServer(ros, Teleoperate, "/prisma/teleoperate")
+    ros.capture_logs()
+    ros.node(TeleopNode, {"engage_at_start": True}, params_files=[PARAMS])
+    targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
+    statuses = ros.collect(DiagnosticArray, "/diagnostics")
+    publish_glove(ros, Synergies(1.0, 1.0, 0.0), 1.5, age_s=None)
+    publish_glove(ros, Synergies(1.0, 1.0, 0.0), 1.0, age_s=5.0)
+    assert ros.spin_until(lambda: len(statuses) >= 2, 5.0)
+    assert (targets, server.goals) == ([], [])
+    refused = ros.logs(name="teleop", contains="/glove/joint_states stamped")
+    assert len(refused) == 2 and refused[0] == ("/glove/joint_states stamped 0: publish header.stamp (ros2 topic pub: "
+                                                "header: auto); its samples are refused until then")
+    status = diagnostics_from_msg(statuses[-1])[0]
+    assert (status.name, status.level) == ("teleop", WARN)
+    assert status.message.startswith("input refused: /glove/joint_states stamped 5.")
+    publish_glove(ros, Synergies(1.0, 1.0, 0.0), 0.5)  # stamped when taken: followed
+    assert ros.spin_until(lambda: bool(targets) and bool(server.goals), 5.0)
+    assert len(ros.logs(name="teleop", contains="/glove/joint_states accepted again")) == 1
 
 
 def test_a_bad_calibration_file_fails_at_start_naming_it(ros, tmp_path):
