@@ -3,14 +3,15 @@ what it follows (the teleop node of the glove's samples, the manipulation node o
 taxels, wrenches and joint states), ROS-free.
 
 A sample is refused when its stamp is
-- zero: its publisher never stamped it (`ros2 topic pub` without `header: auto`, a glove driver that
-  leaves the header empty): nothing says when it was taken;
+- older than `max_age_ns` on arrival, by the receiving node's clock: the hand would follow the past;
+  a stamp of 0 is the commonest case and named as such: its publisher never stamped it (`ros2 topic
+  pub` without `header: auto`, a glove driver that leaves the header empty);
 - ahead of the receiving node's clock by more than `max_ahead_ns`: its publisher's clock runs ahead
-  of this computer's (not synchronised), so its age cannot be known;
-- older than `max_age_ns` on arrival, by the receiving node's clock: the hand would follow the past.
+  of this computer's (not synchronised), so its age cannot be known.
 The receiving node's clock is the one to compare with: under use_sim_time it is /clock, so a bag
-played with `--clock` passes as live data. A node whose clock has not started (use_sim_time before
-the first /clock: now 0) judges only the zero stamp.
+played with `--clock` passes as live data, and a simulation whose time starts at 0 stamps its first
+samples 0 legitimately (no older than its clock). A node whose clock has not started (use_sim_time
+before the first /clock: now 0) judges nothing.
 
 `StampGate` keeps one stream's judgement over time and says so once per episode: the first refused
 sample gives a line for the log naming the stream, what is wrong and the fix; a sample refused for
@@ -65,16 +66,16 @@ class StampProblem:
 def stamp_problem(stamp_ns: int, now_ns: int, limits: StampLimits) -> StampProblem | None:
     """None when a sample stamped `stamp_ns` and received at `now_ns` (the receiving node's clock)
     may be acted on, else what is wrong with its stamp."""
-    if stamp_ns == 0:
-        return StampProblem(ZERO, "stamped 0")
     if now_ns <= 0:  # the node's clock has not started (use_sim_time, no /clock yet): nothing to compare with
         return None
+    if now_ns - stamp_ns > limits.max_age_ns:
+        if stamp_ns == 0:
+            return StampProblem(ZERO, "stamped 0")
+        return StampProblem(OLD, f"stamped {(now_ns - stamp_ns) / NS:.2f} s before it arrived "
+                                 f"(limit {limits.max_age_ns / NS:g} s)")
     if stamp_ns - now_ns > limits.max_ahead_ns:
         return StampProblem(AHEAD, f"stamped {(stamp_ns - now_ns) / NS:.2f} s ahead of this node's clock "
                                    f"(limit {limits.max_ahead_ns / NS:g} s)")
-    if now_ns - stamp_ns > limits.max_age_ns:
-        return StampProblem(OLD, f"stamped {(now_ns - stamp_ns) / NS:.2f} s before it arrived "
-                                 f"(limit {limits.max_age_ns / NS:g} s)")
     return None
 
 

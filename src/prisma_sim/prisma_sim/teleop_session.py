@@ -100,9 +100,7 @@ def run_teleop_session(writer: BagWriter, estimator: ForceEstimator, progress: C
     trace = TeleopTrace()
     glove_config = SyntheticGloveConfig()
     glove_period_ns = int(round(NS / glove_config.rate_hz))
-    # the glove's first sample one period in: one stamped 0, the session's start, would be refused as
-    # never stamped (prisma_common.sample_stamps), as the teleop node refuses it
-    next_glove_ns, latest = glove_period_ns, np.full(len(MOTOR_NAMES), np.nan)
+    next_glove_ns, latest = 0, np.full(len(MOTOR_NAMES), np.nan)
     for k in range(int(round(duration_s * NS / loop.period_ns)) + 1):
         t = k * loop.period_ns
         inputs, send = [], False
