@@ -4,9 +4,11 @@
     prisma-doctor --namespace left      # one hand of a bimanual launch
     prisma-doctor --timeout 10          # a loaded computer: wait longer for the nodes
 
-Each line reads `OK <check>: <what it found>`, `WARN <check>: <advisory> -> <what to do>`,
-`FAIL <check>: <what is wrong> -> <how to fix it>` or `SKIP <check>: not checked: <why>` (another line
-failed first: fix that one). The exit status is 1 when any line FAILs, else 0 (2 for a bad argument).
+With no node of the hand running it says so in one line, `FAIL hand: no hand running ...` with how
+to start one (or the ROS environment's failure, when that is the cause). Otherwise each line reads
+`OK <check>: <what it found>`, `WARN <check>: <advisory> -> <what to do>`, `FAIL <check>: <what is
+wrong> -> <how to fix it>` or `SKIP <check>: not checked: <why>` (another line failed first: fix that
+one). The exit status is 1 when any line FAILs, else 0 (2 for a bad argument).
 
 Checks, in order:
   ros domain          ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE are valid and nodes are seen
@@ -18,14 +20,15 @@ Checks, in order:
   port servos|hub     the drivers' serial ports exist and this user may write them (dialout group)
   hub                 the tactile link is up (the hub reports no firmware version: its frames carry
                       protocol version 1, and a frame that parses is from firmware speaking it)
-  fingertip <finger>  /prisma/<finger>/taxels streams at about its rate with voltages inside 0..vref
+  fingertip <finger>  /prisma/<finger>/taxels streams at about its rate with voltages inside 0..vref, from
+                      one publisher (two: a second hand's driver, named, their samples mixed)
   motor bus           the motor driver's bus is connected (a servo that does not answer fails its own line)
   servo <motor>       answers at its ID: model XM430-W350, firmware, operating mode, no hardware error,
                       Bus Watchdog armed and not fired, homed (WARN for what the driver does not report)
   bundles             the force estimator loaded a model bundle for every finger
 
 Everything comes from the running drivers (their parameters, /diagnostics, the taxel topics, the ROS
-graph) and from this computer; the doctor never opens a driver's port. With no hand running every
+graph) and from this computer; the doctor never opens a driver's port. With no hand running the one
 line says so and the exit status is 1.
 """
 from __future__ import annotations

@@ -50,7 +50,8 @@ def _launch_hint(facts: HandFacts) -> str:
 
 
 # ---- the checks ------------------------------------------------------------------------------
-def check_domain(facts: HandFacts) -> CheckResult:
+def _environment_failure(facts: HandFacts) -> CheckResult | None:
+    """The domain line's failure when ROS_DOMAIN_ID or ROS_AUTOMATIC_DISCOVERY_RANGE cannot work."""
     name = "ros domain"
     text = facts.env.get("ROS_DOMAIN_ID", "").strip()
     if text:
@@ -62,18 +63,50 @@ def check_domain(facts: HandFacts) -> CheckResult:
         if not 0 <= domain <= MAX_DOMAIN_ID:
             return failed(name, f"ROS_DOMAIN_ID={domain} is outside 0-{MAX_DOMAIN_ID} (no DDS ports for it)",
                           "export ROS_DOMAIN_ID=<0-101>, the same in every shell of the hand")
-    discovery = facts.env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper() or "SUBNET"
+    discovery = _discovery(facts)
     if discovery not in DISCOVERY_RANGES:
         return failed(name, f"ROS_AUTOMATIC_DISCOVERY_RANGE={discovery!r} is not one of {', '.join(DISCOVERY_RANGES)}",
                       "unset it or export ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET")
     if discovery == "OFF":
         return failed(name, "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no node finds another",
                       "unset it or export ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (LOCALHOST: this computer only)")
-    domain_text = text or "unset (0)"
-    found = f"ROS_DOMAIN_ID {domain_text}, discovery {discovery}, {len(facts.nodes)} node(s) seen"
+    return None
+
+
+def _discovery(facts: HandFacts) -> str:
+    return facts.env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper() or "SUBNET"
+
+
+def _domain_found(facts: HandFacts) -> str:
+    domain_text = facts.env.get("ROS_DOMAIN_ID", "").strip() or "unset (0)"
+    return f"ROS_DOMAIN_ID {domain_text}, discovery {_discovery(facts)}, {len(facts.nodes)} node(s) seen"
+
+
+def check_domain(facts: HandFacts) -> CheckResult:
+    bad = _environment_failure(facts)
+    if bad is not None:
+        return bad
     if not facts.nodes:
-        return failed(name, found, _launch_hint(facts))
-    return passed(name, found)
+        return failed("ros domain", _domain_found(facts), _launch_hint(facts))
+    return passed("ros domain", _domain_found(facts))
+
+
+def check_hand_running(facts: HandFacts) -> CheckResult | None:
+    """The one line when no node of the hand runs in the namespace (every other line would fail or
+    skip for that one reason), else None: the ROS environment's failure where it is wrong (its fix
+    first), else `FAIL hand: no hand running ...` with how to start one."""
+    if any(node_path(facts.namespace, node) in facts.nodes for node in HAND_NODES):
+        return None
+    bad = _environment_failure(facts)
+    if bad is not None:
+        return bad
+    where = f"namespace '{facts.namespace.strip('/')}'" if facts.namespace.strip("/") else "the root namespace"
+    elsewhere = sorted({n.rsplit("/", 1)[0] or "/" for n in facts.nodes if n.rsplit("/", 1)[-1] in HAND_NODES})
+    found = f"no hand running in {where} ({_domain_found(facts)})"
+    if elsewhere:
+        ns = elsewhere[0].strip("/")
+        found += f"; a hand runs in {', '.join(elsewhere)}: " + (f"--namespace {ns}" if ns else "no --namespace")
+    return failed("hand", found, _launch_hint(facts))
 
 
 def check_node(facts: HandFacts, node: str) -> CheckResult:
@@ -198,6 +231,13 @@ def check_fingertip(facts: HandFacts, finger: str) -> CheckResult:
     expected = 100.0 if backend == "serial" else float(param(facts.tactile_params, "rate_hz", 100.0))
     vref = float(param(facts.tactile_params, "vref", 3.3))
     topic = node_path(facts.namespace, f"prisma/{finger}/taxels")
+    publishers = list(facts.taxel_publishers.get(finger, ()))
+    if len(publishers) > 1:
+        # two drivers' samples interleave: their stamps and counters mix, so no rate or range is theirs
+        count = "two" if len(publishers) == 2 else str(len(publishers))
+        return failed(name, f"{count} publishers on {topic}: {', '.join(sorted(publishers))}",
+                      "stop the extra one (a second launch of the hand, or a node started by hand: "
+                      "`ros2 topic info -v " + topic + "`); a second hand needs its own namespace:=")
     if sample.messages == 0:
         return failed(name, f"nothing on {topic} in {sample.seconds:.1f} s",
                       f"check the {finger} pad's cable to the hub and its mux channel; the hub leaves an absent "
@@ -244,7 +284,11 @@ def check_bundles(facts: HandFacts) -> CheckResult:
 
 
 def run_checks(facts: HandFacts) -> list[CheckResult]:
-    """Every check, in the order a bring-up goes: the computer, the graph, the links, the devices."""
+    """Every check, in the order a bring-up goes: the computer, the graph, the links, the devices;
+    one line when no hand runs at all."""
+    nothing = check_hand_running(facts)
+    if nothing is not None:
+        return [nothing]
     return [
         check_domain(facts),
         *(check_node(facts, node) for node in HAND_NODES),

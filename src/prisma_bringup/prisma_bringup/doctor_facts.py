@@ -72,6 +72,8 @@ class HandFacts:
     force_params: Mapping[str, Any] | None = None
     diagnostics: Sequence[DiagnosticStatusData] = ()  # the latest status of each name (this hand's)
     taxels: Mapping[str, TaxelSample] = field(default_factory=dict)
+    # finger -> the nodes publishing its taxel topic, fully qualified (absent: not looked up)
+    taxel_publishers: Mapping[str, Sequence[str]] = field(default_factory=dict)
     sample_seconds: float = 1.0
     ports: Mapping[str, PortFacts] = field(default_factory=dict)  # "servos", "hub"
     udev_installed: Mapping[str, str] = field(default_factory=dict)  # rule file -> where it is installed

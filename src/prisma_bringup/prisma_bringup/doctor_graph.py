@@ -98,6 +98,8 @@ class Gatherer:
         if len(counts) < 2 or counts[1][0] - counts[0][0] < MIN_COUNTED_NS:
             return None
         (t0, n0), (t1, n1) = counts
+        if n1 < n0:
+            return None  # two drivers' counters mixed on one status name (the fingertip line names them)
         return (n1 - n0) / ((t1 - t0) * 1e-9)
 
     def left(self) -> float:
@@ -109,7 +111,9 @@ class Gatherer:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
 
     def nodes(self) -> list[str]:
-        return [node_path(ns, name) for name, ns in self.node.get_node_names_and_namespaces()]
+        """The graph's nodes but this one (`N node(s) seen` counts the domain's, not the doctor)."""
+        return [node_path(ns, name) for name, ns in self.node.get_node_names_and_namespaces()
+                if node_path(ns, name) != self.node.get_fully_qualified_name()]
 
     def wait_for_nodes(self) -> list[str]:
         """The graph once every hand node is seen (plus a moment for duplicates), or at the deadline
@@ -159,6 +163,12 @@ class Gatherer:
                                        and all(self.published_hz(f) is not None for f in counted)):
             self.spin_for(0.1)
 
+    def publishers(self, finger: str) -> list[str]:
+        """The nodes publishing `finger`'s taxel topic, fully qualified."""
+        topic = node_path(self.namespace, f"prisma/{finger}/taxels")
+        return [node_path(info.node_namespace, info.node_name)
+                for info in self.node.get_publishers_info_by_topic(topic)]
+
     def close(self) -> None:
         self.executor.shutdown()
         self.node.destroy_node()
@@ -192,6 +202,7 @@ def gather(namespace: str, timeout: float) -> HandFacts:
         gatherer.wait_for_diagnostics(wanted, fingers)
         taxels = {f: replace(sample, published_hz=gatherer.published_hz(f)) for f, sample in taxels.items()}
         diagnostics = list(gatherer.diagnostics.values())  # this hand's only (on_diagnostics)
+        publishers = {f: gatherer.publishers(f) for f in fingers}
     finally:
         gatherer.close()
     ports = {}
@@ -201,6 +212,7 @@ def gather(namespace: str, timeout: float) -> HandFacts:
         ports["hub"] = port_facts(str(tactile.get("port", "")))
     return HandFacts(namespace=namespace.strip("/"), env=dict(os.environ), rtprio=rtprio_limits(),
                      rt_capable=rt_capable(), nodes=nodes, motor_params=motor, tactile_params=tactile,
-                     force_params=force, diagnostics=diagnostics, taxels=taxels, sample_seconds=SAMPLE_SECONDS,
+                     force_params=force, diagnostics=diagnostics, taxels=taxels, taxel_publishers=publishers,
+                     sample_seconds=SAMPLE_SECONDS,
                      ports=ports, udev_installed=udev_installed())
 

@@ -82,16 +82,53 @@ def test_healthy_hand_passes_every_line():
     assert lines["motor bus"].found == f"dynamixel, {SERVOS} at 1000000 baud, 5000 reads, 2 retries"
 
 
-def test_nothing_running_says_so_and_fails():
+def test_nothing_running_says_so_in_one_line():
     facts = healthy(nodes=[], motor_params=None, tactile_params=None, force_params=None, diagnostics=[], taxels={},
                     ports={})
-    bad = failing(facts)
-    assert set(bad) == {"ros domain", "node tactile_driver", "node motor_driver", "node force_estimator",
-                        "node manipulation"}
-    assert "ros2 launch prisma_bringup hand.launch.py" in bad["ros domain"].fix
-    assert "ROS_DOMAIN_ID of the shell that launched it (this one: 42)" in bad["node motor_driver"].fix
-    statuses = {r.name: r.status for r in run_checks(facts)}
-    assert statuses["servo fingers"] == statuses["fingertip thumb"] == statuses["bundles"] == "SKIP"
+    results = run_checks(facts)
+    assert [r.line() for r in results] == [
+        "FAIL hand: no hand running in the root namespace (ROS_DOMAIN_ID 42, discovery SUBNET, 0 node(s) seen) -> "
+        "start the hand (ros2 launch prisma_bringup hand.launch.py), or run the doctor with the ROS_DOMAIN_ID of "
+        "the shell that launched it (this one: 42)"]
+    assert exit_status(results) == 1
+    # other nodes of the domain, none of the hand's: still the one line
+    assert [r.name for r in run_checks(dataclasses.replace(facts, nodes=["/rviz2", "/glove_driver"]))] == ["hand"]
+
+
+def test_no_hand_in_the_namespace_names_where_one_runs():
+    left = ["/left/tactile_driver", "/left/motor_driver", "/left/force_estimator", "/left/manipulation"]
+    (line,) = run_checks(healthy(nodes=left, motor_params=None, tactile_params=None, force_params=None))
+    assert line.found == ("no hand running in the root namespace (ROS_DOMAIN_ID 42, discovery SUBNET, 4 node(s) "
+                          "seen); a hand runs in /left: --namespace left")
+    (line,) = run_checks(healthy(namespace="right", nodes=["/tactile_driver", "/motor_driver"]))
+    assert line.found.endswith("; a hand runs in /: no --namespace")
+    assert "hand.launch.py namespace:=right" in line.fix
+
+
+def test_nothing_running_in_a_bad_ros_environment_fails_the_environment_only():
+    (line,) = run_checks(healthy(nodes=[], env={"ROS_DOMAIN_ID": "abc"}))
+    assert line.line() == ("FAIL ros domain: ROS_DOMAIN_ID='abc' is not a number -> export ROS_DOMAIN_ID=<0-101>, "
+                           "the same in every shell of the hand")
+
+
+def test_two_publishers_on_a_taxel_topic_fail_its_fingertip_line_naming_them():
+    # a second hand's tactile_driver beside the first: both publish every finger's topic, their
+    # counters mixed (the rate came out negative before) and the udev rule is not the fix
+    two = {f: ["/tactile_driver", "/tactile_driver"] for f in FINGERS}
+    mixed = TaxelSample(198, 1.0, 0.37, 0.51, published_hz=None)
+    bad = failing(healthy(taxel_publishers=two, taxels={f: mixed for f in FINGERS},
+                          nodes=[*healthy().nodes, "/tactile_driver"]))
+    assert set(bad) == {"node tactile_driver", *(f"fingertip {f}" for f in FINGERS)}
+    assert bad["fingertip thumb"].line() == (
+        "FAIL fingertip thumb: two publishers on /prisma/thumb/taxels: /tactile_driver, /tactile_driver -> stop the "
+        "extra one (a second launch of the hand, or a node started by hand: `ros2 topic info -v "
+        "/prisma/thumb/taxels`); a second hand needs its own namespace:=")
+    assert "udev" not in bad["fingertip thumb"].line()
+    # a recorder or a bag played beside the driver, under another name: three publishers
+    three = {**{f: ["/tactile_driver"] for f in FINGERS}, "ring": ["/tactile_driver", "/player", "/x/pub"]}
+    assert list(failing(healthy(taxel_publishers=three))) == ["fingertip ring"]
+    # one publisher: the line as before
+    assert failing(healthy(taxel_publishers={f: ["/tactile_driver"] for f in FINGERS})) == {}
 
 
 def test_duplicate_manipulation_node_fails_its_line():
@@ -104,7 +141,9 @@ def test_duplicate_manipulation_node_fails_its_line():
 def test_namespace_finds_the_hand_there_and_names_the_one_elsewhere():
     nodes = ["/left/tactile_driver", "/left/motor_driver", "/left/force_estimator", "/left/manipulation"]
     assert failing(healthy(namespace="left", nodes=nodes)) == {}
-    bad = failing(healthy(namespace="", nodes=nodes))
+    # part of a hand here, its motor driver elsewhere: the node's own line names where it runs
+    bad = failing(healthy(namespace="", nodes=["/tactile_driver", "/force_estimator", "/manipulation",
+                                               "/left/motor_driver"]))
     assert bad["node motor_driver"].found == "/motor_driver not running (running as /left/motor_driver: --namespace)"
 
 
