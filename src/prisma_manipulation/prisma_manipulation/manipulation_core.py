@@ -6,7 +6,11 @@ results, cancel requests, watchdog ticks) as plain data and carries out the retu
 - SendMove: send a MoveMotors velocity goal (it preempts the previous one on the motor driver);
 - StopMotors: cancel the running MoveMotors goal (cancel = stop);
 - Feedback / Finished: the running goal's feedback and end, with its kind's status (goal_kinds.py);
-- Ignored: an input set aside (a /joint_states message without the hand's joints), for the log.
+- Ignored: an input set aside (a /joint_states message without the hand's joints), for the log;
+- StampNews (prisma_common.sample_stamps): a stream's samples refused by their stamp (stamped 0,
+  ahead of the node's clock, older than max_stamp_age on arrival), or accepted again: once per
+  episode, for the log. A refused sample moves no time base and no goal steps on it; a goal is not
+  admitted while a stream it needs is refused, and a running one ends with the refusal.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
 What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py, gripper_goal.py,
@@ -36,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
+from prisma_common.sample_stamps import StampGate
 
 from .contact_monitor import ContactEvaluation, ContactMonitor, check_k
 from .controllers import (
@@ -59,7 +64,7 @@ from .move_lease import MOVE_LEASE_S, MOVE_REFRESH_S, MoveLease, SendMove, StopM
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
 from .teleop_goal import TELEOP_GOAL
-from .watchdog import SensorWatchdog
+from .watchdog import JOINT_STATES, SensorWatchdog
 
 # The goal kinds the node serves, one action server each: a new kind is its module and one entry here.
 GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL, TELEOP_GOAL)
@@ -106,6 +111,9 @@ class ManipulationCore:
         self._accepted: str | None = None  # kind of a goal admitted and not started yet
         self.evaluations: dict[str, ContactEvaluation] = {}  # each finger's latest
         self.ignored_joint_states = 0
+        self.stamp_limits = config.stamp_limits()
+        self._stamp_gates: dict[str, StampGate] = {}  # per stream, created with its first sample
+        self._input_topics = {i.stream: i.topic for k in kinds for i in k.inputs}  # the kinds' inputs' topics
 
     # ---- parameters ------------------------------------------------------------------------
     def set_k(self, k: float) -> None:
@@ -121,6 +129,9 @@ class ManipulationCore:
             self.set_k(config.k)
         self.monitor.min_mean_voltage = config.min_mean_voltage
         self.watchdog.stale_ns = int(round(config.stale_timeout * 1e9))
+        self.stamp_limits = config.stamp_limits()
+        for gate in self._stamp_gates.values():
+            gate.limits = self.stamp_limits
         self.config = config
 
     @property
@@ -166,6 +177,18 @@ class ManipulationCore:
         missing = self.watchdog.fresh(streams.watched(), now_ns)
         return Refusal(NOT_READY, missing) if missing else None
 
+    def input_readiness(self, streams: Streams, now_ns: int) -> Refusal | None:
+        """not_ready when an input the goal follows came and is already unusable (its latest sample
+        refused by its stamp, or older than /joint_states by more than the goal's input timeout): the
+        goal would step on it, and the motors move, before the watchdog ended it. An input that has
+        not come yet is no reason: the goal waits for it."""
+        timeout_ns = int(round((streams.input_timeout_s or self.config.stale_timeout) * 1e9))
+        for stream in streams.inputs:
+            why = self.watchdog.input_fresh(stream, timeout_ns, now_ns, self._input_topics.get(stream))
+            if why is not None:
+                return Refusal(NOT_READY, why)
+        return None
+
     def contact_refusal(self, finger: str) -> Refusal | None:
         """no_contact when `finger`'s latest sample shows nothing on its pad (mean voltage below
         min_mean_voltage): a manipulation steers a held object and has nothing to steer here."""
@@ -183,7 +206,8 @@ class ManipulationCore:
         if r is None or refusal:
             return refusal
         streams = self.streams(r)
-        refusal = self._busy_reason() or self.readiness(streams, move_server_ready, now_ns)
+        refusal = (self._busy_reason() or self.readiness(streams, move_server_ready, now_ns)
+                   or self.input_readiness(streams, now_ns))
         if refusal is None and streams.contact is not None:
             refusal = self.contact_refusal(streams.contact)
         if refusal is None:
@@ -229,30 +253,55 @@ class ManipulationCore:
         self.monitor.set_k(self.k_parameter)
 
     # ---- inputs ----------------------------------------------------------------------------
+    def _judge_stamp(self, stream: str, stamp_ns: int, receipt_ns: int) -> tuple[bool, list]:
+        """Whether a sample of `stream` may be acted on by its stamp (prisma_common.sample_stamps); a
+        refused one is told to the watchdog, which names it while it lasts. The log line (StampNews)
+        when the stream's judgement changes."""
+        gate = self._stamp_gates.get(stream)
+        if gate is None:
+            gate = self._stamp_gates[stream] = StampGate(self._input_topics.get(stream, stream), self.stamp_limits)
+        accepted, news = gate.judge(stamp_ns, receipt_ns)
+        if not accepted:
+            self.watchdog.refuse(stream, gate.refused or "", receipt_ns)
+        return accepted, [news] if news is not None else []
+
     def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray,
                   receipt_ns: int) -> tuple[ContactEvaluation, list]:
+        """A pad's scan: its contact evaluated whatever its stamp (ContactState is published for every
+        sample); a goal steps on it only when its stamp is accepted."""
         evaluation = self.monitor.evaluate(finger, stamp_ns, voltages)
         self.evaluations[finger] = evaluation
+        accepted, news = self._judge_stamp(f"taxels/{finger}", stamp_ns, receipt_ns)
+        if not accepted:
+            return evaluation, news
         self.watchdog.sample(f"taxels/{finger}", stamp_ns, receipt_ns)
         if self.controller is None:
-            return evaluation, []
+            return evaluation, news
         self.aligner.add(("taxels", finger), stamp_ns, evaluation)
-        return evaluation, self._try_step(receipt_ns)
+        return evaluation, news + self._try_step(receipt_ns)
 
     def on_wrench(self, finger: str, stamp_ns: int, normal_force_n: float, receipt_ns: int) -> list:
+        accepted, news = self._judge_stamp(f"wrench/{finger}", stamp_ns, receipt_ns)
+        if not accepted:
+            return news
         self.forces[finger] = normal_force_n
         self.watchdog.sample(f"wrench/{finger}", stamp_ns, receipt_ns)
         if self.controller is None:
-            return []
+            return news
         self.aligner.add(("wrench", finger), stamp_ns, normal_force_n)
-        return self._try_step(receipt_ns)
+        return news + self._try_step(receipt_ns)
 
     def on_input(self, stream: str, stamp_ns: int, value: Any, receipt_ns: int) -> list:
         """A goal kind's extra input (`InputStream`): held and watched; it never shares a scan's
-        stamp, so the controller gets its latest value on the next scan (sample-and-hold)."""
+        stamp, so the controller gets its latest value on the next scan (sample-and-hold). One whose
+        stamp is refused is not held: a running goal ends with the refusal at the next check, before
+        any step on it."""
+        accepted, news = self._judge_stamp(stream, stamp_ns, receipt_ns)
+        if not accepted:
+            return news
         self.inputs[stream] = value
         self.watchdog.sample(stream, stamp_ns, receipt_ns)
-        return []
+        return news
 
     def on_joints(self, sample: JointSample, receipt_ns: int) -> list:
         """A /joint_states message. One without a position for every hand motor (another driver's
@@ -263,26 +312,27 @@ class ManipulationCore:
             self.ignored_joint_states += 1
             return [Ignored("/joint_states", f"no position for {', '.join(missing)} "
                                              f"(joints {sorted(sample.positions)}); not the hand's motor driver")]
+        accepted, news = self._judge_stamp(JOINT_STATES, sample.stamp_ns, receipt_ns)
+        if not accepted:  # neither the hand's position nor the time base: a running goal ends at this check
+            return news + self.check(receipt_ns)
         self.joints = JointSample(sample.stamp_ns, {m: sample.positions[m] for m in motors},
                                   {m: sample.velocities[m] for m in motors if m in sample.velocities},
                                   {m: sample.currents[m] for m in motors if m in sample.currents})
         self.watchdog.reference(sample.stamp_ns, receipt_ns)
-        return self.check(receipt_ns)
+        return news + self.check(receipt_ns)
 
     def check(self, now_ns: int) -> list:
         """Watchdog tick: stale data aborts the goal with sensor_stale (or its kind's reason for its
         own input) and stops the motors; a running motor command is re-sent when due (MoveLease)."""
         if self.controller is None:
             return []
-        goal = self._running()[1]
         watched = self._watched()
         stale = self.watchdog.check(watched, now_ns)
         if stale is not None:
             return self._abort(now_ns, SENSOR_STALE, stale)
-        for spec in (i for i in goal.inputs if i.stream in self._streams.inputs):
-            silent = self.watchdog.check_input(spec.stream, self._input_timeout_ns, now_ns, spec.topic)
-            if silent is not None:
-                return self._abort(now_ns, goal.stale_reason(spec.stream), silent)
+        stale_input = self._stale_input(now_ns)
+        if stale_input is not None:
+            return stale_input
         refresh = self.lease.refresh(now_ns, self._data_ns(now_ns, watched))
         return [refresh] if refresh is not None else []
 
@@ -328,10 +378,25 @@ class ManipulationCore:
     def _abort(self, now_ns: int, reason: str, detail: str = "") -> list:
         return self._actions(self._running()[0].abort(now_ns, reason), now_ns, detail)
 
+    def _stale_input(self, now_ns: int) -> list | None:
+        """The running goal ended (its kind's stale reason) when an input it follows is silent, too old
+        against /joint_states or refused by its stamp; else None."""
+        goal = self._running()[1]
+        for spec in (i for i in goal.inputs if i.stream in self._streams.inputs):
+            silent = self.watchdog.check_input(spec.stream, self._input_timeout_ns, now_ns, spec.topic)
+            if silent is not None:
+                return self._abort(now_ns, goal.stale_reason(spec.stream), silent)
+        return None
+
     def _try_step(self, now_ns: int) -> list:
         ready = self.aligner.ready(self._required)
         if ready is None or self.joints is None:
             return []
+        # the inputs are checked before the step, not only by the watchdog's next tick: a target that
+        # is already stale must not move a motor first
+        stale_input = self._stale_input(now_ns)
+        if stale_input is not None:
+            return stale_input
         controller = self._running()[0]
         stamp, entries = ready
         contacts = {f: entries[("taxels", f)] for f in controller.fingers}

@@ -6,11 +6,12 @@ invalid parameter fails at start with that message, and a run-time change with i
 
 Live (changeable while the node runs, through the same checks): k and min_mean_voltage (Algorithm 1,
 from the next sample, also during a goal: tuning K while rqt_plot draws the threshold is how the
-paper's experiments were run), the watchdog's stale_timeout (from its next check), and the goal
-defaults and controller settings with hold_min_k (from the next goal: a running goal keeps what it
-started with). Read-only: what the node is built from at start (fingers, topics, the watchdog
-timer, the motor limits shared with motor_driver) and the goal limits max_speed_rpm / max_force_n,
-the envelope every goal is checked against, which only a restart with a new configuration widens.
+paper's experiments were run), the watchdog's stale_timeout and the stamp limits (from the next
+check and sample), and the goal defaults and controller settings with hold_min_k (from the next
+goal: a running goal keeps what it started with). Read-only: what the node is built from at start
+(fingers, topics, the watchdog timer, the motor limits shared with motor_driver) and the goal limits
+max_speed_rpm / max_force_n, the envelope every goal is checked against, which only a restart with a
+new configuration widens.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
+from prisma_common.sample_stamps import StampLimits
 from prisma_motor_driver.backend import (
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MIN_POSITIONS,
@@ -65,6 +67,12 @@ class ManipulationConfig(Params):
                                            f"{MOVE_LEASE_S:g} s")
     watchdog_period: float = parameter(0.02, "how often the watchdog checks", unit="s", bounds=(0.0, 1.0),
                                        open_low=True)
+    max_stamp_age: float = parameter(2.0, "a taxel, wrench, /joint_states or motor-target sample stamped longer than "
+                                          "this before it arrives (this node's clock) is refused: no goal steps or "
+                                          "starts on it", unit="s", bounds=(0.0, 60.0), open_low=True, live=True)
+    max_stamp_ahead: float = parameter(0.5, "a sample stamped further than this ahead of this node's clock is refused "
+                                            "(its publisher's clock is not synchronised)", unit="s",
+                                       bounds=(0.0, 60.0), open_low=True, live=True)
     max_speed_rpm: float = parameter(70.0, "goals asking for a faster motor speed are rejected", unit="rpm",
                                      bounds=SPEED, open_low=True)
     max_force_n: float = parameter(3.0, "goals asking for a larger force are rejected", unit="N", bounds=FORCE,
@@ -182,6 +190,9 @@ class ManipulationConfig(Params):
         for name, lo, hi in zip(self.motor_names, self.min_positions, self.max_positions):
             if not lo < hi:
                 raise ParameterError("min_positions/max_positions", [lo, hi], f"empty window for {name}")
+
+    def stamp_limits(self) -> StampLimits:
+        return StampLimits.of_seconds(self.max_stamp_age, self.max_stamp_ahead)
 
     def limits_motors(self) -> dict[str, MotorConfig]:
         """MotorConfigs carrying only what the controllers use: the position windows."""

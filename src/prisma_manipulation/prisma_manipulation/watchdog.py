@@ -26,13 +26,21 @@ stops them in any case).
 accepted once every stream it needs (and /joint_states) is flowing.
 
 A goal kind's input (a glove's targets) is asked the same two questions with its own timeout
-(`check_input`), except that a goal may wait for it: until it comes, nothing is stale.
+(`check_input`), except that a goal may wait for it: until it comes, nothing is stale. Before a goal
+is admitted its input is asked them too (`input_fresh`): targets that came and are already stale
+refuse the goal, so that the goal never steps on them.
+
+A sample whose own stamp is refused on arrival (prisma_common.sample_stamps: stamped 0, ahead of the
+node's clock, too old; judged by the core) does not count as delivered (`refuse`): while its stream's
+latest sample is refused, `fresh`, `check` and `check_input` answer with the refusal's line (it names
+the stream and the fix), which says more than the silence it would otherwise come to.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 STALE_NS_DEFAULT = 100_000_000
+JOINT_STATES = "/joint_states"  # the time base's name among the streams
 
 
 @dataclass
@@ -53,6 +61,7 @@ class SensorWatchdog:
         self._last_check_ns: int | None = None
         self._resumed_ns: int | None = None  # end of the last forgiven hold-up
         self._held_up = False  # the previous check was held up
+        self._refused: dict[str, tuple[str, int]] = {}  # stream -> (why its latest sample was refused, receipt)
 
     def _note_check(self, now_ns: int) -> None:
         held_up = self._last_check_ns is not None and now_ns - self._last_check_ns > self.stale_ns // 2
@@ -73,21 +82,38 @@ class SensorWatchdog:
         # the age of what just arrived counts, even when an earlier message was newer: a sample
         # delivered 150 ms late is stale data
         self._streams[stream] = _Stream(stamp_ns, receipt_ns)
+        self._refused.pop(stream, None)
 
     def reference(self, stamp_ns: int, receipt_ns: int) -> None:
         """A /joint_states header stamp: the time base ages are measured against."""
         if self._reference_ns is None or stamp_ns > self._reference_ns:
             self._reference_ns = stamp_ns
         self._joint_receipt_ns = receipt_ns
+        self._refused.pop(JOINT_STATES, None)
+
+    def refuse(self, stream: str, why: str, receipt_ns: int) -> None:
+        """A sample of `stream` (JOINT_STATES for /joint_states) arrived whose stamp is refused: `why`."""
+        self._refused[stream] = (why, receipt_ns)
+
+    def refusal(self, stream: str, within_ns: int, now_ns: int) -> str | None:
+        """Why the latest sample of `stream` was refused, when it arrived within `within_ns` of now."""
+        refused = self._refused.get(stream)
+        return refused[0] if refused is not None and now_ns - refused[1] <= within_ns else None
 
     def fresh(self, streams: tuple[str, ...] | list[str], now_ns: int) -> str | None:
         """None when /joint_states and every named stream delivered within `stale_ns` (by receipt)
         and no stream is older than `stale_ns` against /joint_states; else why not, naming the stream."""
+        refused = self.refusal(JOINT_STATES, self.stale_ns, now_ns)
+        if refused is not None:
+            return refused
         if self._joint_receipt_ns is None:
             return "no /joint_states received yet"
         if now_ns - self._joint_receipt_ns > self.stale_ns:
             return f"/joint_states silent for {(now_ns - self._joint_receipt_ns) / 1e6:.0f} ms"
         for name in streams:
+            refused = self.refusal(name, self.stale_ns, now_ns)
+            if refused is not None:
+                return refused
             s = self._streams.get(name)
             if s is None:
                 return f"no {name} received yet"
@@ -104,9 +130,15 @@ class SensorWatchdog:
         self._note_check(now_ns)
         grace_from = max(self._armed_ns, self._resumed_ns or self._armed_ns)
         joint_seen = self._joint_receipt_ns if self._joint_receipt_ns is not None else grace_from
+        refused = self.refusal(JOINT_STATES, self.stale_ns, now_ns)
+        if refused is not None:
+            return refused
         if now_ns - max(joint_seen, grace_from) > self.stale_ns:
             return f"/joint_states silent for {(now_ns - joint_seen) / 1e6:.0f} ms"
         for name in streams:
+            refused = self.refusal(name, self.stale_ns, now_ns)
+            if refused is not None:
+                return refused
             s = self._streams.get(name)
             receipt = s.receipt_ns if s else None
             if now_ns - max(receipt if receipt is not None else grace_from, grace_from) > self.stale_ns:
@@ -143,6 +175,9 @@ class SensorWatchdog:
         `timeout_ns`: silent by receipt (counted from the end of a forgiven hold-up), or older than
         /joint_states by stamp (once it delivered after a forgiven hold-up). The description names it
         `label` (its topic), else `stream`."""
+        refused = self._refused.get(stream)
+        if refused is not None and self._armed_ns is not None and refused[1] >= self._armed_ns - timeout_ns:
+            return refused[0]
         s = self._streams.get(stream)
         if s is None or not self.arrived(stream, timeout_ns):
             return None
@@ -153,3 +188,17 @@ class SensorWatchdog:
                 and not self._awaited_after_hold_up(s)):
             return f"{name} {(self._reference_ns - s.stamp_ns) / 1e6:.0f} ms older than /joint_states"
         return None
+
+    def input_fresh(self, stream: str, timeout_ns: int, now_ns: int, label: str | None = None) -> str | None:
+        """Before a goal is admitted: None unless the goal kind's input came within `timeout_ns` and is
+        already unusable (its latest sample refused, or older than /joint_states by more than
+        `timeout_ns`); then why, naming it `label` (its topic), else `stream`. An input that has not
+        come is not a reason to refuse: the goal waits for it."""
+        refused = self.refusal(stream, timeout_ns, now_ns)
+        if refused is not None:
+            return refused
+        s = self._streams.get(stream)
+        if s is None or now_ns - s.receipt_ns > timeout_ns or self._reference_ns is None:
+            return None
+        age = self._reference_ns - s.stamp_ns
+        return f"{label or stream} {age / 1e6:.0f} ms older than /joint_states" if age > timeout_ns else None

@@ -190,3 +190,68 @@ def test_converters():
     # a goal refused before any /joint_states: where the hand stands is not known
     idle = TELEOP_GOAL.idle_status(ManipulationCore(ManipulationConfig()).context())
     assert all(math.isnan(v) for v in idle.positions + idle.targets + idle.pad_forces)
+
+
+T0_MS = 1_796_664_778_000  # a wall clock's time, far from 0
+
+
+def target_at(core, t_ms: float, stamp_ns: int, fingers: float = 4.5) -> list:
+    """A target for the fingers stamped `stamp_ns`, received at t_ms."""
+    return core.on_input("teleop_target", stamp_ns,
+                         teleop_target_from_msg(targets_msg(stamp_ns, ["fingers"], [fingers]))[1], int(t_ms * MS))
+
+
+def moves(actions: list) -> list:
+    return [a for a in actions if isinstance(a, SendMove) and any(v != 0.0 for v in a.velocities_rpm.values())]
+
+
+@pytest.mark.parametrize(("stamp_ns", "why"), [
+    (0, "prisma/teleop/motor_targets stamped 0: publish header.stamp (ros2 topic pub: header: auto)"),
+    ((T0_MS - 5000) * MS, "prisma/teleop/motor_targets stamped 5.00 s before it arrived (limit 2 s): stamp each "
+                          "sample when it is taken"),
+])
+def test_targets_refused_by_their_stamp_refuse_the_goal_and_end_a_running_one_before_a_motor_moves(stamp_ns, why):
+    core = ManipulationCore(ManipulationConfig())
+    scan(core, T0_MS)
+    news = target_at(core, T0_MS + 5, stamp_ns)
+    assert [n.level for n in news] == ["warning"] and news[0].text.startswith(why)
+    assert target_at(core, T0_MS + 5, stamp_ns) == []  # once per episode
+    refusal = core.accept(TeleopRequest(), True, (T0_MS + 7) * MS)
+    assert refusal is not None and refusal.code == "not_ready" and str(refusal).startswith(f"not_ready: {why}")
+    # a goal admitted before the targets came: ended by the first refused target, no motor moved
+    core = ManipulationCore(ManipulationConfig())
+    scan(core, T0_MS)
+    assert core.accept(TeleopRequest(), True, T0_MS * MS) is None
+    actions = core.start(TeleopRequest(), T0_MS * MS)
+    actions += target_at(core, T0_MS + 5, stamp_ns)
+    actions += scan(core, T0_MS + 10)
+    done = actions[-1]
+    assert moves(actions) == [] and not core.busy
+    assert (done.reason, done.detail.startswith(why)) == ("input_stale", True)
+
+
+def test_targets_stale_against_joint_states_end_the_goal_before_its_first_step():
+    # 300 ms old: within max_stamp_age (2 s), beyond the goal's input timeout (0.15 s) against /joint_states
+    core = ManipulationCore(ManipulationConfig())
+    scan(core, T0_MS)
+    assert core.accept(TeleopRequest(), True, T0_MS * MS) is None
+    actions = core.start(TeleopRequest(), T0_MS * MS)
+    actions += target_at(core, T0_MS + 5, (T0_MS - 295) * MS)
+    actions += scan(core, T0_MS + 10)  # taxels complete the scan: the step would have sent 40 rpm
+    assert moves(actions) == [] and not core.busy
+    assert (actions[-1].reason, actions[-1].detail) == ("input_stale", "prisma/teleop/motor_targets 305 ms older "
+                                                                       "than /joint_states")
+    # and such targets refuse the next goal at once
+    target_at(core, T0_MS + 15, (T0_MS - 285) * MS)
+    assert str(core.accept(TeleopRequest(), True, (T0_MS + 16) * MS)) == (
+        "not_ready: prisma/teleop/motor_targets 295 ms older than /joint_states")
+
+
+def test_joint_states_stamped_0_are_refused_and_said_once():
+    core = ManipulationCore(ManipulationConfig())
+    t = T0_MS * MS
+    news = core.on_joints(JointSample(0, {"fingers": 1.0, "thumb_flexion": 0.5, "thumb_rotation": 0.0}), t)
+    assert [n.text.split(":")[0] for n in news] == ["/joint_states stamped 0"]
+    assert core.joints is None
+    assert core.on_joints(JointSample(0, {"fingers": 1.0, "thumb_flexion": 0.5, "thumb_rotation": 0.0}), t + MS) == []
+    assert str(core.accept(GraspRequest("pinch"), True, t + MS)).startswith("not_ready: /joint_states stamped 0: publish")
