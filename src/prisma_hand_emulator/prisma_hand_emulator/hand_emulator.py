@@ -208,9 +208,13 @@ class EmulatedHand:
         servos = self.servos.status()
         with self.lock:
             forces = {f: round(v, 4) for f, v in self.world.forces().items()}
+            # what holds the object besides the pads: its stand (pinch_ball's lets go once held; the
+            # ball then falls when the hand opens, until replace-object puts it back on the stand)
+            held_object = {"name": self.world.obj.name,
+                           "support_n_per_mm": round(self.world.state.fixture_n_per_mm, 4)}
         link = {"hub": self.hub.status()} if self.tactile_link == "serial" else {"i2c": self.i2c.status()}
         return {"world": self.world_name, "tactile_link": self.tactile_link, "forces_n": forces,
-                "servos": servos, **link}
+                "object": held_object, "servos": servos, **link}
 
     # ---- fault commands (fault_table.FAULTS), each carried out by the device it is about -------
     def _fault_hub_unplug(self, seconds: float) -> str:

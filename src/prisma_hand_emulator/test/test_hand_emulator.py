@@ -225,6 +225,7 @@ def test_replace_object_puts_the_rolled_ball_back_and_is_refused_while_touched(r
 
     place(**pose)
     assert r.hand.world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
+    assert r.hand.status()["object"] == {"name": "pinch_ball", "support_n_per_mm": 1.0}  # on its stand
     assert send(r.paths.control, REPLACE_OBJECT) == {
         "ok": False, "error": "the object cannot be re-placed while index, thumb touch it: open the hand first "
                               "(GripperCommand position 0)"}
@@ -232,6 +233,8 @@ def test_replace_object_puts_the_rolled_ball_back_and_is_refused_while_touched(r
         place(thumb_rotation=step * 0.01)
     # 3 mm per rad of the thumb's rotation, to the servo's resolution (0.0015 rad a tick)
     assert r.hand.world.contact("thumb").x_mm == pytest.approx(3.0, abs=0.01)
+    # held 1 s: the stand let go of it after 0.5 s, its support fading with 0.2 s toward 0.01 N/mm
+    assert r.hand.status()["object"]["support_n_per_mm"] < 0.1
     place(fingers=0.0, thumb_flexion=0.0, thumb_rotation=0.0)  # opened and turned back: the ball stays
     place(fingers=pose["fingers"], thumb_flexion=pose["thumb_flexion"])
     assert r.hand.world.contact("thumb").x_mm == pytest.approx(-3.0, abs=0.01)  # met off-centre
@@ -242,6 +245,7 @@ def test_replace_object_puts_the_rolled_ball_back_and_is_refused_while_touched(r
     place(fingers=pose["fingers"], thumb_flexion=pose["thumb_flexion"])
     assert r.hand.world.contact("thumb").x_mm == pytest.approx(0.0, abs=1e-9)
     assert r.hand.status()["forces_n"]["thumb"] == pytest.approx(1.0, rel=0.01)
+    assert r.hand.status()["object"]["support_n_per_mm"] == 1.0  # back on its stand
 
 
 def test_replace_object_in_an_empty_hand_says_how_to_start_one_with_an_object(rig):
