@@ -36,6 +36,7 @@ from sensor_msgs.msg import JointState
 
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
+from prisma_common.sample_stamps import StampNews
 from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_from_msg, velocity_goal
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
@@ -213,6 +214,11 @@ class ManipulationNode(Node):
                 self._finish(action)
             elif isinstance(action, Ignored):
                 self.get_logger().warning(f"ignoring {action.topic}: {action.reason}", throttle_duration_sec=10.0)
+            elif isinstance(action, StampNews):  # a stream refused by its stamps, or accepted again: once each
+                if action.level == "warning":
+                    self.get_logger().warning(action.text)
+                else:
+                    self.get_logger().info(action.text)
 
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
