@@ -116,6 +116,9 @@ class GoalKind(Generic[R]):
     action_type: str  # the action's ROS type ("prisma_msgs/action/Grasp")
     request_type: type
     inputs: tuple[InputStream, ...] = ()
+    # whether its result carries the reason's text; without it (GripperCommand) the node's log and
+    # /diagnostics tell why a goal failed (goal_ends.py)
+    result_has_text = True
 
     def resolve(self, req: R, ctx: GoalContext) -> tuple[R | None, str | None]:
         """The request with its defaults filled in, or why it is invalid."""

@@ -1,7 +1,8 @@
 """The GripperCommand goal kind (control_msgs/action/GripperCommand on /prisma/gripper_cmd): the
 fingers to a position, every configured pad's force limited (gripper_controller.py). Feedback and
 result carry the fingers position (rad), the highest pad force (N), stalled and reached_goal; the
-result has no text, so a refusal's reason is in the log only."""
+result has no text, so a failure's reason is in the log (once per episode) and on /diagnostics
+(`manipulation: goals`, goal_ends.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ class GripperGoal(GoalKind[GripperRequest]):
     name, label = "gripper", "GripperCommand"
     action, action_type = "prisma/gripper_cmd", "control_msgs/action/GripperCommand"
     request_type = GripperRequest
+    result_has_text = False
 
     def resolve(self, req: GripperRequest, ctx: GoalContext) -> tuple[GripperRequest | None, str | None]:
         """max_effort 0 replaced by the configured default."""

@@ -14,7 +14,8 @@ k, min_mean_voltage, stale_timeout, the goal defaults and the gripper settings c
 time (`ros2 param set /manipulation k 0.7`); the other parameters are read-only (node_config.py says
 why). Every goal is accepted; one the core refuses (beyond the limits, another goal running, a stream
 it needs not flowing, the MoveMotors server down, a manipulation without contact) is aborted at once
-with `<code>: <why>` as its result's reason (GripperCommand's result has no text: the log says it).
+with `<code>: <why>` as its result's reason (GripperCommand's result has no text: the log says it,
+once per episode, and /diagnostics `manipulation: goals`, the last goal's kind, end and reason).
 Motion goals sent to the motor driver expire after 0.3 s unless re-sent, so the motors stop when
 this node dies (docs/manipulation.md, "Safety").
 """
@@ -24,6 +25,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import MoveMotors
 from prisma_msgs.msg import ContactState, HandContact, HandTaxels, HandWrench, TaxelArray
@@ -34,6 +36,7 @@ from rclpy.task import Future
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
 from prisma_common.sample_stamps import StampNews
@@ -44,6 +47,7 @@ from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publish
 from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
+from .goal_ends import ABORTED, CANCELED, REFUSED, SUCCEEDED, GoalEnd, GoalEnds
 from .goal_kinds import GoalKind, InputStream
 from .manipulation_core import (
     GOAL_KINDS,
@@ -72,6 +76,7 @@ RESULT_TIMEOUT_S = 60
 # client's next command finds the motors free (not `busy`, held by the ending goal); at most this
 # long: a motor driver that does not answer (the link down) has stopped them by the goal's lease
 RELEASE_WAIT_S = 0.5
+DIAGNOSTICS_PERIOD_S = 1.0
 
 
 class ManipulationNode(Node):
@@ -116,6 +121,11 @@ class ManipulationNode(Node):
                                       cancel_callback=self._on_cancel, callback_group=group,
                                       result_timeout=RESULT_TIMEOUT_S) for kind in GOAL_KINDS]
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
+        # each goal's end, on /diagnostics at once and every second (`manipulation: goals`), and which
+        # ends the log shows: a kind without a result text logs a failure once per episode
+        self.goal_ends = GoalEnds(frozenset(k.name for k in GOAL_KINDS if not k.result_has_text))
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
                                f"stale after {self.config.stale_timeout * 1e3:.0f} ms")
 
@@ -190,7 +200,8 @@ class ManipulationNode(Node):
             except GoalRefused as exc:
                 refusal = exc.refusal
         if refusal is not None:
-            self.get_logger().warning(f"{kind.label} goal refused: {refusal}")
+            if self._goal_ended(GoalEnd(kind.name, REFUSED, str(refusal), goal_id(goal_handle))):
+                self.get_logger().warning(f"{kind.label} goal refused: {refusal}")
             goal_handle.abort()
             return kind.result_to_msg(self.types, self.core.refused(kind.name, refusal))
         # with "goal ended" below, the log shows which goals overlapped and which came one after another
@@ -289,17 +300,32 @@ class ManipulationNode(Node):
         """The goal's end to its client, and the log line."""
         if done.reason == "canceled":
             handle.canceled()
+            end = CANCELED
         elif done.success:
             handle.succeed()
+            end = SUCCEEDED
         else:
             handle.abort()
+            end = ABORTED
+        reason = f"{done.reason}: {done.detail}" if done.detail else done.reason
         message = f"{done.kind} goal ended: {done.reason}" + (f" ({done.detail})" if done.detail else "")
         # rclpy fixes a call site's severity at its first call: one call site per severity
-        if done.success:
-            self.get_logger().info(message)
-        else:
-            self.get_logger().warning(message)
+        if self._goal_ended(GoalEnd(done.kind, end, reason, goal_id(handle))):
+            if done.success:
+                self.get_logger().info(message)
+            else:
+                self.get_logger().warning(message)
         future.set_result(self._kinds[done.kind].result_to_msg(self.types, done))
+
+    def _goal_ended(self, end: GoalEnd) -> bool:
+        """Record a goal's end, on /diagnostics at once; whether the log shows it."""
+        logged = self.goal_ends.ended(end)
+        self._publish_diagnostics()
+        return logged
+
+    def _publish_diagnostics(self) -> None:
+        statuses = in_namespace([self.goal_ends.status()], self.get_namespace())
+        self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), statuses))
 
     def destroy_node(self) -> None:
         # Node.destroy_node leaves action servers and clients (and so the node) in the graph
@@ -308,6 +334,11 @@ class ManipulationNode(Node):
             if action is not None:
                 action.destroy()
         super().destroy_node()
+
+
+def goal_id(goal_handle: Any) -> str:
+    """A goal's id as hex, for /diagnostics."""
+    return bytes(goal_handle.goal_id.uuid).hex()
 
 
 def main(args=None) -> None:

@@ -188,6 +188,7 @@ class RosHarness:
         self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
         self._collecting: dict[int, Any] = {}  # id of a collect() list -> its subscription
         self._feedback: dict[bytes, list] = {}  # goal id of a send_until_started goal -> its feedback messages
+        self._goal_ends: Sequence | None = None  # /diagnostics, collected from the first GripperCommand sent
         self._collect_apart = collect_apart
         self._wait_spin_sec = self.APART_SPIN_SEC if collect_apart else self.SPIN_SEC  # spin_for, spin_until
         self._collector: Any = None  # the collector process, started by the first collect
@@ -473,25 +474,28 @@ class RosHarness:
         """The one way a test resends a goal: again every `retry_sec` while the server refuses it
         `not_ready` (the graph coming up; `refusal_for_now`), until `timeout_sec`. The hand's action
         servers accept every goal and abort one they cannot run yet at once, the reason in the
-        result (prisma_common.goal_refusal); GripperCommand's result has no text, so its refusal is
-        the manipulation node's log line (needs `capture_logs`). Returns the ClientGoalHandle of the
-        goal that started (its first feedback came) or ended any other way; AssertionError when it
-        is still refused at the timeout."""
+        result (prisma_common.goal_refusal); GripperCommand's result has no text, so its reason is
+        the manipulation node's `manipulation: goals` status on /diagnostics naming the goal. Returns
+        the ClientGoalHandle of the goal that started (its first feedback came) or ended any other
+        way; AssertionError when it is still refused at the timeout."""
         deadline = time.monotonic() + timeout_sec
         # a client made without waiting (action_client(wait_sec=None)): a goal request sent before
         # its server is discovered gets no answer, which is not a refusal
         if not self.spin_until(client.server_is_ready, timeout_sec):
             raise AssertionError(f"{type(goal).__name__}: its action server did not appear in {timeout_sec} s")
+        if _has_no_reason(goal) and self._goal_ends is None:
+            from diagnostic_msgs.msg import DiagnosticArray
+
+            self._goal_ends = self.collect(DiagnosticArray, "/diagnostics")
         while True:
             feedback: list = []
-            logged = len(self._gripper_refusals()) if _has_no_reason(goal) else 0
             handle = self.send_goal(client, goal, feedback)
             self._feedback[bytes(handle.goal_id.uuid)] = feedback
             if not handle.accepted:
                 raise AssertionError(f"{type(goal).__name__} rejected: the hand's servers accept every goal")
             result = handle.get_result_async()
             self.spin_until(lambda: bool(feedback) or result.done(), 10.0)  # noqa: B023 - runs now
-            reason = self._not_ready(goal, result.result(), logged) if result.done() else None
+            reason = self._not_ready(goal, handle, result.result()) if result.done() else None
             if reason is None:
                 return handle
             if time.monotonic() > deadline:
@@ -504,20 +508,36 @@ class RosHarness:
         feedback topic a second time."""
         return self._feedback[bytes(handle.goal_id.uuid)]
 
-    def _not_ready(self, goal: Any, result: Any, logged: int) -> str | None:
-        """refusal_for_now of a goal's result; for a GripperCommand, of the refusal the node logged
-        for it (after the `logged` lines there were before it was sent)."""
+    def _not_ready(self, goal: Any, handle: Any, result: Any) -> str | None:
+        """refusal_for_now of a goal's result; for a GripperCommand, of the reason the manipulation
+        node put on /diagnostics for it (its log tells a storm's refusals once)."""
         if not _has_no_reason(goal):
             return refusal_for_now(result.result)
         if goal_status_name(result.status) != "ABORTED":
             return None
-        self.spin_until(lambda: len(self._gripper_refusals()) > logged, 2.0)  # its line may come after the result
-        why = self._gripper_refusals()[logged:]
-        return why[-1] if why and refusal_code(why[-1]) == NOT_READY else None
+        why = self.goal_end_reason(handle)
+        return why if why is not None and refusal_code(why) == NOT_READY else None
 
-    def _gripper_refusals(self) -> list[str]:
-        prefix = "GripperCommand goal refused: "
-        return [line.split(prefix, 1)[1] for line in self.logs(name="manipulation", contains=prefix)]
+    def goal_end_reason(self, handle: Any, timeout_sec: float = 3.0) -> str | None:
+        """The reason of a goal's end as the manipulation node's `manipulation: goals` status on
+        /diagnostics names it (the goal's id in last_goal_id), waiting for it (published at the end
+        and every second); None when it did not come. Needs a /diagnostics collection made before the
+        goal was sent (send_until_started makes it for a GripperCommand)."""
+        from prisma_manipulation.goal_ends import STATUS_NAME
+
+        goal_id = bytes(handle.goal_id.uuid).hex()
+        ends = self._goal_ends if self._goal_ends is not None else []
+
+        def found() -> str | None:
+            for msg in reversed(ends):
+                for status in msg.status:
+                    values = {v.key: v.value for v in status.values}
+                    if status.name.endswith(STATUS_NAME) and values.get("last_goal_id") == goal_id:
+                        return values.get("last_reason", "")
+            return None
+
+        self.spin_until(lambda: found() is not None, timeout_sec)
+        return found()
 
     def message_at(self, received: list, seconds_from_now: float, timeout_sec: float = 10.0) -> Any:
         """The first message in `received` (a `collect` list) stamped `seconds_from_now` or later,
