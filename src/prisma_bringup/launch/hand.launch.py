@@ -79,6 +79,7 @@ from prisma_bringup.launch_nodes import (
     checked_launch_description,
     control_path_env,
     control_path_node,
+    once_said,
     refuse_a_second_hand,
     required,
 )
@@ -204,8 +205,15 @@ def robot_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondi
     ]
 
 
+# prisma-hand-emulator's first line, printed once its devices exist (emulator_cli.main; the launch
+# test test_launch_start_whole.py starts the emulator and reads it)
+EMULATOR_READY = "emulated hand ("
+
+
 def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:
-    """hardware:=emulated: prisma-hand-emulator, then the drivers' hardware paths on its devices."""
+    """hardware:=emulated: prisma-hand-emulator, then, once it says its devices exist, the drivers'
+    hardware paths on them (started beside it, they found no device yet: `cannot open serial port`,
+    the bus opened late)."""
     emulator_dir = LaunchConfiguration("emulator_dir")
     emulator = required(ExecuteProcess(
         cmd=[PathJoinSubstitution([FindPackagePrefix("prisma_hand_emulator"), "lib", "prisma_hand_emulator",
@@ -214,8 +222,7 @@ def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCo
              "--tactile-link", LaunchConfiguration("tactile_backend")],
         name="hand_emulator", output="screen", additional_env=control_path_env(), condition=condition,
     ))
-    return [
-        emulator,
+    return [emulator, once_said(emulator, EMULATOR_READY, condition=condition, actions=[
         control_path_node(
             package="prisma_tactile_driver", executable="tactile_driver", namespace=namespace, condition=condition,
             parameters=[PathJoinSubstitution([config, "tactile_driver.yaml"]),
@@ -233,7 +240,7 @@ def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCo
                         {"backend": "dynamixel", "hand_config": hand_dir,
                          "home_at_start": ParameterValue(LaunchConfiguration("home"), value_type=bool),
                          "port": ParameterValue(PathJoinSubstitution([emulator_dir, "servos"]), value_type=str)}]),
-    ]
+    ])]
 
 
 def beside_the_hand(config, namespace, frame_prefix, robot_side: list, workstation_side: list) -> list:

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from launch import Action, Condition, LaunchContext, LaunchDescription, LaunchDescriptionEntity
-from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
 from launch.event_handlers import OnProcessExit, OnProcessIO, OnProcessStart
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
@@ -146,6 +146,21 @@ def checked_launch_description(declared: list[DeclareLaunchArgument], actions: l
     names = [argument.name for argument in declared]
     check: Callable[..., None] = _check_and_watch
     return LaunchDescription([OpaqueFunction(function=check, args=[names]), *declared, *actions])
+
+
+def once_said(process: Action, line_start: str, actions: list[Any], condition: Condition | None = None) -> Action:
+    """An action that starts `actions` once `process` prints a line beginning with `line_start` on its
+    stdout (a device server saying its devices exist), once; where `condition` holds."""
+    said: list[bool] = []
+
+    def heard(event: Any) -> list[Any] | None:
+        lines = event.text.decode(errors="replace").splitlines()
+        if said or not any(line.startswith(line_start) for line in lines):
+            return None
+        said.append(True)
+        return actions
+
+    return RegisterEventHandler(OnProcessIO(target_action=process, on_stdout=heard), condition=condition)
 
 
 def refuse_a_second_hand(namespace: Any, node_names: Callable[[LaunchContext], list[str]]) -> OpaqueFunction:

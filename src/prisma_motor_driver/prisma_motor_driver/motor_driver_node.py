@@ -66,8 +66,11 @@ class MotorDriverNode(Node):
             self.get_logger().info(f"zeros from {self.hand.root}: {zeros or 'none saved yet'}")
         self.core = MotorDriverCore(self.config, bus=make_bus(self.config, start_ns=now or None, zeros=zeros),
                                     start_ns=now, zeros=zeros)
-        self.core.connect(self._now_ns())
-        self._log_bus_errors()
+        # the bus opens at the first tick (MotorDriverCore.tick connects), not here: opening arms the
+        # servos' Bus Watchdog (bus_watchdog, 100 ms), and the rest of the start (the action servers,
+        # the garbage collector's settling, the scheduling) outlasted it on a loaded computer: every
+        # emulated start logged "bus watchdog fired" for all three servos. The tick that opens the
+        # bus reads the servos at once, and every tick after it feeds the watchdog.
         accept_live_changes(self, MotorDriverConfig, self._reconfigure)
 
         self._goal = None  # ServerGoalHandle of the running goal
