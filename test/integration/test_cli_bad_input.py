@@ -118,6 +118,10 @@ def data(tmp_path_factory) -> Path:
             counts = np.full(9, 1000 + k, dtype=np.uint16)
             frame = TaxelFrame("thumb", 10_000_000 * (k + 1), counts, (counts * 3.3 / 4096).astype(np.float32))
             bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(types, frame, "thumb_pad"))
+    # the README's action-topics bag as rosbag2 records it (feedback without a message definition)
+    from prisma_testing.recorded_bags import action_goals_bag
+
+    action_goals_bag(root / "hand_goals")
     for path in root.rglob("*"):
         path.chmod(path.stat().st_mode & ~0o222)  # the tools must not write here
     yield root
@@ -215,7 +219,8 @@ CASES = [
     C("prisma-hand-emulator", ["--dir", "hand", "--world", "juggling"], ("--world", "'juggling'")),
     C("prisma-hand-emulator", ["--dir", "hand", "--linger", "-1"], ("--linger", "'-1'")),
     # prisma-hand-fault
-    C("prisma-hand-fault", ["--dir", "nobody", "status"], ("no emulated hand at", "nobody/control.sock")),
+    C("prisma-hand-fault", ["--dir", "nobody", "status"],
+      ("no emulated hand at", "nobody/control.sock", "emulator_dir:=DIR` is reached with `prisma-hand-fault --dir")),
     C("prisma-hand-fault", ["--dir", "nobody", "hub-crc", "--frames", "0"], ("--frames", "'0'")),
     C("prisma-hand-fault", ["--dir", "nobody", "servo-error", "--motor", "fingers"], ("--bit", "required")),
     C("prisma-hand-fault", ["--dir", "nobody", "unplug-everything"], ("unplug-everything",)),
@@ -274,6 +279,9 @@ CASES = [
       absent=("'/prisma/thumb/taxels'",)),
     C("prisma-estimate-bag", ["{data}/chatter_bag", "out_bag", "--threads", "0"], ("--threads", "'0'")),
     C("prisma-estimate-bag", ["{data}/empty_dir", "out_bag"], ("empty_dir", "not a readable ROS 2 bag")),
+    C("prisma-estimate-bag", ["{data}/hand_goals", "out_bag"],
+      ("hand_goals holds topics recorded without a message definition", "/prisma/grasp/_action/feedback",
+       "record action topics into a bag of their own")),
     C("prisma-estimate-bag", ["{data}/thumb_only_bag", "notes.txt"], ("notes.txt", "already exists"),
       regular_file("notes.txt")),
     C("prisma-estimate-bag", ["{data}/thumb_only_bag", "out_bag", "--fingers", "thumb,pinky"], ("pinky",)),

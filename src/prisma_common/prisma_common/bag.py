@@ -8,6 +8,7 @@ written or read, not with this module.
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -141,16 +142,55 @@ def _reader(path: str | Path) -> AnyReader:
     return AnyReader([path], default_typestore=get_typestore())
 
 
-def bag_topics(path: str | Path) -> dict[str, str]:
-    """topic -> message type of every connection in the bag; BagError if it is not a readable bag."""
+@contextmanager
+def _open_reader(path: str | Path) -> Iterator[AnyReader]:
+    """The bag opened for reading; BagError, in one line, for one that cannot be."""
     from rosbags.highlevel import AnyReaderError
 
     try:
-        with _reader(path) as reader:
-            return {c.topic: c.msgtype for c in reader.connections}
+        reader = _reader(path)
+        reader.open()
     except (AnyReaderError, OSError) as exc:  # no metadata.yaml, an unknown file type, a damaged file
         raise BagError(f"{path} is not a readable ROS 2 bag (a directory with metadata.yaml, or an "
                        f".mcap/.db3 file): {exc}") from None
+    except KeyError as exc:  # rosbags meets an MCAP schema encoding it has no reader for
+        raise BagError(_undefined_schema_message(Path(path), str(exc.args[0]) if exc.args else "")) from None
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+# rosbag2 records action feedback (`<pkg>/action/<Action>_FeedbackMessage`) without a message definition
+FEEDBACK_TYPE_SUFFIX = "_FeedbackMessage"
+
+
+def _undefined_schema_message(path: Path, encoding: str) -> str:
+    """Why a bag whose MCAP holds a schema rosbags cannot read is refused, naming the topics that
+    rosbag2 records so (action feedback) where its metadata.yaml lists them, and what to do."""
+    feedback = [f"{name} ({msgtype})" for name, msgtype in _listed_topics(path).items()
+                if msgtype.endswith(FEEDBACK_TYPE_SUFFIX)]
+    which = f": {', '.join(feedback)}" if feedback else " (rosbag2 records action feedback so)"
+    return (f"bag {path} holds topics recorded without a message definition (schema encoding {encoding!r}), "
+            f"which the bag tools cannot read{which}; record action topics into a bag of their own and give "
+            f"the tools the bag of sensor topics (README, \"Record and replay\")")
+
+
+def _listed_topics(path: Path) -> dict[str, str]:
+    """topic -> type as the bag directory's metadata.yaml lists them; empty when there is none to read."""
+    import yaml
+
+    try:
+        info = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        return {t["topic_metadata"]["name"]: t["topic_metadata"]["type"] for t in info["topics_with_message_count"]}
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return {}
+
+
+def bag_topics(path: str | Path) -> dict[str, str]:
+    """topic -> message type of every connection in the bag; BagError if it is not a readable bag."""
+    with _open_reader(path) as reader:
+        return {c.topic: c.msgtype for c in reader.connections}
 
 
 def require_topics(path: str | Path, topics: Iterable[str]) -> dict[str, str]:
@@ -166,7 +206,7 @@ def read_bag(path: str | Path, topics: Iterable[str] | None = None) -> Iterator[
     """Messages of a bag in log-time order, deserialised with the prisma typestore; with `topics`,
     only those (none at all if the bag has none of them)."""
     wanted = set(topics) if topics is not None else None
-    with _reader(path) as reader:
+    with _open_reader(path) as reader:
         connections = [c for c in reader.connections if wanted is None or c.topic in wanted]
         if wanted is not None and not connections:
             return  # rosbags reads an empty connection list as "every topic"

@@ -193,3 +193,29 @@ def test_read_bag_with_only_absent_topics_reads_nothing(tmp_path):
     assert list(read_bag(tmp_path / "bag", topics=["/prisma/index/taxels"])) == []
     assert len(list(read_bag(tmp_path / "bag", topics=[]))) == 0
     assert len(list(read_bag(tmp_path / "bag"))) == 44
+
+
+def test_an_action_topics_bag_as_rosbag2_records_it_is_refused_in_one_line(tmp_path):
+    """rosbag2 stores action feedback without a message definition (MCAP schema encoding 'unknown'),
+    which rosbags cannot open: every reader of the bag says so in one line naming the topic and what to
+    do, instead of rosbags' KeyError traceback."""
+    from prisma_common.bag import BagError, bag_topics, require_topics
+    from prisma_testing.recorded_bags import action_goals_bag
+
+    bag = action_goals_bag(tmp_path / "hand_goals")
+    expected = (f"bag {bag} holds topics recorded without a message definition (schema encoding 'unknown'), "
+                "which the bag tools cannot read: /prisma/grasp/_action/feedback "
+                "(prisma_msgs/action/Grasp_FeedbackMessage); record action topics into a bag of their own and give "
+                'the tools the bag of sensor topics (README, "Record and replay")')
+    for read in (lambda: bag_topics(bag), lambda: require_topics(bag, ["/prisma/thumb/taxels"]),
+                 lambda: list(read_bag(bag, ["/prisma/thumb/taxels"]))):
+        with pytest.raises(BagError) as refused:
+            read()
+        assert str(refused.value) == expected
+    # the MCAP file alone, without the metadata.yaml that lists its topics
+    [mcap] = bag.glob("*.mcap")
+    with pytest.raises(BagError) as refused:
+        bag_topics(mcap)
+    assert str(refused.value).endswith("which the bag tools cannot read (rosbag2 records action feedback so); record "
+                                       'action topics into a bag of their own and give the tools the bag of sensor '
+                                       'topics (README, "Record and replay")')

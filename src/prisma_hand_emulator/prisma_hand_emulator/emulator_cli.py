@@ -162,7 +162,7 @@ def unreachable_hint(directory: Path) -> str:
     return (f"a hand launched with `hardware:=emulated emulator_dir:=DIR` is reached with `prisma-hand-fault "
             f"--dir DIR ...` (the launch's emulator_dir{default}); or start one here: "
             f"`prisma-hand-emulator --dir {directory}` or "
-            f"`ros2 launch prisma_bringup hand.launch.py hardware:=emulated emulator_dir:={directory}`")
+            f"`ros2 launch prisma_bringup hand.launch.py hardware:=emulated emulator_dir:={directory.absolute()}`")
 
 
 @command("prisma-hand-fault")
