@@ -4,11 +4,18 @@ Current Limit, end stops). Every stop is measured from the emulator's own state 
 Watchdog firings and positions, `prisma-hand-fault status`), not from /joint_states. In order, on
 one launch:
 
+0. a pinch Grasp sent every 50 ms from the moment /prisma/grasp exists, again only when refused
+   `not_ready` (the contract's one resend), ends `not_ready` (the graph coming up, the homing at
+   start: `not_ready: homing (fingers, thumb_flexion, thumb_rotation)`) until one runs, and that one
+   ends force_reached: never motor_fault, never not_homed; the motor driver does not log the stop
+   (canceled) that ends its MoveMotors goal;
 1. homing at start: every motor homed; each servo stalled at its open end stop pulling the homing
    current (the emulator's log), never more than its Current Limit;
-2. a power cycle with the fingers closed past one turn: a MoveMotors close goal and a Grasp are
-   refused `not_homed`; the HomeMotors action finds the fingers' zero 7 rad away, the open hand then
-   reads 0 +- 0.05 rad (on /joint_states and in the servo), and a pinch grasp ends force_reached;
+2. a power cycle with the fingers closed past one turn: a MoveMotors close goal is refused
+   `not_homed`, and a Grasp, a Teleoperate and a Manipulate end with the motor driver's `not_homed:
+   ... home first` as their result's reason, nothing moved; the HomeMotors action finds the
+   fingers' zero 7 rad away, the open hand then reads 0 +- 0.05 rad (on /joint_states and in the
+   servo), and a pinch grasp ends force_reached;
 3. the motor bus cut mid-goal (every servo off the bus): each servo stops itself within 0.3 s of the
    cut; with the bus back the driver reopens it and nothing moves until a new goal;
 4. SIGSTOP of the motor driver mid-rotation: every servo stops within 0.3 s; after SIGCONT the goal
@@ -30,17 +37,18 @@ from pathlib import Path
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
-from prisma_testing.ros_harness import require_ros, wait_until_homed
+from prisma_testing.ros_harness import goal_outcome, require_ros, wait_until_homed
 
 require_ros()
 
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from prisma_msgs.action import Grasp, HomeMotors, MoveMotors  # noqa: E402
+from prisma_msgs.action import Grasp, HomeMotors, Manipulate, MoveMotors, Teleoperate  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.control_socket import send  # noqa: E402
+from prisma_common.goal_refusal import NOT_READY, refusal_code  # noqa: E402
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_servo_safety_{os.getpid()}"
@@ -48,6 +56,8 @@ STOP_LIMIT_S = 0.3  # the issue's bound; the watchdog is armed at 0.1 s
 HOMING_CURRENT_MA = 150.0  # config/motor_driver.yaml homing_current_ma
 # the thumb turning slowly toward its 3 rad limit: seconds of motion for a fault to interrupt
 ROTATE = dict(motors=["thumb_rotation"], mode="velocity", targets=[5.0], timeout=0.0)
+# what the motor driver refuses a goal with after a power cycle, up to the motors it names: the why and what to do
+NOT_HOMED = re.compile(r"^not_homed: fingers \(id 1\).* not homed since the servo powered up .*: home first")
 
 
 @pytest.mark.launch_test
@@ -77,9 +87,12 @@ class TestServoSafety(GraphTestCase):
     def subscribe(cls, ros):
         cls.joints = ros.collect(JointState, "/joint_states")
         cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
-        cls.move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=60.0)
-        cls.home = ros.action_client(HomeMotors, "/prisma/motors/home", wait_sec=60.0)
-        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+        # not waited for: test_0 sends its first Grasp the moment the server exists
+        cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=None)
+        cls.move = ros.action_client(MoveMotors, "/prisma/motors/move", wait_sec=None)
+        cls.home = ros.action_client(HomeMotors, "/prisma/motors/home", wait_sec=None)
+        cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
+        cls.teleoperate = ros.action_client(Teleoperate, "/prisma/teleoperate", wait_sec=None)
 
     def move_goal(self, **fields) -> MoveMotors.Goal:
         goal = MoveMotors.Goal(**fields)
@@ -118,6 +131,29 @@ class TestServoSafety(GraphTestCase):
         self.ros.spin_for(seconds)
         self.assertEqual({n: s["mechanical_ticks"] for n, s in servos().items()}, before)
 
+    def test_0_grasps_from_the_first_moment_end_only_not_ready_until_one_runs(self):
+        ros = self.ros
+        self.assertTrue(ros.spin_until(self.grasp.server_is_ready, 90.0), "no /prisma/grasp server")
+        refused: dict[str, int] = {}  # each not_ready reason (numbers aside) and how often
+        deadline = time.monotonic() + 150.0  # the force estimator loads its model for up to a minute
+        while True:
+            result = ros.result(ros.send_goal(self.grasp, Grasp.Goal(grasp="pinch")), timeout_sec=30.0)
+            if refusal_code(result.result.reason) != NOT_READY:
+                break
+            why = re.sub(r"\d+", "#", result.result.reason)
+            refused[why] = refused.get(why, 0) + 1
+            self.assertLess(time.monotonic(), deadline, f"still refused not_ready after 150 s: {refused}")
+            ros.spin_for(0.05)
+        print(f"{sum(refused.values())} Grasps refused not_ready before one ran: {refused}")
+        self.assertEqual(goal_outcome(result), ("SUCCEEDED", "force_reached"), f"after not_ready {refused}")
+        ros.spin_for(0.5)  # the motor driver's log lines of the goal's end
+        self.assertEqual(ros.logs(name="motor_driver", contains="MoveMotors goal ended: canceled"), [])
+        # the hand open again for the tests after this one, short of the open end stops (test_1 finds a
+        # stall there only where the homing pulled)
+        opened = ros.result(ros.send_goal(self.move, self.move_goal(motors=list(MOTOR_NAMES), mode="position",
+                                                                     targets=[0.1, 0.1, 0.0])), timeout_sec=30.0)
+        self.assertEqual(opened.status, GoalStatus.STATUS_SUCCEEDED, opened.result.reason)
+
     def test_1_homed_at_start_pulling_no_more_than_the_homing_current(self, proc_output):
         wait_until_homed(self.ros, self.diagnostics, MOTOR_NAMES, timeout_sec=90.0)
         stalls = re.findall(r"servo (\d): stalled at its lo end stop .* pulling (\d+) mA", "".join(
@@ -133,21 +169,34 @@ class TestServoSafety(GraphTestCase):
 
     def test_2_power_cycle_with_the_fingers_closed_past_one_turn(self):
         ros = self.ros
+        # a power cycle while the hand holds an object (each motor within its first turn, the pads in
+        # contact): a manipulation of it ends with the driver's refusal
+        wait_diag = lambda: all(  # noqa: E731 - read now, in spin_until
+            (self.latest_motor_diag(m) or {}).get("homed") == "False" for m in MOTOR_NAMES)
+        emulator("world", name="horizontal")
+        emulator("power-cycle")
+        self.assertTrue(ros.spin_until(wait_diag, 10.0), "the driver did not see the power cycle")
+        manipulate = ros.result(ros.send_until_started(self.manipulate, Manipulate.Goal(motion="horizontal"),
+                                                       timeout_sec=30.0))
+        self.assertEqual(manipulate.status, GoalStatus.STATUS_ABORTED)
+        self.assertRegex(manipulate.result.stop_reason, NOT_HOMED)
         emulator("servo-place", motor="fingers", rad=7.0)
         emulator("power-cycle")
         self.assertLess(servos()["fingers"]["present_position_ticks"], 4096)  # the turn count is lost
-        wait_diag = lambda: all(  # noqa: E731 - read now, in spin_until
-            (self.latest_motor_diag(m) or {}).get("homed") == "False" for m in MOTOR_NAMES)
-        self.assertTrue(ros.spin_until(wait_diag, 10.0), "the driver did not see the power cycle")
         close = ros.result(ros.send_goal(self.move, self.move_goal(motors=["fingers"], mode="velocity",
                                                                     targets=[30.0], timeout=0.3)))
         self.assertEqual(close.status, GoalStatus.STATUS_ABORTED)
         self.assertTrue(close.result.reason.startswith("not_homed: fingers (id 1) not homed"), close.result.reason)
-        # sent again while refused not_ready (the force estimator may still be loading its model)
+        # manipulation's first MoveMotors is refused: each kind's goal ends with the driver's refusal
         grasp = ros.result(ros.send_until_started(self.grasp, Grasp.Goal(grasp="pinch"), timeout_sec=60.0))
-        # manipulation's first MoveMotors was refused: the grasp ends motor_fault, its log says why
-        self.assertEqual((grasp.status, grasp.result.reason), (GoalStatus.STATUS_ABORTED, "motor_fault"))
-        self.assertTrue(ros.wait_for_log(name="manipulation", contains="grasp goal ended: motor_fault (not_homed: "))
+        self.assertEqual(grasp.status, GoalStatus.STATUS_ABORTED)
+        self.assertRegex(grasp.result.reason, NOT_HOMED)
+        closing = JointState(name=list(MOTOR_NAMES), position=[8.0, 1.0, 0.0])  # a glove closing the hand
+        with ros.publishing(JointState, "/prisma/teleop/motor_targets", lambda _: closing, 50.0,
+                            wait_for_subscribers=1):
+            teleop = ros.result(ros.send_until_started(self.teleoperate, Teleoperate.Goal(), timeout_sec=30.0))
+        self.assertEqual(teleop.status, GoalStatus.STATUS_ABORTED)
+        self.assertRegex(teleop.result.reason, NOT_HOMED)
         self.assertAlmostEqual(servos()["fingers"]["position_rad"], 7.0, delta=0.05)  # nothing moved
 
         homing = ros.result(ros.send_goal(self.home, HomeMotors.Goal()), timeout_sec=60.0)
