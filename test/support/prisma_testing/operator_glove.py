@@ -3,6 +3,7 @@ core, the nominal hand) on /glove/joint_states at 60 Hz, stamped when published.
 
     glove = OperatorGlove()
     glove.move(FIST, 1.5)       # close in 1.5 s (raised cosine), then hold
+    glove.stamp(None)           # from the next sample on: stamped 0 (glove.stamp(5.0): 5 s old; 0.0: now)
     last_ns = glove.stop()      # falls silent; glove.move(...) publishes again
     glove.close()
 
@@ -40,7 +41,7 @@ publisher = node.create_publisher(JointState, sys.argv[1], 10)
 calibration = nominal_calibration()
 lock = threading.Lock()
 state = {"on": False, "from": Synergies(0.0, 0.0, 0.0), "to": Synergies(0.0, 0.0, 0.0), "start": 0.0,
-         "seconds": 1e-9, "published": 0, "silent_at": None}
+         "seconds": 1e-9, "published": 0, "silent_at": None, "age_ns": 0}
 
 
 def at(now):
@@ -68,6 +69,8 @@ def commands():
                               "silent_at": now + float(words[5]) if len(words) > 5 else None})
             elif words[0] == "stop":
                 fall_silent()
+            elif words[0] == "stamp":  # "stamp zero" or "stamp <age in s>"
+                state["age_ns"] = None if words[1] == "zero" else int(float(words[1]) * 1e9)
     state["quit"] = True
 
 
@@ -82,7 +85,8 @@ while not state.get("quit"):
             angles = hand_pose(at(time.monotonic()), calibration)
             now_ns = time.time_ns()
             msg = JointState(name=list(angles), position=list(angles.values()))
-            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now_ns, 1_000_000_000)
+            if state["age_ns"] is not None:  # else stamped 0, as `ros2 topic pub` without header: auto
+                msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now_ns - state["age_ns"], 1_000_000_000)
             publisher.publish(msg)
             state["published"] = now_ns
     next_s += PERIOD_S
@@ -107,6 +111,10 @@ class OperatorGlove:
     def move(self, to: Synergies, seconds: float = 0.0) -> None:
         """From where the operator's hand is now to `to` in `seconds`, then held; publishing (again)."""
         self._say(f"move {to.fingers} {to.thumb} {to.opposition} {seconds}")
+
+    def stamp(self, age_s: float | None) -> None:
+        """From the next sample on, stamp each `age_s` before it is published (None: stamped 0)."""
+        self._say("stamp zero" if age_s is None else f"stamp {age_s}")
 
     def move_and_fall_silent(self, to: Synergies, seconds: float, silent_after_s: float) -> int:
         """`move(to, seconds)` that stops publishing `silent_after_s` into the move, timed by the
