@@ -8,7 +8,8 @@ a topic-table row needs no change here.
    its parameter files exist in config/ and address that node by name; every parameter given inline
    in the launch file is declared by the node, literal values with the declared type (and the node
    starts with them); every LaunchConfiguration is a declared launch argument; every included
-   launch file exists and declares the arguments passed to it;
+   launch file exists and declares the arguments passed to it; every launch file returns
+   launch_nodes.checked_launch_description (arguments checked, required nodes watched);
 2. every parameter in a config file (ros__parameters form, top key = node name, `/**/<node>`) is declared by that
    node, with the same type and the same value as its default; every node name there is a node;
 3. every topic of docs/architecture.md's topic table (except /diagnostics) has exactly one
@@ -450,6 +451,19 @@ def test_every_launch_file_starts_something():
         tree = ast.parse(path.read_text())
         assert _calls(tree, "Node") or _calls(tree, CONTROL_PATH_NODE) or _calls(tree, "IncludeLaunchDescription"), \
             path.name
+
+
+@pytest.mark.parametrize("launch_file", sorted(LAUNCH.glob("*.launch.py")), ids=lambda p: p.name)
+def test_every_launch_file_starts_whole_or_not_at_all(launch_file: Path):
+    """generate_launch_description returns launch_nodes.checked_launch_description (an undeclared
+    argument refused, required nodes watched), never a bare LaunchDescription."""
+    tree = ast.parse(launch_file.read_text())
+    generate = next(f for f in tree.body if isinstance(f, ast.FunctionDef) and f.name == "generate_launch_description")
+    returned = [r.value for r in ast.walk(generate) if isinstance(r, ast.Return) and r.value is not None]
+    called = [getattr(v.func, "id", getattr(v.func, "attr", None)) for v in returned if isinstance(v, ast.Call)]
+    assert called == ["checked_launch_description"], \
+        f"{launch_file.name}: generate_launch_description returns {called}, not checked_launch_description(...)"
+    assert not _calls(tree, "LaunchDescription"), f"{launch_file.name}: a bare LaunchDescription(...)"
 
 
 def test_console_scripts_point_at_modules_with_main():

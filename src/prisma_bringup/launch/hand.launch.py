@@ -76,6 +76,7 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 from prisma_bringup.launch_nodes import (
+    EMULATOR_READY,
     checked_launch_description,
     control_path_env,
     control_path_node,
@@ -203,11 +204,6 @@ def robot_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondi
                          "home_at_start": ParameterValue(LaunchConfiguration("home"), value_type=bool),
                          "port": ParameterValue(LaunchConfiguration("motor_port"), value_type=str)}]),
     ]
-
-
-# prisma-hand-emulator's first line, printed once its devices exist (emulator_cli.main; the launch
-# test test_launch_start_whole.py starts the emulator and reads it)
-EMULATOR_READY = "emulated hand ("
 
 
 def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCondition) -> list:

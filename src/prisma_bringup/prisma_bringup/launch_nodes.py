@@ -53,6 +53,9 @@ OUTPUT_LINES_KEPT = 50  # per process, for the reason it gave last
 # how long hand.launch.py looks for a hand already in the graph: as long as a node looks for another
 # of its kind (prisma_node_wiring.single_instance, which says why)
 SECOND_HAND_WAIT_S = 0.5
+# prisma-hand-emulator's first line, printed once its devices exist (emulator_cli.main):
+# hand.launch.py starts the drivers on it (test_launch_start_whole.py reads it from the emulator)
+EMULATOR_READY = "emulated hand ("
 
 
 def control_path_env() -> dict[str, Any]:
