@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prisma_testing.launch_case import installed_config
+from prisma_testing.repo_paths import ROOT
 from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
 
 require_ros()
@@ -41,7 +41,6 @@ ACTION_TOPICS = [f"/prisma/{a}/_action/{k}"
                  for a in ("grasp", "manipulate", "motors/move") for k in ("feedback", "status")]
 SENSOR_TOPICS = ["/joint_states"] + [f"/prisma/{f}/taxels" for f in FINGERS]
 OUTPUT_TOPICS = [f"/prisma/{f}/{kind}" for f in FINGERS for kind in ("wrench", "contact")]
-CONFIG = installed_config()
 
 
 def start_recorder(bag: Path, topics: list[str], hidden: list[str] = (), timeout_sec: float = 60.0) -> NodeProcess:
@@ -218,10 +217,27 @@ def test_bag_info_reads_every_prisma_sim_bag(sim_bags):
         assert re.search(r"Storage id:\s+mcap", result.output), result.output
 
 
-def test_replay_reproduces_wrench_and_contact(ros, sim_bags):
-    """The README's replay: force_estimator and manipulation on use_sim_time with their config
-    files, `ros2 bag play --clock` of the sensor topics of a prisma-sim bag: every recorded
-    /prisma/<finger>/wrench and /prisma/<finger>/contact comes back with its stamp and values."""
+def readme_block(containing: str) -> str:
+    """The README's fenced code block that contains `containing` (one only), as written."""
+    blocks, block = [], None
+    for line in (ROOT / "README.md").read_text().splitlines(keepends=True):
+        if line.startswith("```") and block is None:  # an opening fence, with or without a language
+            block = []
+        elif line.startswith("```"):
+            blocks.append("".join(block))
+            block = None
+        elif block is not None:
+            block.append(line)
+    [found] = [b for b in blocks if containing in b]
+    return found
+
+
+def test_replay_reproduces_wrench_and_contact(ros, sim_bags, tmp_path):
+    """The README's replay, its commands run as written by bash from a directory where `hand_run`
+    is a prisma-sim bag: force_estimator and manipulation on use_sim_time with their config files,
+    `ros2 bag play --clock` of the sensor topics once both answer: every recorded
+    /prisma/<finger>/wrench and /prisma/<finger>/contact comes back with its stamp and values, and
+    the two nodes are stopped at its end."""
     bag = sim_bags / "pinch_grasp"
     recorded: dict[str, dict[int, object]] = defaultdict(dict)
     for record in read_bag(bag, topics=OUTPUT_TOPICS):
@@ -230,33 +246,25 @@ def test_replay_reproduces_wrench_and_contact(ros, sim_bags):
 
     # subscribed before the nodes start, deep enough for the whole bag: nothing can be missed here
     replayed = {t: ros.collect(WrenchStamped if t.endswith("wrench") else ContactState, t) for t in OUTPUT_TOPICS}
-    nodes = []
+    (tmp_path / "hand_run").symlink_to(bag)
+    # F: the README's recording block sets it; the replay block uses it
+    script = 'F="thumb index middle ring little"\n' + readme_block("ros2 bag play hand_run")
+    assert "list_parameters" in script and "kill %1 %2; wait" in script, script
+    replay = NodeProcess(["bash", "-c", script], cwd=tmp_path)
     try:
-        for package, executable, config in (("prisma_force_estimator", "force_estimator", "force_estimator.yaml"),
-                                            ("prisma_manipulation", "manipulation", "manipulation.yaml")):
-            nodes.append(NodeProcess(["ros2", "run", package, executable, "--ros-args",
-                                      "--params-file", str(CONFIG / config), "-p", "use_sim_time:=true"]))
-            nodes[-1].wait_until_spinning(ros, f"/{executable}", 120.0)
-        assert ros.spin_until(lambda: all(ros.probe.count_publishers(t) for t in OUTPUT_TOPICS), 30.0)
-        # --delay: the nodes' subscriptions match the player's new publishers before the first
-        # message. --rate: the nodes' subscriptions are 10 messages deep, so a stall of more than
-        # 10 scans (100 ms at full speed) on this loaded machine would drop input; a quarter of the
-        # recorded speed leaves them 0.4 s.
-        play = NodeProcess(["ros2", "bag", "play", str(bag), "--clock", "--delay", "1", "--rate", "0.25",
-                            "--topics", *SENSOR_TOPICS])
-        try:
-            ros.spin_until(lambda: play.proc.poll() is not None, 120.0)
-            result = play.wait(10.0)
-        finally:
-            play.kill()
-        done = ros.spin_until(lambda: all(len(replayed[t]) >= len(recorded[t]) for t in OUTPUT_TOPICS), 15.0)
-        assert result.returncode == 0, result.output
-        assert done, {t: f"{len(replayed[t])} of {len(recorded[t])}, missing "
-                         f"{sorted(set(recorded[t]) - {stamp_ns(m) for m in replayed[t]})}" for t in OUTPUT_TOPICS}
-        ros.spin_for(0.5)  # anything beyond the recording would show up now
+        # the nodes (the estimator loads torch and its network), then the bag at a quarter of its speed
+        ros.spin_until(lambda: replay.proc.poll() is not None, 240.0)
+        result = replay.wait(10.0)
     finally:
-        for node in nodes:
-            stop_process(node)
+        replay.kill()
+    assert result.returncode == 0 and "Traceback" not in result.output, result.output
+    done = ros.spin_until(lambda: all(len(replayed[t]) >= len(recorded[t]) for t in OUTPUT_TOPICS), 15.0)
+    assert done, {t: f"{len(replayed[t])} of {len(recorded[t])}, missing "
+                     f"{sorted(set(recorded[t]) - {stamp_ns(m) for m in replayed[t]})}" for t in OUTPUT_TOPICS}
+    ros.spin_for(0.5)  # anything beyond the recording would show up now
+    # `kill %1 %2; wait` stopped both nodes: neither is left in the graph
+    assert ros.spin_until(lambda: not {"force_estimator", "manipulation"} & set(ros.probe.get_node_names()), 10.0), \
+        ros.probe.get_node_names()
 
     def axes(w) -> list[float]:
         return [w.wrench.force.x, w.wrench.force.y, w.wrench.force.z,
