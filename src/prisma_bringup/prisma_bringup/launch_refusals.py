@@ -15,8 +15,11 @@ import difflib
 import re
 from collections.abc import Iterable, Sequence
 
-# set by ros2 launch itself from its --launch-prefix options, never declared by a launch file
-LAUNCH_OWN_ARGUMENTS = frozenset({"launch-prefix", "launch-prefix-filter"})
+# launch configurations no launch file declares: ros2 launch's --launch-prefix options, and those
+# launch and launch_ros keep there themselves (SetParameter, SetParametersFromFile, SetRemap,
+# PushRosNamespace, emulate_tty)
+LAUNCH_OWN_ARGUMENTS = frozenset({"launch-prefix", "launch-prefix-filter", "global_params", "ros_remaps",
+                                  "ros_namespace", "emulate_tty"})
 
 # a node that exits within this long of its start "exited at start-up" (a bad parameter, a missing
 # device or bundle): the nodes read their configuration and open their devices in their first seconds
