@@ -24,7 +24,10 @@ the calibration (calibration.py): in use, and saved, once the operator has captu
 poses (a calibration loaded from the operator's file counts as captured).
 
 `StagTeleop` (input stag): each accepted pose estimate with its frame's total pressure ->
-stag_poses.PoseMapper -> the Grasp or the open GripperCommand to keep, while engaged.
+stag_poses.PoseMapper -> the Grasp or the open GripperCommand to keep, while engaged. A grasp pose
+already held when the node began to see the glove (engaged mid-pose, a replay already running), and
+one the hand was not ready for (`not_ready`), is not started from its end: the operator forms it
+anew (sent from its end, it was cancelled by the next pose a moment later).
 
 Every method returns decisions as data (`SendGoal`, `CancelGoal`, `Note` for the log); the node
 carries them out. Time is explicit (`now_ns`, the node clock).
@@ -352,6 +355,9 @@ class StagTeleop(_Engaging):
         self.mapper = PoseMapper(config.pose_mapping())
         self._pressures: dict[int, float] = {}
         self._latest_pressure: float | None = None
+        # the pose already held when this node began to see the glove (engaged): its start was not
+        # seen (a replay or an operator mid-pose), so its grasp is not started; "" until the first estimate
+        self._start_unseen: str | None = ""
 
     def on_frame(self, stamp_ns: int, pressure: float, shorted: bool) -> None:
         """A glove frame's total pressure (a shorted frame gets no pose estimate: not kept)."""
@@ -368,14 +374,33 @@ class StagTeleop(_Engaging):
         pressure = self._pressures.get(stamp_ns, self._latest_pressure)
         if pressure is None:
             return notes + [Note("warning", "pose estimate ignored: no glove frame (stag/frame) for its pressure yet")]
+        if self._start_unseen == "":
+            self._start_unseen = label
         command = self.mapper.update(label, confidence, pressure)
+        current = self.mapper.current
+        if label != self._start_unseen and (current is None or current.pose != self._start_unseen):
+            self._start_unseen = None  # the pose held at the start is over: the next one's start is seen
         if command is not None:
-            notes.append(Note("info", f"pose {label} held {self.mapper.mapping.frames} frames "
-                                      f"(pressure {pressure:.1f}): {describe(command)}"))
+            held = (f"pose {label} held {self.mapper.mapping.frames} frames (pressure {pressure:.1f}): "
+                    f"{describe(command)}")
+            if self._unseen_start(command):
+                held += ("; not started: the pose was already held when teleoperation began (a grasp from its end "
+                         "would be cancelled by the next pose at once): form it anew")
+            notes.append(Note("info", held))
         return notes + self.tick(now_ns)
 
+    def _unseen_start(self, command: Command | None) -> bool:
+        return isinstance(command, GraspCommand) and self._start_unseen is not None and \
+            command.pose == self._start_unseen
+
     def wanted(self, now_ns: int) -> Command | None:
-        return self.mapper.current if self.engaged else None
+        current = self.mapper.current
+        return current if self.engaged and not self._unseen_start(current) else None
+
+    def engage(self, on: bool, now_ns: int) -> tuple[str, list]:
+        if on and not self.engaged:
+            self._start_unseen = ""  # a pose held now was formed before: its grasp waits for it formed anew
+        return super().engage(on, now_ns)
 
     def on_goal_ended(self, reason: str, success: bool, now_ns: int) -> list:
         command, for_good = self.keeper.ended(reason, success, now_ns)

@@ -276,7 +276,11 @@ def test_the_status_of_an_engaged_teleop():
 
 
 def stag(**params) -> StagTeleop:
-    return StagTeleop(TeleopConfig(input="stag", engage_at_start=True, **params))
+    """A StagTeleop that has seen the empty hand first (a grasp pose's start seen)."""
+    core = StagTeleop(TeleopConfig(input="stag", engage_at_start=True, **params))
+    core.on_frame(NS // 2, 1.0, False)
+    core.on_pose(NS // 2, "empty", 0.98, NS // 2)
+    return core
 
 
 def poses(core: StagTeleop, labels: list[str], pressure: float = 30.0, start_ns: int = NS) -> list:
@@ -302,7 +306,7 @@ def test_stag_poses_start_grasps_and_the_empty_hand_opens():
 
 
 def test_stag_without_its_frame_pressure_says_so():
-    core = stag()
+    core = StagTeleop(TeleopConfig(input="stag", engage_at_start=True))
     assert notes(core.on_pose(NS, "pinch", 0.9, NS), "warning") == [
         "pose estimate ignored: no glove frame (stag/frame) for its pressure yet"]
 
@@ -324,9 +328,27 @@ def test_stag_a_grasp_the_hand_was_not_ready_for_waits_for_the_pose_formed_anew(
 def test_stag_a_grasp_at_the_joint_limit_says_the_object_is_gone_and_how_to_put_it_back():
     core = StagTeleop(TeleopConfig(input="stag", engage_at_start=True, pose_frames=3), "/left/stag/hand_pose",
                       "/left/tactile_driver/replace_object")
+    poses(core, ["empty"], pressure=1.0, start_ns=0)
     (pinch,) = sends(poses(core, ["pinch"] * 3))
     (line,) = notes(core.on_goal_ended("joint_limit", False, 2 * NS), "warning")
     assert line == (f"{describe(pinch)} ended joint_limit: the fingers closed to their limit without touching "
                     "anything, the object is not between them (an open hand lets it fall). Put it back (the sim "
                     "and emulated hand: ros2 service call /left/tactile_driver/replace_object std_srvs/srv/Trigger), "
                     "then form the pose again")
+
+
+def test_stag_a_pose_already_held_when_teleoperation_begins_is_not_started_from_its_end():
+    core = StagTeleop(TeleopConfig(input="stag", engage_at_start=True, pose_frames=3))
+    actions = poses(core, ["pinch"] * 5)  # a replay already mid-pinch when the node starts
+    assert sends(actions) == []
+    assert notes(actions, "info")[0].endswith("not started: the pose was already held when teleoperation began (a "
+                                              "grasp from its end would be cancelled by the next pose at once): form "
+                                              "it anew")
+    assert sends(poses(core, ["empty"] * 3, pressure=1.0, start_ns=2 * NS)) == [OpenCommand("empty")]
+    core.on_goal_ended("succeeded", True, 3 * NS)
+    assert [c.grasp for c in sends(poses(core, ["pinch"] * 3, start_ns=4 * NS))] == ["pinch"]  # formed anew
+    # engaged again mid-pose: the same
+    core.on_goal_ended("force_reached", True, 5 * NS)
+    core.engage(False, 5 * NS)
+    core.engage(True, 5 * NS)
+    assert sends(poses(core, ["power"] * 5, start_ns=6 * NS)) == []
