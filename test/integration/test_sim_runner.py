@@ -296,6 +296,21 @@ def test_glove_bag_topics_stamps_and_counts(run):
     assert all(g["decisions"] > 0 for g in summary["grasps"])
 
 
+def test_glove_summary_says_beside_the_weights_that_nothing_was_lifted(run):
+    """The glove session holds its objects without lifting them: the summary says so right above the
+    weight table, and what it says holds: /stag/weight ~24 g and the baseline ~110 g whatever is held
+    (516 g and 143 g in the short configuration), so nobody reads the gap as a broken estimator."""
+    md = (run.out / "summary.md").read_text().splitlines()
+    table = next(i for i, line in enumerate(md) if line.startswith("| object in hand |"))
+    assert md[table - 2:table] == [
+        "Weight: no lift in this session: the weight estimates have no load to read (both were fitted on lifts), "
+        "so /stag/weight reads about 24 g and the linear baseline about 110 g whatever is held, not its true "
+        'weight (docs/glove.md, "Weight").', ""]
+    grasps = run.summaries["glove"]["grasps"]
+    assert [round(g["true_weight_g"]) for g in grasps] == [516, 143]
+    assert all(abs(g["weight_g"] - 24) < 8 and abs(g["baseline_weight_g"] - 110) < 20 for g in grasps), grasps
+
+
 def test_offline_estimator_reproduces_the_recorded_wrenches(run, tmp_path):
     """prisma-estimate-bag over a sim bag gives exactly the wrenches the run recorded (and the
     controller used): one pipeline, one converter."""

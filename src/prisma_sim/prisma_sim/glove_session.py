@@ -41,6 +41,10 @@ EMPTY_FIRST_FRAMES = 60  # the sim stream's empty-hand phase (SyntheticGlove.str
 GRASP_FRAMES = 60  # frames of repeated grasps of one object
 RELEASE_FRAMES = 22  # ~3 s of empty hand after each object (perception clears after 15)
 EPISODE_FRAMES = GRASP_FRAMES + RELEASE_FRAMES
+# what the weight columns and panel read in this session (its grasps hold each object, none lifts it)
+NO_LIFT = "no lift in this session: the weight estimates have no load to read (both were fitted on lifts)"
+WEIGHT_NOTE = (f"{NO_LIFT}, so /stag/weight reads about 24 g and the linear baseline about 110 g whatever is "
+               "held, not its true weight (docs/glove.md, \"Weight\")")
 
 FRAME, IMAGE = "/stag/frame", "/stag/image"
 OBJECT, HAND_POSE, WEIGHT = "/stag/object", "/stag/hand_pose", "/stag/weight"
@@ -260,6 +264,7 @@ def summarise(rec: GloveRecording) -> dict:
         "empty_hand_capture": rec.capture_message,
         "empty_hand_contact_frames_before_capture": sum(f.contact for f in empty),
         "grasps": rows,
+        "weight_note": WEIGHT_NOTE,
         "object_correct": sum(r["correct"] for r in rows),
         "object_accuracy": sum(r["correct"] for r in rows) / len(rows) if rows else None,
         "bundles": rec.bundles,
@@ -316,8 +321,7 @@ def plot(rec: GloveRecording, path: Path) -> None:
     ax.plot(t, [f.baseline_g for f in frames], ".", ms=3, color="tab:orange",
             label=f"linear baseline {a:.2f} g x sum(pressure) {b:+.0f} g (least squares over the weight set)")
     # both estimates learned lifts, whose grip carries the weight; these grasps carry none
-    ax.set_title("no lift in this session: the weight estimates have no load to read "
-                 "(both were fitted on lifts)", fontsize=9, loc="left")
+    ax.set_title(NO_LIFT, fontsize=9, loc="left")
     ax.set_ylabel("weight (g)")
     ax.set_xlabel("time (s)")
     shown = [w for f in frames for w in (f.weight_g, f.baseline_g)] + true_w

@@ -371,6 +371,7 @@ def markdown(summaries: list[dict]) -> str:
             f"{s['contact_frames']} with contact; {s['object_correct']}/{len(s['grasps'])} objects recognised; "
             f"stop reason {s['reason']} ({'as expected' if s['as_expected'] else 'NOT as expected'}); "
             f"bag {s['bag']}.", "",
+            f"Weight: {s['weight_note']}.", "",
             "| object in hand | /stag/object (last while held) | decisions | weight true (g) "
             "| /stag/weight median (g) | linear baseline (g) | hand pose |",
             "|---|---|---|---|---|---|---|",
