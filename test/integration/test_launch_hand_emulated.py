@@ -20,7 +20,10 @@ tactile_driver reads the hub's frames through pyserial. The tests run in order, 
 6. the paper's scenarios, each from its own world (the emulator's `world` command poses the hand as
    prisma-sim's scenario starts; the holds' pushes come through the `push` command once the goal
    runs, at the scenario's time from the goal's start): pinch and lateral grasps, horizontal,
-   vertical, disturbance and combined manipulation, each ending for the paper's reason.
+   vertical, disturbance and combined manipulation, each ending for the paper's reason;
+7. the ball a pinch held, let go by its stand, falls once GripperCommand opens the hand;
+   /tactile_driver/replace_object (the emulator's world through its control socket) puts it back,
+   refused while the pads touch it, and the next pinch Grasp SUCCEEDED force_reached again.
 Faults go in through the emulator's control socket from this process, with `prisma-hand-fault`'s own
 parser and request (`hand_fault`).
 
@@ -41,6 +44,7 @@ from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, emu
 from prisma_testing.ros_harness import (
     diagnostic_values,
     goal_outcome,
+    gripper_goal,
     hand_fault,
     require_ros,
     stamp_ns,
@@ -51,10 +55,12 @@ from prisma_testing.ros_harness import (
 require_ros()
 
 import launch_testing.actions  # noqa: E402
+from control_msgs.action import GripperCommand  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 from prisma_manipulation.scenarios import scenario_world  # noqa: E402
@@ -94,6 +100,7 @@ class TestHandEmulated(GraphTestCase):
         cls.diagnostics = ros.collect(DiagnosticArray, "/diagnostics")
         cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=None)
         cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
+        cls.gripper = ros.action_client(GripperCommand, "/prisma/gripper_cmd", wait_sec=None)
 
     def diagnostic(self, name_end: str, since_ns: int = 0) -> dict[str, str] | None:
         return diagnostic_values(self.diagnostics, name_end, since_ns)
@@ -308,6 +315,39 @@ class TestHandEmulated(GraphTestCase):
         self.assertAlmostEqual(forces["combined"]["thumb"], 1.0, delta=0.15)
         # a hold runs until its time is up: that is its success
         self.assertEqual(ends, {name: ("SUCCEEDED", EXPECTED_REASONS[name]) for name in HAND_SCENARIOS})
+
+    def test_7_the_ball_let_go_is_put_back_by_replace_object(self):
+        """As on the sim hand: the ball a pinch held, once its stand has let go of it, falls when the
+        hand opens (without replace_object the next pinch ended joint_limit at 0 N), and
+        /tactile_driver/replace_object puts it back between the open fingers (the emulator's world,
+        through its control socket), refused while a finger touches it."""
+        ros = self.ros
+
+        def open_hand() -> None:
+            opened = ros.result(ros.send_until_started(self.gripper, gripper_goal(0.0)), timeout_sec=30.0)
+            self.assertEqual(goal_outcome(opened), ("SUCCEEDED", "reached_goal"))
+
+        # after the scenarios `world` left the thumb as they ended (seen: flexion 5.3 rad, rotation
+        # 1.1 rad; the ball then met the pad's edge and a pinch could end joint_limit): opened, the
+        # pinch ball on its stand, and put back where the thumb pad meets it in its middle
+        open_hand()
+        fault("world", "pinch_ball")
+        self.assertTrue(ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request()).success)
+        self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
+        # the stand lets go 0.5 s after the pads hold the ball (its support fading with 0.2 s to 0.01 N/mm)
+        self.assertTrue(ros.spin_until(lambda: emulator_status()["object"]["support_n_per_mm"] < 0.02, 5.0),
+                        f"the stand still holds the ball: {emulator_status()['object']}")
+        held = ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
+        # the pads that touch it named (the thumb, and the index while it still presses)
+        self.assertFalse(held.success)
+        self.assertRegex(held.message, r"^the object cannot be re-placed while (index, )?thumb touch it: open the "
+                                       r"hand first \(GripperCommand position 0\)$")
+        open_hand()
+        replaced = ros.call(Trigger, "/tactile_driver/replace_object", Trigger.Request())
+        self.assertTrue(replaced.success, replaced.message)
+        self.assertTrue(replaced.message.startswith("pinch_ball re-placed at the thumb pad's middle"), replaced.message)
+        self.assertEqual(emulator_status()["object"], {"name": "pinch_ball", "support_n_per_mm": 1.0})
+        self.assertEqual(goal_outcome(self.run_goal(Grasp.Goal(grasp="pinch"))), ("SUCCEEDED", "force_reached"))
 
 
 @launch_testing.post_shutdown_test()
