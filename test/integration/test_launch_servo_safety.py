@@ -37,7 +37,7 @@ from pathlib import Path
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
-from prisma_testing.ros_harness import goal_outcome, require_ros, wait_until_homed
+from prisma_testing.ros_harness import goal_outcome, require_ros, stamped_after, stopped, wait_until_homed
 
 require_ros()
 
@@ -148,11 +148,7 @@ class TestServoSafety(GraphTestCase):
         self.assertEqual(goal_outcome(result), ("SUCCEEDED", "force_reached"), f"after not_ready {refused}")
         ros.spin_for(0.5)  # the motor driver's log lines of the goal's end
         self.assertEqual(ros.logs(name="motor_driver", contains="MoveMotors goal ended: canceled"), [])
-        # the hand open again for the tests after this one, short of the open end stops (test_1 finds a
-        # stall there only where the homing pulled)
-        opened = ros.result(ros.send_goal(self.move, self.move_goal(motors=list(MOTOR_NAMES), mode="position",
-                                                                     targets=[0.1, 0.1, 0.0])), timeout_sec=30.0)
-        self.assertEqual(opened.status, GoalStatus.STATUS_SUCCEEDED, opened.result.reason)
+        # the hand stays closed on the ball: test_2 poses it anew (the emulator's world)
 
     def test_1_homed_at_start_pulling_no_more_than_the_homing_current(self, proc_output):
         wait_until_homed(self.ros, self.diagnostics, MOTOR_NAMES, timeout_sec=90.0)
@@ -180,6 +176,8 @@ class TestServoSafety(GraphTestCase):
                                                        timeout_sec=30.0))
         self.assertEqual(manipulate.status, GoalStatus.STATUS_ABORTED)
         self.assertRegex(manipulate.result.stop_reason, NOT_HOMED)
+        # the object taken away (a Grasp on it would end force_reached on its first scan, moving nothing)
+        emulator("world", name="none")
         emulator("servo-place", motor="fingers", rad=7.0)
         emulator("power-cycle")
         self.assertLess(servos()["fingers"]["present_position_ticks"], 4096)  # the turn count is lost
@@ -242,10 +240,15 @@ class TestServoSafety(GraphTestCase):
             self.assert_nothing_moves(0.5)
         finally:
             os.kill(pid, signal.SIGCONT)
+            thawed_ns = self.ros.now_ns()
         self.assertTrue(self.ros.spin_until(rotation.done, 5.0))
         self.assertEqual(rotation.result().status, GoalStatus.STATUS_ABORTED)
         self.assertIn("bus watchdog", rotation.result().result.reason)
         self.assert_nothing_moves(1.0)  # after SIGCONT, no servo moves until a new goal
+        # nor does the driver report motion: its first /joint_states after the thaw already stand still
+        after = stamped_after(self.joints, thawed_ns)
+        self.assertGreater(len(after), 10)
+        self.assertEqual([m for m in after if not stopped(m)], [], "moving after the thaw")
         self.assertEqual([s["bus_watchdog"] for s in servos().values()], [5, 5, 5])  # re-armed
 
     def test_5_motor_driver_killed(self, proc_info):
