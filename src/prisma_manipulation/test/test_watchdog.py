@@ -133,3 +133,33 @@ def test_watchdog_freshness_for_admission_has_no_grace():
     w.sample("taxels/thumb", 15 * MS, 120 * MS)  # arrives now, 105 ms old
     assert w.fresh(["taxels/thumb"], 120 * MS) == "taxels/thumb 105 ms older than /joint_states"
     assert w.check(["taxels/thumb"], 120 * MS) is None  # admission only: nothing is armed
+
+
+def test_a_refused_sample_is_named_until_one_is_accepted():
+    w = SensorWatchdog(100 * MS)
+    w.reference(0, 0)
+    w.sample("taxels/thumb", 0, 0)
+    why = "taxels/thumb stamped 0: publish header.stamp (ros2 topic pub: header: auto)"
+    w.refuse("taxels/thumb", why, 10 * MS)
+    assert w.fresh(["taxels/thumb"], 20 * MS) == why
+    w.arm(20 * MS)
+    assert w.check(["taxels/thumb"], 30 * MS) == why
+    w.sample("taxels/thumb", 40 * MS, 40 * MS)
+    w.reference(40 * MS, 40 * MS)
+    assert w.check(["taxels/thumb"], 50 * MS) is None and w.fresh(["taxels/thumb"], 50 * MS) is None
+    w.refuse("/joint_states", "/joint_states stamped 0: publish header.stamp", 60 * MS)
+    assert w.check(["taxels/thumb"], 70 * MS) == "/joint_states stamped 0: publish header.stamp"
+
+
+def test_an_input_is_asked_before_admission_only_once_it_came():
+    w = SensorWatchdog(100 * MS)
+    w.reference(1000 * MS, 1000 * MS)
+    assert w.input_fresh("teleop_target", 150 * MS, 1000 * MS, "targets") is None  # not come: the goal waits
+    w.sample("teleop_target", 990 * MS, 995 * MS)
+    assert w.input_fresh("teleop_target", 150 * MS, 1000 * MS, "targets") is None
+    w.sample("teleop_target", 800 * MS, 1005 * MS)
+    assert w.input_fresh("teleop_target", 150 * MS, 1010 * MS, "targets") == "targets 200 ms older than /joint_states"
+    assert w.input_fresh("teleop_target", 150 * MS, 1200 * MS, "targets") is None  # silent since: it waits again
+    w.refuse("teleop_target", "targets stamped 0: publish header.stamp", 1300 * MS)
+    assert w.input_fresh("teleop_target", 150 * MS, 1400 * MS, "targets") == "targets stamped 0: publish header.stamp"
+    assert w.input_fresh("teleop_target", 150 * MS, 1500 * MS, "targets") is None  # long ago
