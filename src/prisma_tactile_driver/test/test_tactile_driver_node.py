@@ -328,14 +328,15 @@ def test_emulated_hand_forwards_replace_object_to_the_emulators_world(ros, node_
 
     path = tmp_path / "control.sock"
     put_back = "pinch_ball re-placed at the thumb pad's middle (thumb rotation +0.000 rad)"
-    touched = "the object cannot be re-placed while index, thumb touch it: open the hand first (GripperCommand position 0)"
+    touched = ("the object cannot be re-placed while index, thumb touch it: open the hand first "
+               "(GripperCommand position 0)")
     ros.node(node_cls, namespace="left", params={"emulator_control": str(path)})
     service = "/left/tactile_driver/replace_object"
 
     answer = ros.call(Trigger, service, Trigger.Request())
-    assert (answer.success, answer.message) == (False, f"no emulated hand at {path} (No such file or directory): is the "
-                                                       f"emulator this hand was launched with running? "
-                                                       f"(emulator_control {path})")
+    nobody = (f"no emulated hand at {path} (No such file or directory): is the emulator this hand was launched "
+              f"with running? (emulator_control {path})")
+    assert (answer.success, answer.message) == (False, nobody)
     fake = FakeEmulatorControl(path, [{"ok": True, "message": put_back}, {"ok": False, "error": touched}, None])
     try:
         answer = ros.call(Trigger, service, Trigger.Request())
