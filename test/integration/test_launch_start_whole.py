@@ -3,13 +3,16 @@ of hand.launch.py with a node that exits at start (`sim_object:=cube`: tactile_d
 `model_bundle:=/nonexistent`: force_estimator), with an argument no launch file declares
 (`simulation:=false`), and a second hand.launch.py beside a running one. Each exits non-zero
 within 30 s, its last line names the cause, and no process it started is left; the running hand
-(started with `hardware:=sim`, the words teleop.launch.py uses) keeps every node, and stops on
-ctrl-C with exit 0 as before. A value outside an argument's words is refused with them
-(teleop.launch.py `hardware:=robot`). The bad launches run side by side in namespaces of their
-own, to keep the file short.
+keeps every node, and stops on ctrl-C with exit 0 as before. A value outside an argument's words is
+refused with them (teleop.launch.py `hardware:=robot`); `hardware:=sim` (the words teleop.launch.py
+uses) is the sim hand (the cube is refused by the sim world). The bad launches run side by side in
+namespaces of their own, to keep the file short.
 
-Also here: prisma-hand-emulator's first line is the one hand.launch.py starts the drivers on
-(launch_nodes.EMULATOR_READY).
+The running hand is the emulated one, whose normal start logged `cannot open serial port .../hub`
+(the tactile driver started before the emulator made its devices) and `bus watchdog fired` for all
+three servos (armed at the motor driver's construction, fed only from its first tick): neither may
+appear before it is up. prisma-hand-emulator's first line is the one hand.launch.py starts the
+drivers on (launch_nodes.EMULATOR_READY).
 """
 from __future__ import annotations
 
@@ -80,10 +83,10 @@ def graph_nodes(ros) -> list[str]:
     return [f"{ns.rstrip('/')}/{name}" for name, ns in ros.probe.get_node_names_and_namespaces()]
 
 
-def test_a_hand_starts_whole_or_not_at_all(ros):
+def test_a_hand_starts_whole_or_not_at_all(ros, tmp_path):
     # side by side, in namespaces of their own; the running hand after them (three hands starting at
     # once on a 2-core machine took 24 s of the 30 to refuse)
-    cube = Refused("sim_object:=cube", "namespace:=cube")
+    cube = Refused("hardware:=sim", "sim_object:=cube", "namespace:=cube")
     bundle = Refused("model_bundle:=/nonexistent", "namespace:=bundle")
     misspelt = Refused("simulation:=false")
     outside = Refused("hardware:=robot", launch_file="teleop.launch.py")
@@ -102,15 +105,18 @@ def test_a_hand_starts_whole_or_not_at_all(ros):
         for refused in (cube, bundle, misspelt, outside):
             refused.proc.kill()  # only one that failed its check still runs
 
-    first = ros2_launch("prisma_bringup", "hand.launch.py", "hardware:=sim")
+    first = ros2_launch("prisma_bringup", "hand.launch.py", "hardware:=emulated",
+                        f"emulator_dir:={tmp_path / 'emulator'}")
     try:
         assert ros.spin_until(lambda: set(HAND_NODES) <= set(graph_nodes(ros)), 90.0), \
             f"the first hand never came up: {graph_nodes(ros)}\n{first.output[-4000:]}"
-        # hardware:=sim: the sim hand
-        assert first.wait_for_output("] [motor_driver]: sim motors", 30.0), first.output
-        assert first.wait_for_output("] [tactile_driver]: sim backend", 30.0), first.output
+        assert first.wait_for_output("] [motor_driver]: dynamixel motors", 30.0), first.output
+        start = first.output
+        assert "cannot open" not in start and "bus watchdog fired" not in start, start
+        ready = start.index(EMULATOR_READY)
+        assert ready < start.index("[tactile_driver-") and ready < start.index("[motor_driver-"), start
         first_pids = started_pids(first.output)
-        assert len(first_pids) == len(HAND_NODES), first.output
+        assert len(first_pids) == len(HAND_NODES) + 1, first.output  # and the emulator
 
         second = Refused()
         second.check("hand.launch.py: a hand already runs in the root namespace (/tactile_driver, /motor_driver, "
