@@ -9,8 +9,9 @@ results, cancel requests, watchdog ticks) as plain data and carries out the retu
 - Ignored: an input set aside (a /joint_states message without the hand's joints), for the log;
 - StampNews (prisma_common.sample_stamps): a stream's samples refused by their stamp (stamped 0,
   ahead of the node's clock, older than max_stamp_age on arrival), or accepted again: once per
-  episode, for the log. A refused sample moves no time base and no goal steps on it; a goal is not
-  admitted while a stream it needs is refused, and a running one ends with the refusal.
+  episode, for the log (and `stamp_status` on /diagnostics while it lasts). A refused sample moves no
+  time base and no goal steps on it; a goal is not admitted while a stream it needs is refused, and
+  a running one ends with the refusal.
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
 What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py, gripper_goal.py,
@@ -39,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from prisma_common.diagnostics import OK, WARN, DiagnosticStatusData
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
 from prisma_common.sample_stamps import StampGate
 
@@ -69,6 +71,7 @@ from .watchdog import JOINT_STATES, SensorWatchdog
 # The goal kinds the node serves, one action server each: a new kind is its module and one entry here.
 GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL, TELEOP_GOAL)
 GRASP, MANIPULATE, GRIPPER = GRASP_GOAL.name, MANIPULATE_GOAL.name, GRIPPER_GOAL.name
+STAMP_STATUS = "manipulation: stamps"  # its /diagnostics status of the streams' stamps
 
 __all__ = ["GOAL_KINDS", "MOTIONS", "MOVE_LEASE_S", "MOVE_REFRESH_S", "Feedback", "Finished", "GraspRequest",
            "GraspStatus", "GripperRequest", "GripperStatus", "ManipulateRequest", "ManipulateStatus", "MoveLease",
@@ -264,6 +267,20 @@ class ManipulationCore:
         if not accepted:
             self.watchdog.refuse(stream, gate.refused or "", receipt_ns)
         return accepted, [news] if news is not None else []
+
+    def stamp_status(self) -> DiagnosticStatusData | None:
+        """`manipulation: stamps` for /diagnostics once a sample was refused by its stamp (None before:
+        a hand whose stamps were always good has nothing to say): WARN naming each stream whose latest
+        sample was refused (the line says the fix), else OK; per stream its judgement."""
+        total = sum(g.refused_total for g in self._stamp_gates.values())
+        if total == 0:
+            return None
+        refused = [g.refused for g in self._stamp_gates.values() if g.refused is not None]
+        values = {g.stream: g.refused or "accepted" for g in self._stamp_gates.values()}
+        values["refused_samples"] = str(total)
+        if refused:
+            return DiagnosticStatusData(STAMP_STATUS, WARN, f"refused: {'; '.join(refused)}", values=values)
+        return DiagnosticStatusData(STAMP_STATUS, OK, "every stream's stamps accepted", values=values)
 
     def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray,
                   receipt_ns: int) -> tuple[ContactEvaluation, list]:

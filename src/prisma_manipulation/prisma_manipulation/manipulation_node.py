@@ -324,7 +324,8 @@ class ManipulationNode(Node):
         return logged
 
     def _publish_diagnostics(self) -> None:
-        statuses = in_namespace([self.goal_ends.status()], self.get_namespace())
+        stamps = self.core.stamp_status()  # once a stream was refused by its stamps
+        statuses = in_namespace([self.goal_ends.status()] + ([stamps] if stamps else []), self.get_namespace())
         self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), statuses))
 
     def destroy_node(self) -> None:

@@ -254,4 +254,21 @@ def test_joint_states_stamped_0_are_refused_and_said_once():
     assert [n.text.split(":")[0] for n in news] == ["/joint_states stamped 0"]
     assert core.joints is None
     assert core.on_joints(JointSample(0, {"fingers": 1.0, "thumb_flexion": 0.5, "thumb_rotation": 0.0}), t + MS) == []
-    assert str(core.accept(GraspRequest("pinch"), True, t + MS)).startswith("not_ready: /joint_states stamped 0: publish")
+    refusal = str(core.accept(GraspRequest("pinch"), True, t + MS))
+    assert refusal.startswith("not_ready: /joint_states stamped 0: publish")
+
+
+def test_the_stamps_status_names_a_refused_stream_while_it_lasts():
+    core = ManipulationCore(ManipulationConfig())
+    scan(core, T0_MS)
+    assert core.stamp_status() is None  # nothing refused yet: no status
+    target_at(core, T0_MS + 5, 0)
+    status = core.stamp_status()
+    assert status is not None and (status.name, status.level, status.message) == (
+        "manipulation: stamps", 1,
+        "refused: prisma/teleop/motor_targets stamped 0: publish header.stamp (ros2 topic pub: header: auto)")
+    assert status.values["/joint_states"] == "accepted"
+    target_at(core, T0_MS + 10, (T0_MS + 9) * MS)
+    status = core.stamp_status()
+    assert status is not None and (status.level, status.message) == (0, "every stream's stamps accepted")
+    assert status.values["refused_samples"] == "1"
