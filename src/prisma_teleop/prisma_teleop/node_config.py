@@ -33,12 +33,16 @@ class TeleopConfig(Params):
                                              "~/engage)")
     retry_period: float = parameter(0.5, "wait before sending a goal again that the hand refused for now "
                                          "(not_ready, busy)", unit="s", bounds=(0.0, 10.0), open_low=True)
-    max_input_age: float = parameter(0.5, "a glove sample (or STAG pose estimate) stamped longer than this before it "
+    max_input_age: float = parameter(0.5, "input joint_states: a glove sample stamped longer than this before it "
                                           "arrives is refused: nothing moves on it", unit="s", bounds=(0.0, 60.0),
                                      open_low=True, live=True)
-    max_input_ahead: float = parameter(0.5, "a glove sample stamped further than this ahead of this node's clock is "
-                                            "refused (the glove's clock is not synchronised)", unit="s",
-                                       bounds=(0.0, 60.0), open_low=True, live=True)
+    max_pose_age: float = parameter(2.0, "input stag: a pose estimate stamped (with its glove frame) longer than this "
+                                         "before it arrives is refused (the estimate takes glove_perception's "
+                                         "inference, slower while it warms up)", unit="s", bounds=(0.0, 60.0),
+                                    open_low=True, live=True)
+    max_input_ahead: float = parameter(0.5, "a glove sample or pose estimate stamped further than this ahead of this "
+                                            "node's clock is refused (the glove's clock is not synchronised)",
+                                       unit="s", bounds=(0.0, 60.0), open_low=True, live=True)
     # --- input joint_states
     finger_flexion_joints: list = parameter(list(DEFAULT_JOINTS.finger_flexion),
                                             "glove joints whose mean flexion closes the fingers motor",
@@ -132,7 +136,9 @@ class TeleopConfig(Params):
                             self.deadband, self.filter_reset_gap)
 
     def stamp_limits(self) -> StampLimits:
-        return StampLimits.of_seconds(self.max_input_age, self.max_input_ahead)
+        """How old (or ahead) an input sample may be on arrival: a glove sample's or a pose estimate's."""
+        age = self.max_input_age if self.input == "joint_states" else self.max_pose_age
+        return StampLimits.of_seconds(age, self.max_input_ahead)
 
     def pose_mapping(self) -> PoseMapping:
         return PoseMapping(self.pose_frames, self.pose_confidence, self.empty_pressure, self.pressure_low,
