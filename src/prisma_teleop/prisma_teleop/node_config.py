@@ -36,10 +36,10 @@ class TeleopConfig(Params):
     max_input_age: float = parameter(0.5, "input joint_states: a glove sample stamped longer than this before it "
                                           "arrives is refused: nothing moves on it", unit="s", bounds=(0.0, 60.0),
                                      open_low=True, live=True)
-    max_pose_age: float = parameter(2.0, "input stag: a pose estimate stamped (with its glove frame) longer than this "
-                                         "before it arrives is refused (the estimate takes glove_perception's "
-                                         "inference, slower while it warms up)", unit="s", bounds=(0.0, 60.0),
-                                    open_low=True, live=True)
+    max_pose_age: float = parameter(5.0, "input stag: a pose estimate stamped (with its glove frame) longer than this "
+                                         "before it arrives is refused (the estimate waits for glove_perception's "
+                                         "inference: 0.7 s while it warms up, 3 s seen on a loaded machine)",
+                                    unit="s", bounds=(0.0, 60.0), open_low=True, live=True)
     max_input_ahead: float = parameter(0.5, "a glove sample or pose estimate stamped further than this ahead of this "
                                             "node's clock is refused (the glove's clock is not synchronised)",
                                        unit="s", bounds=(0.0, 60.0), open_low=True, live=True)
