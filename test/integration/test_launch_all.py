@@ -34,7 +34,7 @@ TOPICS = ({f"/prisma/{f}/taxels": TaxelArray for f in FINGERS}
           | {f"/prisma/{f}/contact": ContactState for f in FINGERS}
           | {"/joint_states": JointState, "/stag/frame": GloveFrame, "/stag/image": Image,
              "/stag/hand_pose": ObjectEstimate, "/stag/weight": WeightEstimate, "/stag/object": ObjectEstimate})
-DRIVERS = {"tactile_driver", "force_estimator", "motor_driver", "glove_driver"}
+DRIVERS = {"tactile_driver", "force_estimator", "motor_driver", "manipulation", "glove_driver"}
 
 
 @pytest.mark.launch_test

@@ -79,6 +79,8 @@ DIAGNOSTIC_STATUSES = {
     "force_estimator": {f"force_estimator: {f}" for f in FINGERS},
     "motor_driver": {"motor_driver: bus"} | {f"motor_driver: {m}" for m in MOTORS},
 }
+# and the manipulation node's: its goals' last end, at each end and every second (no goal here: OK)
+GOAL_STATUSES = {"manipulation": {"manipulation: goals"}}
 TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
 
 
@@ -222,7 +224,8 @@ class TestHandSim(GraphTestCase):
         for msg in self.in_window(self.diagnostics):
             for status in msg.status:
                 seen.setdefault(driver_of(msg), {})[status.name] = status.level
-        self.assertEqual({driver: set(statuses) for driver, statuses in seen.items()}, DIAGNOSTIC_STATUSES)
+        self.assertEqual({driver: set(statuses) for driver, statuses in seen.items()},
+                         DIAGNOSTIC_STATUSES | GOAL_STATUSES)
         not_ok = {name: level for statuses in seen.values() for name, level in statuses.items()
                   if level != DiagnosticStatus.OK}
         self.assertEqual(not_ok, {})
