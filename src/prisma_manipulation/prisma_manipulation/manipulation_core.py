@@ -360,12 +360,19 @@ class ManipulationCore:
         """Result of our current MoveMotors goal. The driver refusing it ends the goal with the
         driver's refusal as its reason, code and why (`not_homed: fingers (id 1) not homed ...`,
         `not_ready: homing (...)`): the client learns what to do, as if it had sent the MoveMotors
-        goal itself; a motor fault ends it with the driver's `motor_fault: <what failed>`. A timeout
-        (the refresh came too late) sends the command again; at a joint limit the driver stopped the
-        motors, so the command is no longer refreshed (the controller ends on the position it sees)."""
+        goal itself; a motor fault ends it with the driver's `motor_fault: <what failed>`. Only the
+        driver's `invalid` is not the client's to act on: the client's goal was checked here, the
+        motor command this node made of it was late on its way (its lease over on arrival: this node
+        or the link held up) or does not fit the driver (its limits configured apart from this
+        node's), so the goal ends `not_ready` with the driver's words. A timeout (the refresh came
+        too late) sends the command again; at a joint limit the driver stopped the motors, so the
+        command is no longer refreshed (the controller ends on the position it sees)."""
         if self.controller is None:
             return []
-        if refusal_code(reason) is not None or reason.startswith(MOTOR_FAULT):
+        code = refusal_code(reason)
+        if code == INVALID:
+            return self._abort(now_ns, f"{NOT_READY}: the motor driver refused this node's motor command ({reason})")
+        if code is not None or reason.startswith(MOTOR_FAULT):
             return self._abort(now_ns, reason)
         if reason == TIMEOUT:
             renewed = self.lease.renew(now_ns, self._data_ns(now_ns))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal
+from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
 from prisma_common.messages import make_header
 from prisma_common.typestore import get_typestore, types
 from prisma_hand_sim.pad_model import PadParams
@@ -299,6 +299,18 @@ def test_a_move_goal_the_driver_refuses_ends_every_kind_with_the_drivers_refusal
     if kind is not GRIPPER_GOAL:  # GripperCommand's result has no text (the node's log and /diagnostics say it)
         result = roundtrip(kind.result_to_msg(types, done))
         assert getattr(result, "stop_reason", getattr(result, "reason", None)) == reason
+
+
+def test_a_motor_command_the_driver_finds_invalid_ends_the_goal_not_ready_with_the_drivers_words():
+    """The client's goal was checked here: the driver's invalid (the command late on its way) is not
+    the client's to act on by changing its goal, but to send it again."""
+    core = core_at_rest()
+    core.start(GraspRequest("pinch"), 0)
+    late = ("invalid: its timeout 0.3 s ended before it arrived (sent 350 ms ago by its stamp): held up on the way "
+            "(a link that dropped?), or the client's clock is behind this one")
+    done = core.on_move_result(late, 5 * MS)[-1]
+    assert done.reason == f"not_ready: the motor driver refused this node's motor command ({late})"
+    assert refusal_code(done.reason) == NOT_READY and not core.busy
 
 
 def test_a_motor_fault_ends_the_goal_with_the_drivers_words_and_a_bare_one_stays_bare():
