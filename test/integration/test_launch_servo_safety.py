@@ -13,7 +13,8 @@ one launch:
    current (the emulator's log), never more than its Current Limit;
 2. a power cycle with the fingers closed past one turn: a MoveMotors close goal is refused
    `not_homed`, and a Grasp, a Teleoperate and a Manipulate end with the motor driver's `not_homed:
-   ... home first` as their result's reason, nothing moved; the HomeMotors action finds the
+   ... home first` as their result's reason (GripperCommand: /diagnostics for each goal, the log once
+   for three), nothing moved; the HomeMotors action finds the
    fingers' zero 7 rad away, the open hand then reads 0 +- 0.05 rad (on /joint_states and in the
    servo), and a pinch grasp ends force_reached;
 3. the motor bus cut mid-goal (every servo off the bus): each servo stops itself within 0.3 s of the
@@ -37,12 +38,20 @@ from pathlib import Path
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
-from prisma_testing.ros_harness import goal_outcome, require_ros, stamped_after, stopped, wait_until_homed
+from prisma_testing.ros_harness import (
+    goal_outcome,
+    gripper_goal,
+    require_ros,
+    stamped_after,
+    stopped,
+    wait_until_homed,
+)
 
 require_ros()
 
 import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
+from control_msgs.action import GripperCommand  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, HomeMotors, Manipulate, MoveMotors, Teleoperate  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -93,6 +102,7 @@ class TestServoSafety(GraphTestCase):
         cls.home = ros.action_client(HomeMotors, "/prisma/motors/home", wait_sec=None)
         cls.manipulate = ros.action_client(Manipulate, "/prisma/manipulate", wait_sec=None)
         cls.teleoperate = ros.action_client(Teleoperate, "/prisma/teleoperate", wait_sec=None)
+        cls.gripper = ros.action_client(GripperCommand, "/prisma/gripper_cmd", wait_sec=None)
 
     def move_goal(self, **fields) -> MoveMotors.Goal:
         goal = MoveMotors.Goal(**fields)
@@ -195,6 +205,13 @@ class TestServoSafety(GraphTestCase):
             teleop = ros.result(ros.send_until_started(self.teleoperate, Teleoperate.Goal(), timeout_sec=30.0))
         self.assertEqual(teleop.status, GoalStatus.STATUS_ABORTED)
         self.assertRegex(teleop.result.reason, NOT_HOMED)
+        # GripperCommand's result has no text: /diagnostics says why for each goal, the log once for them all
+        for _ in range(3):
+            handle = ros.send_until_started(self.gripper, gripper_goal(3.0), timeout_sec=30.0)
+            self.assertEqual(ros.result(handle).status, GoalStatus.STATUS_ABORTED)
+            self.assertRegex(ros.goal_end_reason(handle) or "no manipulation: goals status for it", NOT_HOMED)
+        ros.spin_for(0.5)  # the log's lines
+        self.assertEqual(len(ros.logs(name="manipulation", contains="gripper goal ended: not_homed: fingers")), 1)
         self.assertAlmostEqual(servos()["fingers"]["position_rad"], 7.0, delta=0.05)  # nothing moved
 
         homing = ros.result(ros.send_goal(self.home, HomeMotors.Goal()), timeout_sec=60.0)
