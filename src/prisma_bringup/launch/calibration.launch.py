@@ -48,6 +48,6 @@ def generate_launch_description():
     record = required(ExecuteProcess(
         cmd=["ros2", "bag", "record", "-s", "mcap", "-o", LaunchConfiguration("bag"),
              ["/prisma/", finger, "/taxels"], LaunchConfiguration("reference_topic"), "/diagnostics"],
-        output="screen",
+        name="bag_record", output="screen",  # named in the launch's last line should it fail
     ))
     return checked_launch_description(declared_arguments, [tactile_driver, record])
