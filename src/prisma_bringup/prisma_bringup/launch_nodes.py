@@ -44,15 +44,13 @@ from prisma_bringup.launch_refusals import (
     unknown_arguments,
 )
 from prisma_common.scheduling import NICE_ENV, RT_PRIORITY_ENV
+from prisma_node_wiring.single_instance import DISCOVERY_WAIT_S, POLL_S
 
 # the actions whose process exiting on its own stops the launch (required())
 _REQUIRED: weakref.WeakSet[Action] = weakref.WeakSet()
 # one watch per running launch (its context): the first launch file to run its checks is the top one
 _WATCHES: weakref.WeakKeyDictionary[LaunchContext, _LaunchWatch] = weakref.WeakKeyDictionary()
 OUTPUT_LINES_KEPT = 50  # per process, for the reason it gave last
-# how long hand.launch.py looks for a hand already in the graph: as long as a node looks for another
-# of its kind (prisma_node_wiring.single_instance, which says why)
-SECOND_HAND_WAIT_S = 0.5
 # prisma-hand-emulator's first line, printed once its devices exist (emulator_cli.main):
 # hand.launch.py starts the drivers on it (test_launch_start_whole.py reads it from the emulator)
 EMULATOR_READY = "emulated hand ("
@@ -184,7 +182,8 @@ def refuse_a_second_hand(namespace: Any, node_names: Callable[[LaunchContext], l
             node = rclpy.create_node("prisma_launch_second_hand_check", context=ros,
                                      enable_rosout=False, start_parameter_services=False)
             try:
-                deadline = time.monotonic() + SECOND_HAND_WAIT_S
+                # as long as a node looks for another of its kind (single_instance says why)
+                deadline = time.monotonic() + DISCOVERY_WAIT_S
                 while True:
                     graph = [f"{n_ns.rstrip('/')}/{n}" for n, n_ns in node.get_node_names_and_namespaces()]
                     running = nodes_already_running(graph, ns, names)
@@ -193,7 +192,7 @@ def refuse_a_second_hand(namespace: Any, node_names: Callable[[LaunchContext], l
                         raise LaunchRefused(second_hand_refusal(launch_file, ns, running))
                     if time.monotonic() >= deadline:
                         return
-                    time.sleep(0.02)
+                    time.sleep(POLL_S)
             finally:
                 node.destroy_node()
         finally:
