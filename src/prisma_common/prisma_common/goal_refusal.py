@@ -2,12 +2,14 @@
 
 Every action server of the hand accepts each goal it is sent and, when it cannot carry it out,
 aborts it at once with `<code>: <why>` in the result's text field (Grasp `reason`, Manipulate
-`stop_reason`, MoveMotors `reason`; GripperCommand has no text field: the node logs it). A rejected
+`stop_reason`, MoveMotors `reason`; GripperCommand has no text field: the manipulation node logs
+it and puts it on /diagnostics). A manipulation goal whose MoveMotors goal the motor driver refuses
+ends with the driver's refusal as its reason. A rejected
 goal would tell its client only "Goal was rejected"; an aborted one shows the reason in
 `ros2 action send_goal`'s output. The code says what the client can do about it:
 - `invalid`: the goal can never run as sent (a value beyond a limit, an unknown name): change it;
 - `not_ready`: the hand cannot run it yet (a stream it needs missing or stale, the motor driver or
-  its bus down): send it again later;
+  its bus down, the motors homing): send it again later;
 - `busy`: another goal runs on the same node: wait for its end or cancel it;
 - `not_homed`: a motor's zero is not known since its servo powered up (the motor driver): home the
   motors (the HomeMotors action, or `home:=true` at launch), then send it again.
