@@ -132,6 +132,22 @@ def udev_installed(rules: Iterable[str] = UDEV_RULES, dirs: Iterable[str] = UDEV
 
 
 
+MIN_COUNTED_NS = 900_000_000  # two reports of the 1 Hz /diagnostics, about a second apart
+
+
+def counted_rate_hz(reports: Sequence[tuple[int, int]]) -> float | None:
+    """A driver's publish rate from the first and the latest of its reports (stamp ns, its sample
+    counter); None with fewer than two a second apart, or a counter that went backward: two
+    drivers report under one status name (a second hand's), and their counters mixed gave
+    -10026 Hz (the fingertip line names the two publishers instead)."""
+    if len(reports) < 2 or reports[-1][0] - reports[0][0] < MIN_COUNTED_NS:
+        return None
+    (t0, n0), (t1, n1) = reports[0], reports[-1]
+    if n1 < n0:
+        return None
+    return (n1 - n0) / ((t1 - t0) * 1e-9)
+
+
 # ---- lookups ---------------------------------------------------------------------------------
 def node_path(namespace: str, node: str) -> str:
     ns = namespace.strip("/")

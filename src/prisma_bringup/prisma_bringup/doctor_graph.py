@@ -27,6 +27,7 @@ from .doctor_facts import (
     SAMPLE_SECONDS,
     HandFacts,
     TaxelSample,
+    counted_rate_hz,
     node_path,
     port_facts,
     rt_capable,
@@ -39,7 +40,6 @@ TACTILE_PARAMS = ("backend", "port", "baud", "fingers", "rate_hz", "vref", "i2c_
 FORCE_PARAMS = ("fingers", "model_bundle")
 DISCOVERY_SETTLE_S = 0.5  # after every hand node is seen: a duplicate is discovered about as soon
 TACTILE_STATUS = "tactile_driver"  # its per-finger statuses are "tactile_driver: <finger>"
-MIN_COUNTED_NS = 900_000_000  # two reports of the 1 Hz /diagnostics, about a second apart
 
 
 class Gatherer:
@@ -94,13 +94,7 @@ class Gatherer:
 
     def published_hz(self, finger: str) -> float | None:
         """The driver's publish rate for `finger` from its sample counter over the reports seen."""
-        counts = self.counted.get(finger, [])
-        if len(counts) < 2 or counts[1][0] - counts[0][0] < MIN_COUNTED_NS:
-            return None
-        (t0, n0), (t1, n1) = counts
-        if n1 < n0:
-            return None  # two drivers' counters mixed on one status name (the fingertip line names them)
-        return (n1 - n0) / ((t1 - t0) * 1e-9)
+        return counted_rate_hz(self.counted.get(finger, []))
 
     def left(self) -> float:
         return max(0.0, self.deadline - time.monotonic())

@@ -8,7 +8,7 @@ import os
 import pytest
 
 from prisma_bringup.doctor_checks import run_checks
-from prisma_bringup.doctor_facts import HandFacts, PortFacts, TaxelSample, port_facts
+from prisma_bringup.doctor_facts import HandFacts, PortFacts, TaxelSample, counted_rate_hz, port_facts
 from prisma_bringup.doctor_result import CheckResult, exit_status
 from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 from prisma_common.hand import FINGERS, MOTOR_NAMES
@@ -326,3 +326,13 @@ def test_fingertip_rate_is_the_drivers_own_when_its_counters_came():
     behind = TaxelSample(100, 1.0, 0.4, 0.5, published_hz=31.0)
     bad = failing(healthy(taxels={**healthy().taxels, "ring": behind}))
     assert bad["fingertip ring"].found.startswith("31 Hz on /prisma/ring/taxels, expected ~100 Hz")
+
+
+def test_the_drivers_rate_from_its_counters_and_none_from_two_drivers_counters():
+    second = 1_000_000_000
+    assert counted_rate_hz([(5 * second, 1000), (7 * second, 1200)]) == pytest.approx(100.0)
+    assert counted_rate_hz([(5 * second, 1000)]) is None  # one report
+    assert counted_rate_hz([(5 * second, 1000), (5 * second + second // 2, 1050)]) is None  # too close
+    # a second hand's tactile_driver reports under the same name: its counter, far behind the
+    # first's, came latest (the doctor printed -10026 Hz and blamed the udev rule)
+    assert counted_rate_hz([(5 * second, 20_552), (7 * second, 500)]) is None
