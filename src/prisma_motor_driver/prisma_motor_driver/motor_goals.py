@@ -286,12 +286,7 @@ class MoveGoalRunner:
         goal = self.goal
         if goal is None or goal.timeout_s <= 0 or now_ns < self.deadline_ns:
             return
-        try:
-            healthy = [m for m in goal.motors if m not in self.faults]
-            if healthy:
-                self.bus.stop(healthy)
-        except BusError as exc:
-            self.fault_log.append(f"stop failed: {exc}")
+        self._stop_healthy(goal)
 
     def tick(self, states: dict[str, MotorState], stamp_ns: int) -> tuple[MoveFeedback | None, MoveResult | None]:
         """Check faults, limits, completion and timeout against fresh states."""
@@ -347,16 +342,21 @@ class MoveGoalRunner:
                 del self.faults[name]
         return "; ".join(reasons) or None
 
+    def _stop_healthy(self, goal: MoveGoal) -> None:
+        """Stop the goal's motors that have no fault latched (a faulted one has its torque off); a
+        failing stop is logged, not raised: the goal's end matters more."""
+        try:
+            healthy = [m for m in goal.motors if m not in self.faults]
+            if healthy:
+                self.bus.stop(healthy)
+        except BusError as exc:
+            self.fault_log.append(f"stop failed: {exc}")
+
     def _finish(self, success: bool, reason: str, stop: bool = True) -> MoveResult:
         goal = self.goal
         assert goal is not None
         if stop:
-            try:
-                healthy = [m for m in goal.motors if m not in self.faults]
-                if healthy:
-                    self.bus.stop(healthy)
-            except BusError as exc:
-                self.fault_log.append(f"stop failed: {exc}")
+            self._stop_healthy(goal)
         final = [self._last_states[m].position_rad if m in self._last_states else float("nan") for m in goal.motors]
         self.goal = None
         # a velocity goal that reached its joint limit before its timeout is still its controller's
