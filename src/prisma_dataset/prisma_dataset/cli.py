@@ -1,0 +1,129 @@
+"""prisma-dataset: bags of demonstrations as a LeRobot v3.0 dataset (export), and a look at one (show).
+
+    prisma-dataset export BAG... --out DIR --whole-bag [--fps 50] [--task TEXT] [--action targets|positions] [--append]
+    prisma-dataset show DIR [--episode N] [--plots DIR | --no-plots]
+
+docs/datasets.md: the features, the sampling rule, the invariants and the tests that check them.
+Exit status: 0; 1 when `show` finds a broken invariant; 2 for a mistake in the command or its
+input (one line, no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from prisma_common.cli_args import (
+    ArgumentParser,
+    UserError,
+    check_replaceable_dir,
+    command,
+    existing_dir,
+    existing_path,
+    non_negative_int,
+    output_dir,
+    positive_int,
+)
+
+PROG = "prisma-dataset"
+DEFAULT_PLOTS = Path("prisma_dataset_plots")
+# what a dataset directory written by export holds: an export may replace only that
+DATASET_ENTRIES = ("meta", "data")
+
+
+def _task(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty task; describe what the demonstrations do, e.g. "
+                                         "'pinch the ball'")
+    return text
+
+
+def parser() -> ArgumentParser:
+    top = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    commands = top.add_subparsers(dest="command", required=True, metavar="{export,show}")
+    export = commands.add_parser("export", help="bags -> one LeRobot v3.0 dataset",
+                                 description="Export bags as one LeRobot v3.0 dataset, one episode per bag "
+                                             "(--whole-bag); the dataset is written whole or not at all.")
+    export.add_argument("bags", nargs="+", type=existing_path, metavar="BAG",
+                        help="recorded bags (directories or .mcap files)")
+    export.add_argument("--out", type=output_dir, required=True, metavar="DIR",
+                        help="the dataset directory (new, empty, or with --append an existing dataset)")
+    export.add_argument("--fps", type=positive_int, default=50, help="frames per second of the grid (default 50)")
+    export.add_argument("--whole-bag", action="store_true",
+                        help="one episode per bag (the working mode: episode markers are not recorded yet)")
+    export.add_argument("--task", type=_task, default=None,
+                        help="the episodes' task text (default 'teleoperate the PRISMA hand')")
+    export.add_argument("--action", choices=("targets", "positions"), default="targets",
+                        help="targets: /prisma/teleop/motor_targets (default); positions: the next frame's "
+                             "motor positions, for bags without teleoperation")
+    export.add_argument("--append", action="store_true", help="add the episodes to the dataset at --out")
+    show = commands.add_parser("show", help="summary, invariant check and plots of a dataset",
+                               description="Print a dataset's summary and invariant check; plot each episode.")
+    show.add_argument("dataset", type=existing_dir, metavar="DIR", help="a LeRobot v3.0 dataset directory")
+    show.add_argument("--episode", type=non_negative_int, default=None, metavar="N", help="only episode N")
+    show.add_argument("--plots", type=output_dir, default=DEFAULT_PLOTS, metavar="DIR",
+                      help=f"where the episode PNGs go (default {DEFAULT_PLOTS})")
+    show.add_argument("--no-plots", action="store_true", help="print the summary only")
+    return top
+
+
+@command(PROG, "prisma_common.bag:BagError", "prisma_dataset.bag_export:ExportError",
+         "prisma_dataset.lerobot_format:DatasetFormatError")
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    return export_command(args) if args.command == "export" else show_command(args)
+
+
+def _check_out(out: Path, append: bool) -> None:
+    has_info = (out / "meta" / "info.json").is_file()
+    if append:
+        if not has_info:
+            raise UserError(f"--append --out {out}: no dataset there (no meta/info.json); drop --append to "
+                            f"write a new one")
+        check_replaceable_dir(out, DATASET_ENTRIES, "a LeRobot dataset", "--out")
+        return
+    if has_info:
+        raise UserError(f"--out {out} already holds a dataset; add --append to add episodes to it, or give a "
+                        f"new directory")
+    check_replaceable_dir(out, (), "a LeRobot dataset", "--out")
+
+
+def export_command(args: argparse.Namespace) -> int:
+    from .bag_export import DEFAULT_TASK, ExportOptions, export_bags
+    from .dataset_check import require_valid
+    from .dataset_summary import summary_lines
+    from .lerobot_format import append_episodes, read_dataset, write_dataset
+
+    _check_out(args.out, args.append)
+    options = ExportOptions(fps=args.fps, task=args.task or DEFAULT_TASK, action=args.action,
+                            whole_bag=args.whole_bag)
+    existing = read_dataset(args.out) if args.append else None
+    if existing is not None and existing.fps != args.fps:
+        raise UserError(f"--append: the dataset at {args.out} is at {existing.fps} fps; export with "
+                        f"--fps {existing.fps}")
+    dataset = export_bags(args.bags, options, progress=print)
+    if existing is not None:
+        dataset = append_episodes(existing, dataset)
+    write_dataset(args.out, dataset)
+    report = require_valid(args.out)
+    print("\n".join(summary_lines(report)))
+    return 0
+
+
+def show_command(args: argparse.Namespace) -> int:
+    from .dataset_check import check_dataset
+    from .dataset_summary import episode_numbers, has_plot_features, plot_episode, summary_lines
+
+    root: Path = args.dataset
+    if not (root / "meta" / "info.json").is_file():
+        raise UserError(f"{root} is not a LeRobot dataset (no meta/info.json); give the directory "
+                        f"prisma-dataset export --out wrote")
+    report = check_dataset(root)
+    numbers = episode_numbers(report, args.episode)
+    if args.episode is not None and not numbers:
+        raise UserError(f"--episode {args.episode}: the dataset has episodes 0 .. {len(report.episodes) - 1}")
+    print("\n".join(summary_lines(report, args.episode)))
+    if not args.no_plots and report.ok and has_plot_features(report):
+        for number in numbers:
+            path = plot_episode(report, number, args.plots / f"episode_{number:03d}.png")
+            print(f"  plot: {path}")
+    return 0 if report.ok else 1
