@@ -19,7 +19,7 @@ Features (docs/datasets.md, "Features"):
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -138,7 +138,7 @@ def _finger_of(topic: str, pattern: str) -> str | None:
     return None
 
 
-def _motor_vector(values: dict[str, float]) -> np.ndarray | None:
+def _motor_vector(values: Mapping[str, float]) -> np.ndarray | None:
     if not all(m in values for m in MOTOR_NAMES):
         return None
     return np.array([values[m] for m in MOTOR_NAMES], dtype=np.float64)
