@@ -53,6 +53,7 @@ SCRIPTS = {
     "stag-train-pose": "stag_glove.cli:train_pose_main",
     "stag-glove-correlation": "stag_glove.cli:correlation_main",
     "prisma-teleop-stag-session": "prisma_teleop.cli:stag_session_main",
+    "prisma-dataset": "prisma_dataset.cli:main",
 }
 HEAVY = {"torch", "matplotlib", "scipy", "h5py", "rosbags", "sklearn"}
 # the scripts that write nothing (they talk to a running emulator, a running hand)
@@ -333,6 +334,24 @@ CASES = [
     C("prisma-teleop-stag-session", ["poses.csv"], ("poses.csv", ".h5")),
     C("prisma-teleop-stag-session", ["poses.h5", "--seed", "-2"], ("--seed", "'-2'")),
     C("prisma-teleop-stag-session", ["notes/poses.h5"], ("notes", "not a directory"), regular_file("notes")),
+    # prisma-dataset
+    C("prisma-dataset", ["export", "{data}/chatter_bag", "--whole-bag", "--out", "ds"],
+      ("chatter_bag", "'/joint_states'", "'/prisma/thumb/taxels'", "'/prisma/teleop/motor_targets'",
+       "--action positions", "it has: /chatter")),
+    C("prisma-dataset", ["export", "{data}/thumb_only_bag", "--out", "ds"], ("has no episode markers", "--whole-bag")),
+    C("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "ds", "--fps", "0"],
+      ("--fps", "'0'")),
+    C("prisma-dataset", ["export", "{data}/empty_dir", "--whole-bag", "--out", "ds"],
+      ("empty_dir", "not a readable ROS 2 bag")),
+    C("prisma-dataset", ["export", "no_such_bag", "--whole-bag", "--out", "ds"], ("no_such_bag", "no such file")),
+    C("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "thesis"],
+      ("--out", "thesis", "not a LeRobot dataset", "thesis.tex"), foreign_dir("thesis")),
+    C("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "ds", "--append"],
+      ("--append", "no dataset there")),
+    C("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "ds", "--action", "guess"],
+      ("--action", "'guess'")),
+    C("prisma-dataset", ["show", "{data}/empty_dir"], ("empty_dir", "not a LeRobot dataset (no meta/info.json)")),
+    C("prisma-dataset", ["show", "no_such_dataset"], ("no_such_dataset", "no such directory")),
 ]
 
 
@@ -371,6 +390,7 @@ def _unwritable_cases() -> list[Case]:
         ("stag-train-pose", ["--bundle-out", "{out}"], "--bundle-out"),
         ("stag-glove-correlation", ["--png", "{out}.png"], "--png"),
         ("prisma-teleop-stag-session", ["{out}.h5"], "out"),
+        ("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "{out}"], "--out"),
     ]:
         cases += unwritable(script, args, option)
     return cases

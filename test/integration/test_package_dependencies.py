@@ -98,6 +98,8 @@ def test_declared_graph_is_acyclic():
     for package in ("prisma_manipulation", "prisma_teleop", "stag_glove"):
         assert order.index(package) < order.index("prisma_sim")
     assert not [p for p in PACKAGES if "prisma_sim" in declared(p)]
+    # the dataset tool reads bags only: nothing depends on it
+    assert not [p for p in PACKAGES if "prisma_dataset" in declared(p)]
     # the emulator stands in for the hardware the drivers talk to: below the launch files that start
     # it, and no node package depends on it (the drivers reach it through their hardware backends)
     assert [p for p in PACKAGES if "prisma_hand_emulator" in declared(p)] == ["prisma_bringup"]

@@ -53,7 +53,8 @@ JAZZY_ROS_PACKAGES = {
 # ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
 # (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
 # (use the ROS package dynamixel_sdk), python3-rosbags (only python3-rosbags-pip, which PEP 668
-# refuses on noble: rosbags is pip-installed in the venv, see the README).
+# refuses on noble: rosbags is pip-installed in the venv, see the README), pyarrow
+# (no key found for it: pip-installed in the venv like rosbags).
 NOBLE_ROSDEP_KEYS = {
     "python3-h5py", "python3-hypothesis", "python3-matplotlib", "python3-numpy", "python3-pytest",
     "python3-scipy", "python3-serial", "python3-setuptools", "python3-sklearn", "python3-smbus2",
@@ -69,7 +70,7 @@ MODULE_DEPENDENCY = {
 }
 # Modules with no rosdep key usable on noble: the README's venv installs them with pip, and the
 # package.xml of a package importing one says so in a comment naming it.
-PIP_ONLY = {"rosbags"}
+PIP_ONLY = {"rosbags", "pyarrow"}
 DEPENDENCY_TAGS = ("depend", "build_depend", "buildtool_depend", "build_export_depend", "exec_depend",
                    "test_depend")
 
