@@ -20,13 +20,13 @@ from prisma_common import topics
 from prisma_common.bag import BagWriter
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_common.typestore import types
-from prisma_force_estimator.ros_conversions import wrench_to_msg
+from prisma_force_estimator.ros_conversions import hand_wrench_to_msg, wrench_to_msg
 from prisma_force_estimator.wrench import WrenchSample
 from prisma_manipulation.contact_monitor import ContactMonitor
-from prisma_manipulation.ros_conversions import contact_state_to_msg
+from prisma_manipulation.ros_conversions import contact_state_to_msg, hand_contact_to_msg
 from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.ros_conversions import joint_state_to_msg
-from prisma_tactile_driver.ros_conversions import taxel_frame_to_msg
+from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
 from prisma_tactile_driver.taxels import TaxelFrame
 from prisma_teleop.ros_conversions import hand_pose_to_msg, motor_targets_to_msg
 
@@ -49,9 +49,15 @@ class RecordedBag:
         return max(held, key=lambda item: item[0])[1]
 
 
+def stamp_of(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
 def write_bag(path: Path, seconds: float = 1.0, seed: int = 0, targets: bool = True, glove: bool = False,
-              gap: tuple[str, float, float] | None = None) -> RecordedBag:
-    """`gap`: (stream key, from s, to s) of the bag during which that stream publishes nothing."""
+              gap: tuple[str, float, float] | None = None, per_hand: bool = False) -> RecordedBag:
+    """`gap`: (stream key, from s, to s) of the bag during which that stream publishes nothing;
+    `per_hand`: the fingertip samples of each scan in one HandTaxels, HandWrench and HandContact
+    (each sample keeps its own stamp) instead of the per-finger topics."""
     rng = np.random.default_rng(seed)
     recorded = RecordedBag(path)
     monitor = ContactMonitor(min_mean_voltage=1.0)
@@ -71,25 +77,35 @@ def write_bag(path: Path, seconds: float = 1.0, seed: int = 0, targets: bool = T
                 msg = joint_state_to_msg(types, stamp, states)
                 messages.append((stamp, topics.JOINT_STATES, msg))
                 recorded.add("joint_states", stamp, np.concatenate([msg.position, msg.velocity]))
+            scan: dict[str, list[tuple[str, Any]]] = {"taxels": [], "wrench": [], "contact": []}  # (finger, msg)
             for f, finger in enumerate(FINGERS):
                 stamp = base + (f + 1) * MS + int(rng.integers(0, 2 * MS))
                 counts = rng.integers(0, 4096, 9).astype(np.uint16)
                 voltages = (counts * 3.3 / 4096).astype(np.float32)
                 if not silent(f"taxels/{finger}", stamp):
-                    messages.append((stamp, topics.TAXELS.format(finger=finger),
-                                     taxel_frame_to_msg(types, TaxelFrame(finger, stamp, counts, voltages),
-                                                        f"{finger}_pad")))
+                    scan["taxels"].append((finger, taxel_frame_to_msg(
+                        types, TaxelFrame(finger, stamp, counts, voltages), f"{finger}_pad")))
                     recorded.add(f"taxels/{finger}", stamp, voltages.reshape(3, 3))
                 wrench = rng.normal(0, 1, 6)
                 if not silent(f"wrench/{finger}", stamp):
-                    messages.append((stamp, topics.WRENCH.format(finger=finger),
-                                     wrench_to_msg(types, WrenchSample(stamp, wrench, f"{finger}_pad"))))
+                    scan["wrench"].append((finger, wrench_to_msg(types, WrenchSample(stamp, wrench, f"{finger}_pad"))))
                     recorded.add(f"wrench/{finger}", stamp, wrench)
                 evaluation = monitor.evaluate(finger, stamp, voltages)
                 if not silent(f"contact/{finger}", stamp):
-                    messages.append((stamp, topics.CONTACT.format(finger=finger),
-                                     contact_state_to_msg(types, evaluation, f"{finger}_pad")))
+                    scan["contact"].append((finger, contact_state_to_msg(types, evaluation, f"{finger}_pad")))
                     recorded.add(f"contact/{finger}", stamp, float(evaluation.feasible))
+            if per_hand:
+                newest = max(stamp_of(m) for _, m in scan["taxels"])
+                messages.append((newest, topics.HAND_TAXELS, hand_taxels_to_msg(types, [m for _, m in scan["taxels"]])))
+                messages.append((newest, topics.HAND_WRENCH, hand_wrench_to_msg(
+                    types, [f for f, _ in scan["wrench"]], [m for _, m in scan["wrench"]])))
+                messages.append((newest, topics.HAND_CONTACT,
+                                 hand_contact_to_msg(types, [m for _, m in scan["contact"]])))
+            else:
+                for pattern, kind in ((topics.TAXELS, "taxels"), (topics.WRENCH, "wrench"),
+                                      (topics.CONTACT, "contact")):
+                    for finger, msg in scan[kind]:
+                        messages.append((stamp_of(msg), pattern.format(finger=finger), msg))
         for k in range(int(seconds * 60)):
             stamp = START_NS + k * 1_000_000_000 // 60 + int(rng.integers(0, 2 * MS))
             if targets and not silent("motor_targets", stamp):

@@ -22,8 +22,9 @@ def grid_of(recorded, keys, frames, fps=50):
     return [start + k * NS // fps for k in range(frames)]
 
 
-def test_every_frame_equals_the_bags_value_at_its_grid_instant(make_bag, tmp_path):
-    recorded = make_bag("round_trip", seconds=1.0, glove=True)
+@pytest.mark.parametrize("per_hand", [False, True], ids=["per-finger topics", "per-hand topics"])
+def test_every_frame_equals_the_bags_value_at_its_grid_instant(make_bag, tmp_path, per_hand):
+    recorded = make_bag(f"round_trip_{per_hand}", seconds=1.0, glove=True, per_hand=per_hand)
     root = write_dataset(tmp_path / "ds", export_bags([recorded.path], ExportOptions(whole_bag=True)))
     report = check_dataset(root)
     assert report.ok, report.problems
