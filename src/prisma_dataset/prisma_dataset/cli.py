@@ -122,7 +122,13 @@ def show_command(args: argparse.Namespace) -> int:
     if args.episode is not None and not numbers:
         raise UserError(f"--episode {args.episode}: the dataset has episodes 0 .. {len(report.episodes) - 1}")
     print("\n".join(summary_lines(report, args.episode)))
-    if not args.no_plots and report.ok and has_plot_features(report):
+    if args.no_plots:
+        pass
+    elif not report.ok:
+        print("  no plots: the dataset breaks the invariants above")
+    elif not has_plot_features(report):
+        print("  no plots: the dataset lacks observation.state, observation.wrench or action")
+    else:
         for number in numbers:
             path = plot_episode(report, number, args.plots / f"episode_{number:03d}.png")
             print(f"  plot: {path}")

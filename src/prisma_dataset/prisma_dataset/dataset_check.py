@@ -237,7 +237,7 @@ def _compare_stats(where: str, stored: dict[str, np.ndarray], values: np.ndarray
         got = stored.get(stat)
         if got is None:
             problems.append(f"{where}: no {stat}")
-        elif got.shape != expected.shape or not np.allclose(got, expected, rtol=STATS_RTOL, atol=STATS_ATOL):
+        elif got.shape != expected.shape or not np.allclose(got, expected, STATS_RTOL, STATS_ATOL, equal_nan=True):
             problems.append(f"{where}: {stat} {got.tolist()} differs from the frames' {expected.tolist()}")
 
 
