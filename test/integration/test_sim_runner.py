@@ -15,6 +15,8 @@ from rosbags.highlevel import AnyReader
 
 from prisma_common.hand import FINGERS
 from prisma_common.typestore import get_typestore
+from prisma_dataset.cli import main as dataset_main
+from prisma_dataset.dataset_check import check_dataset
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from prisma_sim.hand_session import goal_status
 from prisma_sim.sim_cli import main
@@ -252,6 +254,33 @@ def test_teleop_bag_and_summary(run):
         assert summary["peak_force_n"]["used"][f] >= summary["touch_limit_n"] - 0.1
     assert 3.0 < summary["held_fingers_rad"] < 8.5  # on the ball, short of the fist
     assert summary["thumb_rotation_range_rad"] == pytest.approx([-1.5, 1.5], abs=0.05)
+
+
+def test_teleop_session_exports_as_a_lerobot_dataset(run, tmp_path, capsys):
+    """prisma-dataset export of the teleop bag: one valid v3.0 episode that ends where the glove's
+    targets fell silent (the last second of the session dropped, and said so), its actions the
+    operator's fist and the hand's forces at the touch limit."""
+    summary = run.summaries["teleop"]
+    out = tmp_path / "teleop_dataset"
+    assert dataset_main(["export", str(run.out / summary["bag"]), "--whole-bag", "--out", str(out),
+                         "--task", "close on the pinch ball"]) == 0
+    printed = capsys.readouterr().out
+    report = check_dataset(out)
+    assert report.ok, report.problems
+    assert report.info["fps"] == 50 and report.info["total_episodes"] == 1
+    assert "observation.glove_pose" in report.info["features"]
+    # the grid starts at 0 (every stream's first sample is stamped 0); the targets' last sample is the
+    # glove's last, and the first frame more than 0.1 s after it ends the episode
+    last_target_ns = round(summary["glove_silent_s"] * NS)
+    first_stale = next(k for k in range(10_000) if k * NS // 50 - last_target_ns > NS // 10)
+    assert report.info["total_frames"] == first_stale
+    assert "ended by a gap: /prisma/teleop/motor_targets's newest sample was" in printed
+    assert "gaps that ended episodes: 1" in printed
+    frames = report.frames
+    assert frames["action"][:, 0].max() == 9.0  # the operator's fist: the fingers' closed limit
+    assert frames["observation.state"][:, 0].max() == pytest.approx(summary["held_fingers_rad"], abs=0.2)
+    index_fz = frames["observation.wrench"][:, FINGERS.index("index"), 2]
+    assert summary["touch_limit_n"] - 0.3 < index_fz.max() < summary["touch_limit_n"] + 0.3
 
 
 def test_glove_bag_topics_stamps_and_counts(run):
