@@ -182,17 +182,19 @@ def refuse_a_second_hand(namespace: Any, node_names: Callable[[LaunchContext], l
             node = rclpy.create_node("prisma_launch_second_hand_check", context=ros,
                                      enable_rosout=False, start_parameter_services=False)
             try:
-                # as long as a node looks for another of its kind (single_instance says why)
+                # as long as a node looks for another of its kind (single_instance says why), the whole
+                # time: discovery shows the running hand's nodes one by one, and the refusal names all it saw
                 deadline = time.monotonic() + DISCOVERY_WAIT_S
+                seen: set[str] = set()
                 while True:
-                    graph = [f"{n_ns.rstrip('/')}/{n}" for n, n_ns in node.get_node_names_and_namespaces()]
-                    running = nodes_already_running(graph, ns, names)
-                    if running:
-                        launch_file = Path(context.locals.current_launch_file_path).name
-                        raise LaunchRefused(second_hand_refusal(launch_file, ns, running))
+                    seen.update(f"{n_ns.rstrip('/')}/{n}" for n, n_ns in node.get_node_names_and_namespaces())
                     if time.monotonic() >= deadline:
-                        return
+                        break
                     time.sleep(POLL_S)
+                running = nodes_already_running(seen, ns, names)
+                if running:
+                    launch_file = Path(context.locals.current_launch_file_path).name
+                    raise LaunchRefused(second_hand_refusal(launch_file, ns, running))
             finally:
                 node.destroy_node()
         finally:
