@@ -21,6 +21,7 @@ from prisma_common.cli_args import (
     existing_path,
     non_negative_int,
     output_dir,
+    positive_float,
     positive_int,
 )
 
@@ -63,6 +64,9 @@ def parser() -> ArgumentParser:
     show.add_argument("--plots", type=output_dir, default=DEFAULT_PLOTS, metavar="DIR",
                       help=f"where the episode PNGs go (default {DEFAULT_PLOTS})")
     show.add_argument("--no-plots", action="store_true", help="print the summary only")
+    show.add_argument("--touch-limit", type=positive_float, default=None, metavar="N",
+                      help="the touch limit drawn with the forces (default: the manipulation node's "
+                           "teleop_max_pad_force, 2 N)")
     return top
 
 
@@ -111,7 +115,7 @@ def export_command(args: argparse.Namespace) -> int:
 
 def show_command(args: argparse.Namespace) -> int:
     from .dataset_check import check_dataset
-    from .dataset_summary import episode_numbers, has_plot_features, plot_episode, summary_lines
+    from .dataset_summary import DEFAULT_TOUCH_LIMIT_N, episode_numbers, has_plot_features, plot_episode, summary_lines
 
     root: Path = args.dataset
     if not (root / "meta" / "info.json").is_file():
@@ -130,6 +134,7 @@ def show_command(args: argparse.Namespace) -> int:
         print("  no plots: the dataset lacks observation.state, observation.wrench or action")
     else:
         for number in numbers:
-            path = plot_episode(report, number, args.plots / f"episode_{number:03d}.png")
+            limit = DEFAULT_TOUCH_LIMIT_N if args.touch_limit is None else args.touch_limit
+            path = plot_episode(report, number, args.plots / f"episode_{number:03d}.png", limit)
             print(f"  plot: {path}")
     return 0 if report.ok else 1

@@ -1,6 +1,8 @@
 """`prisma-dataset show`: a dataset's summary (episodes, frames, tasks, what ended each episode and
-how much of its bag was dropped, the invariant check) and one picture per episode (motor positions
-against the actions, the five fingertips' normal forces)."""
+how much of its bag was dropped, the invariant check) and one picture per episode: motor positions
+against the actions, the five fingertips' normal forces with the touch limit, and the taxel
+voltages of every pad at the first contact (the first frame with any `observation.contact`) and at
+the peak force (the frame of the largest normal force on any pad)."""
 from __future__ import annotations
 
 import json
@@ -11,12 +13,15 @@ import numpy as np
 
 from prisma_common.atomic import atomic_output
 from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_manipulation.node_config import ManipulationConfig
 
-from .bag_export import ACTION, STATE, WRENCH
+from .bag_export import ACTION, CONTACT, STATE, TACTILE, WRENCH
 from .dataset_check import CheckReport
 from .lerobot_format import EXPORT_NOTES_PATH
 
 FZ = 2  # observation.wrench's axis of the pad's normal force (fx fy fz tx ty tz)
+# the touch limit a Teleoperate goal with max_pad_force 0 gets: the manipulation node's default
+DEFAULT_TOUCH_LIMIT_N = ManipulationConfig().teleop_max_pad_force
 
 
 def export_notes(root: Path) -> dict[str, Any]:
@@ -61,8 +66,23 @@ def summary_lines(report: CheckReport, episode: int | None = None) -> list[str]:
     return lines
 
 
-def plot_episode(report: CheckReport, number: int, out: Path) -> Path:
-    """motor positions against the actions, and the five fingertips' normal forces, of one episode."""
+def moments(frames: dict[str, np.ndarray], span: slice) -> list[tuple[str, int]]:
+    """(label, frame in the episode) of the first contact (when any pad reports one) and of the peak
+    normal force on any pad."""
+    found = []
+    if CONTACT in frames:
+        touching = np.flatnonzero(frames[CONTACT][span].max(axis=1) > 0)
+        if touching.size:
+            found.append(("first contact", int(touching[0])))
+    fz = frames[WRENCH][span][:, :, FZ]
+    if fz.size and np.isfinite(fz).any():  # an axis the bundle does not estimate is NaN
+        found.append(("peak force", int(np.argmax(np.where(np.isfinite(fz), fz, -np.inf).max(axis=1)))))
+    return found
+
+
+def plot_episode(report: CheckReport, number: int, out: Path, touch_limit_n: float = DEFAULT_TOUCH_LIMIT_N) -> Path:
+    """One episode: motor positions against the actions, the normal forces with the touch limit,
+    and the taxel heat maps at the first contact and the peak force."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -73,7 +93,12 @@ def plot_episode(report: CheckReport, number: int, out: Path) -> Path:
     t = report.frames["timestamp"][span]
     state, action = report.frames[STATE][span], report.frames[ACTION][span]
     wrench = report.frames[WRENCH][span]
-    fig, axes = plt.subplots(len(MOTOR_NAMES) + 1, 1, figsize=(9, 10), sharex=True)
+    shown = moments(report.frames, span) if TACTILE in report.frames else []
+    rows = len(MOTOR_NAMES) + 1
+    fig = plt.figure(figsize=(9, 10 + 1.6 * len(shown)))
+    grid = fig.add_gridspec(rows + len(shown), len(FINGERS), height_ratios=[1.0] * rows + [0.8] * len(shown))
+    axes = [fig.add_subplot(grid[0, :])]
+    axes += [fig.add_subplot(grid[i, :], sharex=axes[0]) for i in range(1, rows)]
     for i, motor in enumerate(MOTOR_NAMES):
         ax = axes[i]
         ax.plot(t, state[:, i], label="position")
@@ -83,9 +108,22 @@ def plot_episode(report: CheckReport, number: int, out: Path) -> Path:
     ax = axes[-1]
     for f, finger in enumerate(FINGERS):
         ax.plot(t, wrench[:, f, FZ], label=finger)
+    ax.axhline(touch_limit_n, color="k", ls="--", lw=1, label="touch limit")
+    for _, frame in shown:
+        ax.axvline(t[frame], color="0.5", lw=1)
     ax.set_ylabel("normal force fz (N)")
     ax.set_xlabel("time in the episode (s)")
-    ax.legend(loc="upper right", ncol=len(FINGERS))
+    ax.legend(loc="upper right", ncol=3, fontsize=8)
+    tactile = report.frames[TACTILE][span] if shown else np.empty(0)
+    for k, (label, frame) in enumerate(shown):
+        top = float(np.nanmax(tactile[frame])) or 1.0
+        for f, finger in enumerate(FINGERS):
+            pad = fig.add_subplot(grid[rows + k, f])
+            image = pad.imshow(tactile[frame, f], origin="lower", vmin=0.0, vmax=top, cmap="viridis")
+            pad.set_xticks([])
+            pad.set_yticks([])
+            pad.set_title(f"{finger}" + (f"\n{label} {t[frame]:.2f} s" if f == 0 else ""), fontsize=8)
+        fig.colorbar(image, ax=pad, fraction=0.046, label="V")
     fig.suptitle(f"episode {number}: {row['tasks'][0]}")
     fig.tight_layout()
     with atomic_output(out) as staged:
