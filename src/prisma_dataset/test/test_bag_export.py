@@ -138,3 +138,18 @@ def test_bad_input_names_the_problem(make_bag, tmp_path, capsys):
     assert main(["show", str(foreign)]) == 2
     assert "is not a LeRobot dataset (no meta/info.json)" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_bags_with_other_features_are_not_mixed_and_show_takes_one_episode(make_bag, tmp_path, capsys):
+    with_glove, without = make_bag("glove_on", seconds=0.3, glove=True), make_bag("glove_off", seconds=0.3)
+    with pytest.raises(ExportError, match=rf"bag {without.path} records other features than {with_glove.path} "
+                                          r"\(without /glove/joint_states\)"):
+        export_bags([with_glove.path, without.path], ExportOptions(whole_bag=True))
+    out = tmp_path / "ds"
+    assert main(["export", str(without.path), str(without.path), "--whole-bag", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["show", str(out), "--episode", "1", "--no-plots"]) == 0
+    shown = capsys.readouterr().out
+    assert "episode 1:" in shown and "episode 0:" not in shown
+    assert main(["show", str(out), "--episode", "2"]) == 2
+    assert "--episode 2: the dataset has episodes 0 .. 1" in capsys.readouterr().err
