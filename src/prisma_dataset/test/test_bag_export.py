@@ -153,3 +153,16 @@ def test_bags_with_other_features_are_not_mixed_and_show_takes_one_episode(make_
     assert "episode 1:" in shown and "episode 0:" not in shown
     assert main(["show", str(out), "--episode", "2"]) == 2
     assert "--episode 2: the dataset has episodes 0 .. 1" in capsys.readouterr().err
+
+
+def test_show_exits_1_and_draws_nothing_for_a_broken_dataset(make_bag, tmp_path, capsys):
+    out = tmp_path / "ds"
+    assert main(["export", str(make_bag("shown", seconds=0.3).path), "--whole-bag", "--out", str(out)]) == 0
+    info = out / "meta" / "info.json"
+    info.write_text(info.read_text().replace('"total_frames": ', '"total_frames": 1'))
+    capsys.readouterr()
+    assert main(["show", str(out), "--plots", str(tmp_path / "plots")]) == 1
+    shown = capsys.readouterr().out
+    assert "invariants: 1 broken" in shown and "the data files hold" in shown
+    assert "no plots: the dataset breaks the invariants above" in shown
+    assert not (tmp_path / "plots").exists()
