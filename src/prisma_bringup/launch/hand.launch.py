@@ -84,6 +84,7 @@ from prisma_bringup.launch_nodes import (
     refuse_a_second_hand,
     required,
 )
+from prisma_common.control_socket import CONTROL_SOCKET_NAME
 from prisma_common.hand_config import launch_hand_config
 from prisma_common.scheduling import CONTROL_PATH_NICE, CONTROL_PATH_RT_PRIORITY
 
@@ -227,7 +228,7 @@ def emulated_hardware(config, namespace, frame_prefix, hand_dir, condition: IfCo
                          "i2c_socket": ParameterValue(PathJoinSubstitution([emulator_dir, "i2c.sock"]),
                                                       value_type=str),
                          # ~/replace_object puts the emulator's object back, as the sim hand's does its own
-                         "emulator_control": ParameterValue(PathJoinSubstitution([emulator_dir, "control.sock"]),
+                         "emulator_control": ParameterValue(PathJoinSubstitution([emulator_dir, CONTROL_SOCKET_NAME]),
                                                             value_type=str),
                          "frame_id_format": ParameterValue([frame_prefix, "prisma_{finger}_pad"], value_type=str)}]),
         control_path_node(
