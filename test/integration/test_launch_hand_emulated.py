@@ -63,7 +63,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from prisma_common.hand import MOTOR_NAMES  # noqa: E402
-from prisma_manipulation.scenarios import scenario_world  # noqa: E402
+from prisma_hand_sim.scenario_worlds import scenario_world  # noqa: E402
 from prisma_sim.hand_session import HAND_SCENARIOS  # noqa: E402
 from prisma_sim.sim_runner import EXPECTED_REASONS  # noqa: E402
 

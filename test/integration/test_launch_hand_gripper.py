@@ -37,7 +37,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from prisma_common.hand import FINGERS  # noqa: E402
-from prisma_manipulation.ros_conversions import hand_wrench_samples  # noqa: E402
+from prisma_force_estimator.ros_conversions import hand_wrench_samples  # noqa: E402
 
 BIAS_SAMPLES = 100  # config/force_estimator.yaml
 

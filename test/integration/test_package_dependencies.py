@@ -3,7 +3,9 @@
 Every import of another workspace package is at module level (a `TYPE_CHECKING` block counts as
 module level) and declared in package.xml; none hides inside a function. The declared graph is
 acyclic, so it has no back-edges: prisma_common and prisma_hand_sim, the ROS-free layers, sit
-below every driver and import no ROS. docs/architecture.md's workspace layout lists every package,
+below every driver and import no ROS; the hand emulator (hardware) reads no controller package. A
+message's converters are imported from its writer's package, and no package's modules import each
+other in a circle. docs/architecture.md's workspace layout lists every package,
 and its dependency drawing has the declared graph's layering (each package above the same ones).
 """
 from __future__ import annotations
@@ -12,6 +14,7 @@ import ast
 import re
 import xml.etree.ElementTree as ET
 from graphlib import CycleError, TopologicalSorter
+from pathlib import Path
 
 import pytest
 
@@ -103,6 +106,9 @@ def test_declared_graph_is_acyclic():
     # the emulator stands in for the hardware the drivers talk to: below the launch files that start
     # it, and no node package depends on it (the drivers reach it through their hardware backends)
     assert [p for p in PACKAGES if "prisma_hand_emulator" in declared(p)] == ["prisma_bringup"]
+    # it is hardware, not a controller: its worlds (the scenarios' starts included) come from
+    # prisma_hand_sim, which the sim runner reads too, not from the controller package above it
+    assert not declared("prisma_hand_emulator") & {"prisma_manipulation", "prisma_teleop", "prisma_sim"}
 
 
 def test_the_ros_free_layers_are_at_the_bottom():
@@ -114,6 +120,68 @@ def test_the_ros_free_layers_are_at_the_bottom():
         ros = {name: sorted(where) for name, where in {**top, **nested}.items()
                if name in ("rclpy", "rosidl_runtime_py") or name.endswith("_msgs")}
         assert not ros, f"{package} must stay ROS-free, imports {ros}"
+
+
+# each message's converters sit beside its writer, and its readers import them from there:
+# converter -> the package whose node writes the message (HandWrench, WrenchStamped: the force estimator)
+CONVERTER_HOMES = {"hand_wrench_samples": "prisma_force_estimator", "hand_wrench_to_msg": "prisma_force_estimator",
+                   "wrench_from_msg": "prisma_force_estimator", "wrench_to_msg": "prisma_force_estimator"}
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_message_converters_are_imported_from_the_writers_package(package):
+    wrong = []
+    for path in sorted((SRC / package / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                for alias in node.names:
+                    home = CONVERTER_HOMES.get(alias.name)
+                    if home is not None and node.module.split(".")[0] != home:
+                        wrong.append(f"{path.relative_to(SRC)}: {alias.name} from {node.module}, not {home}")
+    assert not wrong, wrong
+
+
+def module_imports(package: str, src: Path = SRC) -> dict[str, set[str]]:
+    """`package`'s modules -> the modules of the same package each imports (relative or absolute, at
+    any level: a function's import or a TYPE_CHECKING one closes a circle as well)."""
+    root = src / package
+    modules = {".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__"): p
+               for p in sorted((root / package).rglob("*.py"))}
+    graph: dict[str, set[str]] = {}
+    for module, path in modules.items():
+        parts = module.split(".")
+        # a relative import counts from the module's package (a package's __init__ is its own)
+        here = parts if path.name == "__init__.py" else parts[:-1]
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = ".".join(here[:len(here) - node.level + 1] + [node.module or ""]).strip(".") \
+                    if node.level else (node.module or "")
+                candidates = [base] + [f"{base}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                candidates = [a.name for a in node.names]
+            else:
+                continue
+            found |= {c for c in candidates if c in modules and c != module}
+        graph[module] = found
+    return graph
+
+
+@pytest.mark.parametrize("package", PYTHON_PACKAGES)
+def test_no_import_circle_inside_a_package(package):
+    try:
+        list(TopologicalSorter(module_imports(package)).static_order())
+    except CycleError as exc:
+        pytest.fail(f"{package}'s modules import each other in a circle: {' -> '.join(exc.args[1])}")
+
+
+def test_the_circle_check_sees_a_type_checking_import(tmp_path):
+    package = tmp_path / "src" / "pkg"
+    (package / "pkg").mkdir(parents=True)
+    (package / "pkg" / "__init__.py").write_text("")
+    (package / "pkg" / "a.py").write_text("from .b import B\n")
+    (package / "pkg" / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .a import A\n")
+    assert module_imports("pkg", tmp_path / "src") == {"pkg": set(), "pkg.a": {"pkg.b"}, "pkg.b": {"pkg.a"}}
 
 
 ARCHITECTURE = (ROOT / "docs" / "architecture.md").read_text()

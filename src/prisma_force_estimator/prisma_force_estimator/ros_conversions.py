@@ -1,4 +1,5 @@
-"""Force estimator data <-> geometry_msgs/WrenchStamped.
+"""Force estimator data <-> geometry_msgs/WrenchStamped, and prisma_msgs/HandWrench both ways: the
+writer's converters, which its readers (manipulation, visualization, the dataset tool) import.
 
 Every function takes the message-class lookup `types(name)`: rosidl's get_message on the robot,
 prisma_common.typestore.types off-robot, so the node and the bag tools share one converter.
@@ -45,3 +46,9 @@ def hand_wrench_to_msg(types: MessageLookup, fingers: Sequence[str], wrenches: S
         raise ValueError(f"{len(fingers)} fingers for {len(wrenches)} wrenches")
     return types("prisma_msgs/msg/HandWrench")(header=newest_header(types, wrenches),
                                                fingers=list(fingers), wrenches=list(wrenches))
+
+
+def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:
+    """(finger, WrenchStamped) pairs of a prisma_msgs/HandWrench; a malformed message (fingers and
+    wrenches of different lengths) pairs up to the shorter list."""
+    return [(str(finger), wrench) for finger, wrench in zip(msg.fingers, msg.wrenches)]

@@ -1,9 +1,16 @@
-"""WrenchStamped converter: CDR round trip through the typestore, input stamp kept, NaN axes."""
+"""WrenchStamped and HandWrench converters: CDR round trips through the typestore, input stamp kept,
+NaN axes."""
 import numpy as np
 import pytest
 
+from prisma_common.messages import ns_from_stamp
 from prisma_common.typestore import get_typestore, types
-from prisma_force_estimator.ros_conversions import hand_wrench_to_msg, wrench_from_msg, wrench_to_msg
+from prisma_force_estimator.ros_conversions import (
+    hand_wrench_samples,
+    hand_wrench_to_msg,
+    wrench_from_msg,
+    wrench_to_msg,
+)
 from prisma_force_estimator.wrench import WrenchSample, full_wrench
 
 
@@ -54,3 +61,18 @@ def test_diagnostics_of_the_pipeline_round_trip(tmp_path):
 def test_hand_wrench_needs_one_wrench_per_finger():
     with pytest.raises(ValueError, match="2 fingers for 1 wrenches"):
         hand_wrench_to_msg(types, ["thumb", "index"], [wrench_to_msg(types, WrenchSample(1, np.zeros(6), ""))])
+
+
+def test_hand_wrench_pairs_each_finger_with_its_wrench():
+    samples = {"thumb": WrenchSample(2_000_000_000, np.array([0.1, 0.2, 0.9, 0.0, 0.0, 0.01]), "thumb_pad"),
+               "index": WrenchSample(2_000_150_000, np.array([0.0, -0.1, 0.8, 0.001, 0.0, 0.0]), "index_pad")}
+    msg = _round_trip(hand_wrench_to_msg(types, list(samples), [wrench_to_msg(types, s) for s in samples.values()]))
+    assert msg.__msgtype__ == "prisma_msgs/msg/HandWrench"
+    assert ns_from_stamp(msg.header.stamp) == 2_000_150_000
+    pairs = hand_wrench_samples(msg)
+    assert [finger for finger, _ in pairs] == ["thumb", "index"]
+    for finger, wrench in pairs:
+        back = wrench_from_msg(wrench)
+        assert back.stamp_ns == samples[finger].stamp_ns and back.frame_id == f"{finger}_pad"
+        np.testing.assert_array_equal(back.wrench, samples[finger].wrench)
+

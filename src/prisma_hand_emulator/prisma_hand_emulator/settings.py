@@ -7,8 +7,8 @@ from pathlib import Path
 
 from prisma_common.control_socket import CONTROL_SOCKET_NAME
 from prisma_hand_sim.hand_world import HandWorld
+from prisma_hand_sim.scenario_worlds import SCENARIO_NAMES, scenario_world
 from prisma_hand_sim.sim_objects import OBJECTS
-from prisma_manipulation.scenarios import SCENARIO_NAMES, scenario_world
 from prisma_tactile_driver.pty_hub import ADAPTER_BUFFER_BYTES
 
 # the fingertip pads reach the host through the Arduino hub (serial) or its own I2C bus (i2c)
@@ -16,7 +16,7 @@ TACTILE_LINKS = ("serial", "i2c")
 # One vocabulary with the sim graph (hand.launch.py sim_object:=): an object presented to the open
 # hand as sim:=true presents it (pinch_ball, the default: a foam ball let go once held; none: an empty
 # hand), or a prisma-sim scenario's start, the hand posed and the object held
-# (prisma_manipulation.scenarios.scenario_world).
+# (prisma_hand_sim.scenario_worlds.scenario_world).
 WORLDS = tuple(OBJECTS) + SCENARIO_NAMES
 DEFAULT_WORLD = "pinch_ball"
 DEFAULT_DIR = Path("/tmp/prisma_hand_emulator")

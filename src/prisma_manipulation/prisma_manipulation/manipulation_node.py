@@ -40,6 +40,7 @@ from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
 from prisma_common.sample_stamps import StampNews
+from prisma_force_estimator.ros_conversions import hand_wrench_samples
 from prisma_motor_driver.ros_conversions import move_goal_to_msg, move_result_from_msg, velocity_goal
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
@@ -63,7 +64,6 @@ from .node_config import ManipulationConfig
 from .ros_conversions import (
     contact_state_to_msg,
     hand_contact_to_msg,
-    hand_wrench_samples,
     joint_sample_from_msg,
     normal_force_from_wrench,
 )

@@ -35,7 +35,7 @@ from .teleop_goal import (
 
 __all__ = ["contact_state_from_msg", "contact_state_to_msg", "grasp_feedback_to_msg", "grasp_request_from_msg",
            "grasp_result_to_msg", "gripper_feedback_to_msg", "gripper_request_from_msg", "gripper_result_to_msg",
-           "hand_contact_samples", "hand_contact_to_msg", "hand_wrench_samples", "joint_sample_from_msg",
+           "hand_contact_samples", "hand_contact_to_msg", "joint_sample_from_msg",
            "manipulate_feedback_to_msg", "manipulate_request_from_msg", "manipulate_result_to_msg",
            "normal_force_from_wrench", "teleop_feedback_to_msg", "teleop_request_from_msg", "teleop_result_to_msg",
            "teleop_target_from_msg"]
@@ -98,8 +98,3 @@ def hand_contact_samples(msg: Any) -> list[tuple[str, Any]]:
     """(finger, ContactState) pairs of a prisma_msgs/HandContact."""
     return [(str(contact.finger), contact) for contact in msg.contacts]
 
-
-def hand_wrench_samples(msg: Any) -> list[tuple[str, Any]]:
-    """(finger, WrenchStamped) pairs of a prisma_msgs/HandWrench; a malformed message (fingers and
-    wrenches of different lengths) pairs up to the shorter list."""
-    return [(str(finger), wrench) for finger, wrench in zip(msg.fingers, msg.wrenches)]

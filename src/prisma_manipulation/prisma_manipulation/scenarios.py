@@ -4,28 +4,26 @@ Their names are the scenarios' names everywhere: prisma-sim, prisma-manip-scenar
 emulator's worlds (`prisma-hand-emulator --world`, `hand.launch.py hardware:=emulated sim_object:=`,
 `prisma-hand-fault world`).
 
-Each is a world to start from and the goal a client sends the manipulation node, run through the
-node's own cores (`closed_loop.ClosedLoop`); every setting not in the goal is the node's default
-configuration (`ManipulationConfig`).
-- horizontal: object pinched between thumb and index at 1 N; Manipulate horizontal at 20 rpm.
-- vertical: same start; Manipulate vertical at 10 rpm.
-- disturbance: same start; at 0.5 s an external push slips the object 4 mm toward the thumb pad's
-  right side; Manipulate hold at 20 rpm restores the left side.
-- pinch_grasp: hand open, a foam ball presented on a stand; Grasp pinch (60 rpm, 0.8 N / 1.0 N).
-- lateral_grasp: a card against the side of the index; Grasp lateral: the fingers close to the
-  lateral fist by position, then the thumb flexes to 1 N.
-- combined: pinch held, Manipulate hold with use_force; the object slips to a narrower section
-  (grasp force drops) and is pushed sideways; the thumb restores 1 N while rotation restores the
+Each is a world to start from (prisma_hand_sim.scenario_worlds, which the hand emulator reads too)
+and the goal a client sends the manipulation node, run through the node's own cores
+(`closed_loop.ClosedLoop`); every setting not in the goal is the node's default configuration
+(`ManipulationConfig`). The goals:
+- horizontal: Manipulate horizontal at 20 rpm.
+- vertical: Manipulate vertical at 10 rpm.
+- disturbance: Manipulate hold at 20 rpm restores the left side after the push.
+- pinch_grasp: Grasp pinch (60 rpm, 0.8 N / 1.0 N).
+- lateral_grasp: Grasp lateral: the fingers close to the lateral fist by position, then the thumb
+  flexes to 1 N.
+- combined: Manipulate hold with use_force: the thumb restores 1 N while rotation restores the
   contact side.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from prisma_hand_sim.hand_world import Disturbance, HandWorld
-from prisma_hand_sim.sim_objects import OBJECTS, released
+from prisma_hand_sim.scenario_worlds import SCENARIO_NAMES, scenario_world
 
 from .closed_loop import ClosedLoop, Trace
 from .contact_monitor import DEFAULT_K
@@ -35,7 +33,7 @@ from .manipulation_core import GraspRequest, ManipulateRequest
 if TYPE_CHECKING:
     from prisma_force_estimator.inference import ForceEstimator
 
-SCENARIO_NAMES = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
+__all__ = ["SCENARIO_NAMES", "Scenario", "ScenarioSpec", "build", "scenario_request"]  # the names, for the CLIs
 
 
 @dataclass(frozen=True)
@@ -87,30 +85,6 @@ class Scenario:
         if self.loop.controller is None:
             raise RuntimeError(f"scenario {self.name} has not run yet: its controller starts with the goal")
         return self.loop.controller
-
-
-def pinched_world(force_n: float = 1.0, disturbances=()) -> HandWorld:
-    """Object already held between thumb and index at force_n, contact centred on the thumb pad."""
-    world = HandWorld(obj=released("pinch_ball"), disturbances=disturbances)
-    world.set_positions(world.grasp_pose(force_n))
-    return world
-
-
-def scenario_world(name: str) -> HandWorld:
-    """The world a scenario starts from: its object, pose and disturbances (times from the start)."""
-    if name in ("horizontal", "vertical"):
-        return pinched_world()
-    if name == "disturbance":
-        return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0)])
-    if name == "combined":
-        return pinched_world(disturbances=[Disturbance(0.5, 0.3, dx_mm=-4.0, dwidth_mm=-6.0)])
-    if name == "pinch_grasp":
-        # presented on a stand that does not let go: each phase's force stays what it reached
-        return HandWorld(obj=replace(OBJECTS["pinch_ball"], release_force_n=None, fixture_n_per_mm=5.0))
-    if name == "lateral_grasp":
-        # a card against the side of the index: the fingers close to the lateral fist by position
-        return HandWorld(obj="lateral_card")
-    raise ValueError(f"unknown scenario {name!r}; have {SCENARIO_NAMES}")
 
 
 def build(name: str, estimator: ForceEstimator | None = None, k: float = DEFAULT_K, seed: int = 0,

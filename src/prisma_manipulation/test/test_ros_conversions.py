@@ -1,14 +1,11 @@
-"""CDR round trips of the manipulation and motor_driver converters; the force estimator's HandWrench
-read back by the manipulation node's reader."""
+"""CDR round trips of the manipulation and motor_driver converters."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from prisma_common.messages import ns_from_stamp, robot_types
+from prisma_common.messages import robot_types
 from prisma_common.typestore import get_typestore, types
-from prisma_force_estimator.ros_conversions import hand_wrench_to_msg, wrench_from_msg, wrench_to_msg
-from prisma_force_estimator.wrench import WrenchSample
 from prisma_manipulation.contact_monitor import ContactMonitor
 from prisma_manipulation.manipulation_core import (
     Feedback,
@@ -21,7 +18,6 @@ from prisma_manipulation.ros_conversions import (
     contact_state_to_msg,
     grasp_result_to_msg,
     hand_contact_to_msg,
-    hand_wrench_samples,
     joint_sample_from_msg,
     manipulate_feedback_to_msg,
     manipulate_result_to_msg,
@@ -110,17 +106,3 @@ def test_robot_types_fetches_action_parts_from_the_action_class():
                          lambda name: Action if name == "prisma_msgs/action/MoveMotors" else None)
     assert lookup("prisma_msgs/action/MoveMotors_Goal") == "G"
     assert lookup("prisma_msgs/msg/ContactState") == "msg:prisma_msgs/msg/ContactState"
-
-
-def test_hand_wrench_pairs_each_finger_with_its_wrench():
-    samples = {"thumb": WrenchSample(2_000_000_000, np.array([0.1, 0.2, 0.9, 0.0, 0.0, 0.01]), "thumb_pad"),
-               "index": WrenchSample(2_000_150_000, np.array([0.0, -0.1, 0.8, 0.001, 0.0, 0.0]), "index_pad")}
-    msg = roundtrip(hand_wrench_to_msg(types, list(samples), [wrench_to_msg(types, s) for s in samples.values()]))
-    assert msg.__msgtype__ == "prisma_msgs/msg/HandWrench"
-    assert ns_from_stamp(msg.header.stamp) == 2_000_150_000
-    pairs = hand_wrench_samples(msg)
-    assert [finger for finger, _ in pairs] == ["thumb", "index"]
-    for finger, wrench in pairs:
-        back = wrench_from_msg(wrench)
-        assert back.stamp_ns == samples[finger].stamp_ns and back.frame_id == f"{finger}_pad"
-        np.testing.assert_array_equal(back.wrench, samples[finger].wrench)

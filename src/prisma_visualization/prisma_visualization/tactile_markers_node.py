@@ -20,8 +20,8 @@ from visualization_msgs.msg import MarkerArray
 
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
-from prisma_force_estimator.ros_conversions import wrench_from_msg
-from prisma_manipulation.ros_conversions import contact_state_from_msg, hand_contact_samples, hand_wrench_samples
+from prisma_force_estimator.ros_conversions import hand_wrench_samples, wrench_from_msg
+from prisma_manipulation.ros_conversions import contact_state_from_msg, hand_contact_samples
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput

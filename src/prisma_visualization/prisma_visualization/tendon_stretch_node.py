@@ -25,8 +25,8 @@ from prisma_common.hand import FINGERS
 from prisma_common.kinematics import DescriptionError, RobotModel
 from prisma_common.messages import ns_from_stamp
 from prisma_common.parameters import ParameterError
+from prisma_force_estimator.ros_conversions import hand_wrench_samples
 from prisma_hand_sim.hand_world import HandWorldParams
-from prisma_manipulation.ros_conversions import hand_wrench_samples
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription

@@ -10,15 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from scipy import ndimage
 
 from .layout import GloveLayout
-
-if TYPE_CHECKING:
-    from .synthetic import SyntheticConfig
 
 SHAPES = ("sphere", "cylinder", "box", "thin", "soft")
 
@@ -81,7 +78,21 @@ def region_vector(region_names: Sequence[str], contact: dict[str, float]) -> np.
     return vector
 
 
-def make_objects(cfg: SyntheticConfig, layout: GloveLayout, region_masks: np.ndarray,
+class ObjectSetSettings(Protocol):
+    """What the object set is drawn from (synthetic.SyntheticConfig has these fields): this module
+    names the settings it reads, so that it need not import the generator that imports it."""
+
+    @property
+    def n_objects(self) -> int: ...
+    @property
+    def weight_range_g(self) -> tuple[float, float]: ...
+    @property
+    def modes_per_object(self) -> tuple[int, int]: ...  # inclusive range
+    @property
+    def mode_perturbation(self) -> float: ...  # log-sd of per-object region strength changes
+
+
+def make_objects(cfg: ObjectSetSettings, layout: GloveLayout, region_masks: np.ndarray,
                  rng: np.random.Generator) -> list[ObjectSpec]:
     """`cfg.n_objects` objects (friction left at its default: the generator draws it from a stream of
     its own)."""

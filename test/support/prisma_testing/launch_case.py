@@ -167,7 +167,7 @@ def pad_force_peaks(hand_wrenches: Sequence, since_ns: int, fingers: Sequence[st
     """Each pad's highest estimated Fz in a /prisma/hand/wrench collection, over its own estimates
     stamped `since_ns` or later (a HandWrench's header is the newest of its pads' stamps);
     AssertionError naming the fingers with none."""
-    from prisma_manipulation.ros_conversions import hand_wrench_samples
+    from prisma_force_estimator.ros_conversions import hand_wrench_samples
 
     peaks: dict[str, float] = {}
     for message in hand_wrenches:
