@@ -2,10 +2,13 @@
 
     prisma-dataset export BAG... --out DIR --whole-bag [--fps 50] [--task TEXT] [--action targets|positions] [--append]
     prisma-dataset show DIR [--episode N] [--plots DIR | --no-plots]
+    prisma-dataset replay DIR --episode N [--namespace NS] [--speed F] [--plots DIR | --no-plots]
+
+docs/dataset_replay.md: how a replay plays an episode into a running hand and what it compares.
 
 docs/datasets.md: the features, the sampling rule, the invariants and the tests that check them.
-Exit status: 0; 1 when `show` finds a broken invariant; 2 for a mistake in the command or its
-input (one line, no traceback).
+Exit status: 0; 1 when `show` finds a broken invariant or a replay misses its tolerances; 2 for a
+mistake in the command or its input, or a replay with no hand to play into (one line, no traceback).
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ def _task(text: str) -> str:
 
 def parser() -> ArgumentParser:
     top = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    commands = top.add_subparsers(dest="command", required=True, metavar="{export,show}")
+    commands = top.add_subparsers(dest="command", required=True, metavar="{export,show,replay}")
     export = commands.add_parser("export", help="bags -> one LeRobot v3.0 dataset",
                                  description="Export bags as one LeRobot v3.0 dataset, one episode per bag "
                                              "(--whole-bag); the dataset is written whole or not at all.")
@@ -67,13 +70,52 @@ def parser() -> ArgumentParser:
     show.add_argument("--touch-limit", type=positive_float, default=None, metavar="N",
                       help="the touch limit drawn with the forces (default: the manipulation node's "
                            "teleop_max_pad_force, 2 N)")
+    _replay_parser(commands)
     return top
 
 
+def _namespace(text: str) -> str:
+    ns = text.strip("/")
+    if ns and not all(part.replace("_", "a").isalnum() and not part[0].isdigit() for part in ns.split("/")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a ROS namespace (letters, digits, _ and /; "
+                                         "no part starting with a digit), e.g. left")
+    return ns
+
+
+def _replay_parser(commands) -> None:
+    replay = commands.add_parser(
+        "replay", help="play an episode's actions into a running hand and compare",
+        description="Play an episode's actions into a running hand (sim or emulated) through the Teleoperate goal, "
+                    "as the teleop node does, and compare the replay's pad forces and motor positions with the "
+                    "recording; exit 1 when a tolerance is missed (docs/dataset_replay.md).")
+    replay.add_argument("dataset", type=existing_dir, metavar="DIR", help="a LeRobot v3.0 dataset directory")
+    replay.add_argument("--episode", type=non_negative_int, required=True, metavar="N", help="the episode to play")
+    replay.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+                        help="the hand's namespace, as namespace:= of hand.launch.py (default: none)")
+    replay.add_argument("--speed", type=positive_float, default=1.0, metavar="F",
+                        help="pace against the recording's (default 1; 0.5 = half as fast; 0.05 .. 4)")
+    replay.add_argument("--wait", type=positive_float, default=10.0, metavar="S",
+                        help="how long to wait for the hand's Teleoperate server and goal (default 10 s)")
+    replay.add_argument("--plots", type=output_dir, default=DEFAULT_PLOTS, metavar="DIR",
+                        help=f"where the comparison PNG goes (default {DEFAULT_PLOTS})")
+    replay.add_argument("--no-plots", action="store_true", help="print the comparison only")
+    replay.add_argument("--touch-limit", type=positive_float, default=None, metavar="N",
+                        help="the touch limit the pads may not pass (default: the manipulation node's "
+                             "teleop_max_pad_force, 2 N)")
+    replay.add_argument("--force-tolerance", type=positive_float, default=None, metavar="N",
+                        help="largest |replayed - recorded| pad force at a matched frame (default 0.2 N)")
+    replay.add_argument("--overshoot", type=positive_float, default=None, metavar="N",
+                        help="how far a pad may pass the touch limit (default 0.15 N)")
+    replay.add_argument("--position-tolerance", type=positive_float, default=None, metavar="RAD",
+                        help="largest position RMS of a motor (default 0.15 rad)")
+
+
 @command(PROG, "prisma_common.bag:BagError", "prisma_dataset.bag_export:ExportError",
-         "prisma_dataset.lerobot_format:DatasetFormatError")
+         "prisma_dataset.lerobot_format:DatasetFormatError", "prisma_dataset.replay_plan:ReplayError")
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if args.command == "replay":
+        return replay_command(args)
     return export_command(args) if args.command == "export" else show_command(args)
 
 
@@ -138,3 +180,36 @@ def show_command(args: argparse.Namespace) -> int:
             path = plot_episode(report, number, args.plots / f"episode_{number:03d}.png", limit)
             print(f"  plot: {path}")
     return 0 if report.ok else 1
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .dataset_summary import DEFAULT_TOUCH_LIMIT_N
+    from .replay_compare import Tolerances, compare, plot_comparison, report_lines
+    from .replay_plan import ReplayCore, ReplayOptions, load_episode
+
+    root: Path = args.dataset
+    if not (root / "meta" / "info.json").is_file():
+        raise UserError(f"{root} is not a LeRobot dataset (no meta/info.json); give the directory "
+                        f"prisma-dataset export --out wrote")
+    episode = load_episode(root, args.episode)  # ReplayError for a number out of range: before any ROS
+    tolerances = Tolerances(touch_limit_n=DEFAULT_TOUCH_LIMIT_N if args.touch_limit is None else args.touch_limit)
+    given = {"force_tolerance_n": args.force_tolerance, "overshoot_n": args.overshoot,
+             "position_tolerance_rad": args.position_tolerance}
+    tolerances = replace(tolerances, **{k: v for k, v in given.items() if v is not None})
+    core = ReplayCore(episode, ReplayOptions(speed=args.speed))
+    try:
+        from .replay_node import run_replay
+    except ImportError as exc:
+        raise UserError(f"replay needs ROS 2 (rclpy, prisma_msgs): {exc}; source the ROS setup and the "
+                        f"workspace's install/setup.bash") from None
+    print(f"replaying episode {episode.number} of {root} ({episode.frames} frames at {episode.fps} fps, speed "
+          f"{args.speed:g}, task {episode.task!r}) into the hand{f' /{args.namespace}' if args.namespace else ''}")
+    recording = run_replay(core, args.namespace, args.wait)
+    comparison = compare(episode, recording, tolerances, core.period_ns)
+    print("\n".join(report_lines(comparison, recording)))
+    if not args.no_plots:
+        path = plot_comparison(episode, comparison, args.plots / f"replay_episode_{episode.number:03d}.png")
+        print(f"  plot: {path}")
+    return 0 if comparison.ok else 1
