@@ -191,7 +191,8 @@ class ReplayCore:
             else:
                 return [Publish(e.targets(0), None, now_ns)]
         if self.phase == PLAYING:
-            due = min((now_ns - self._phase_start_ns + self.period_ns // 2) // self.period_ns, e.frames - 1)
+            # a timer's tick up to a quarter period early counts as on time
+            due = min((now_ns - self._phase_start_ns + self.period_ns // 4) // self.period_ns, e.frames - 1)
             if due > self._last_due:
                 self.skipped += due - self._last_due - 1
                 self._last_due = due
