@@ -321,7 +321,8 @@ WHEEL_SHARE = {  # share path in the wheel -> files of the repository
     "share/prisma_bringup/": repo_files("config"),
     "share/prisma_msgs/": {str(p.relative_to(SRC / "prisma_msgs")) for p in
                            [*(SRC / "prisma_msgs" / "msg").glob("*.msg"),
-                            *(SRC / "prisma_msgs" / "action").glob("*.action")]},
+                            *(SRC / "prisma_msgs" / "action").glob("*.action"),
+                            *(SRC / "prisma_msgs" / "srv").glob("*.srv")]},
 }
 
 
