@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from prisma_common.parameters import ParameterError, Params, parameter
 from prisma_common.sample_stamps import StampLimits
 
+from .episodes import DEFAULT_TASK
 from .retargeting import DEFAULT_JOINTS, JointGroups, MotorRanges, TargetFilter
 from .stag_poses import PoseMapping
 
@@ -43,6 +44,9 @@ class TeleopConfig(Params):
     max_input_ahead: float = parameter(0.5, "a glove sample or pose estimate stamped further than this ahead of this "
                                             "node's clock is refused (the glove's clock is not synchronised)",
                                        unit="s", bounds=(0.0, 60.0), open_low=True, live=True)
+    episode_task: str = parameter(DEFAULT_TASK, "the task of an episode engaging starts, as the episode markers on "
+                                                "prisma/teleop/episode carry it (~/mark_episode may give another)",
+                                  live=True, rules="not empty")
     # --- input joint_states
     finger_flexion_joints: list = parameter(list(DEFAULT_JOINTS.finger_flexion),
                                             "glove joints whose mean flexion closes the fingers motor",
@@ -103,6 +107,9 @@ class TeleopConfig(Params):
                                        unit="rpm", bounds=(0.0, 1000.0), live=True)
 
     def check_rules(self) -> None:
+        if not self.episode_task.strip():
+            raise ParameterError("episode_task", self.episode_task, "describe what the operator demonstrates, e.g. "
+                                                                    "'pinch the ball'")
         try:
             self.joint_groups()
         except ValueError as exc:

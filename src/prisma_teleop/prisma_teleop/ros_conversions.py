@@ -1,7 +1,8 @@
 """Teleoperation data <-> ROS messages: the glove's hand pose (sensor_msgs/JointState), the motor
 targets (prisma/teleop/motor_targets, sensor_msgs/JointState), the goals the teleop node sends
 (prisma_msgs Teleoperate and Grasp, control_msgs GripperCommand) and what it reads from the STAG
-glove (GloveFrame's total pressure; ObjectEstimate through stag_glove's converter).
+glove (GloveFrame's total pressure; ObjectEstimate through stag_glove's converter), and the episode
+markers (prisma/teleop/episode, prisma_msgs/msg/EpisodeMarker).
 
 Every `*_to_msg` takes the message-class lookup `types(name)` first (rclpy's on the robot, the
 prisma typestore off-robot) and builds the message by keyword.
@@ -15,6 +16,7 @@ import numpy as np
 
 from prisma_common.messages import make_header, ns_from_stamp, sequence_field
 
+from .episodes import EVENTS, EpisodeMarker
 from .stag_poses import GraspCommand
 from .teleop_core import TeleopGoal
 
@@ -68,3 +70,17 @@ def pressure_total_from_msg(msg: Any) -> tuple[int, float, bool]:
     """A GloveFrame's (stamp_ns, total pressure: the sum of its normalised pressures, shorted)."""
     return ns_from_stamp(msg.header.stamp), float(np.sum(np.asarray(msg.pressure, dtype=np.float64))), \
         bool(msg.shorted)
+
+
+def episode_marker_to_msg(types: Types, marker: EpisodeMarker, frame_id: str = "") -> Any:
+    return types("prisma_msgs/msg/EpisodeMarker")(
+        header=make_header(types, marker.stamp_ns, frame_id), episode=int(marker.episode), event=marker.event,
+        task=marker.task, outcome=marker.outcome, reason=marker.reason)
+
+
+def episode_marker_from_msg(msg: Any) -> EpisodeMarker:
+    """ValueError for an event other than start or end."""
+    if msg.event not in EVENTS:
+        raise ValueError(f"EpisodeMarker event {msg.event!r}, expected {' or '.join(EVENTS)}")
+    return EpisodeMarker(ns_from_stamp(msg.header.stamp), int(msg.episode), str(msg.event), str(msg.task),
+                         str(msg.outcome), str(msg.reason))

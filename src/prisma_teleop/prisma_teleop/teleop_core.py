@@ -29,8 +29,11 @@ already held when the node began to see the glove (engaged mid-pose, a replay al
 one the hand was not ready for (`not_ready`), is not started from its end: the operator forms it
 anew (sent from its end, it was cancelled by the next pose a moment later).
 
-Every method returns decisions as data (`SendGoal`, `CancelGoal`, `Note` for the log); the node
-carries them out. Time is explicit (`now_ns`, the node clock).
+Both mark episodes (episodes.py: engaging starts one, letting go or the goal ending for good ends it,
+the operator's ~/mark_episode starts or ends one with a task and an outcome).
+
+Every method returns decisions as data (`SendGoal`, `CancelGoal`, `Note` for the log, `EpisodeMarker`
+to publish); the node carries them out. Time is explicit (`now_ns`, the node clock).
 """
 from __future__ import annotations
 
@@ -43,6 +46,7 @@ from prisma_common.goal_refusal import NOT_READY, RETRY_LATER, refusal_code
 from prisma_common.sample_stamps import StampGate, StampNews
 
 from .calibration import POSES, CalibrationError, OperatorCalibration
+from .episodes import EpisodeMarks, EpisodeRefused
 from .node_config import TeleopConfig
 from .retargeting import MissingJoints, retarget
 from .stag_poses import GraspCommand, OpenCommand, PoseMapper
@@ -170,6 +174,7 @@ class _Engaging:
         self.engaged = config.engage_at_start
         self.keeper = GoalKeeper(int(round(config.retry_period * NS)))
         self.gate = StampGate(input_topic, config.stamp_limits())
+        self.episodes = EpisodeMarks(config.episode_task)
         self._arrivals = 0  # input samples (accepted or not) since the last status
         self._status_ns: int | None = None  # when the last status was made
         self._last_arrival: tuple[int, int] | None = None  # the latest input sample: (its stamp, its arrival)
@@ -186,20 +191,43 @@ class _Engaging:
 
     def tick(self, now_ns: int) -> list:
         """On every input sample and goal end: the goal the glove wants now, a retry when due."""
-        return self.keeper.want(self.wanted(now_ns), now_ns)
+        actions = self.keeper.want(self.wanted(now_ns), now_ns)
+        if any(isinstance(a, SendGoal) for a in actions):
+            self.episodes.goal_started()
+        return actions
+
+    def begin(self, now_ns: int) -> list:
+        """At the node's start: the first episode's start when engaged at start."""
+        return list(self.episodes.engaged(now_ns)) if self.engaged else []
 
     def engage(self, on: bool, now_ns: int) -> tuple[str, list]:
+        """~/engage: engaging starts an episode unless one is open, letting go ends the open one."""
         was, self.engaged = self.engaged, on
         if on:
             self.keeper.forget()
         state = "engaged" if on else "disengaged"
         message = f"already {state}" if was == on else state
-        return message, [Note("info", f"teleoperation {message}")] + self.tick(now_ns)
+        markers = self.episodes.engaged(now_ns) if on else self.episodes.let_go(now_ns)
+        return message, [Note("info", f"teleoperation {message}"), *markers] + self.tick(now_ns)
+
+    def mark_episode(self, event: str, now_ns: int, task: str = "", outcome: str = "") -> tuple[bool, str, int, list]:
+        """~/mark_episode: (done, the reply, the episode's index, decisions); engagement is left as it is."""
+        try:
+            marker = self.episodes.mark(event, now_ns, task, outcome)
+        except EpisodeRefused as exc:
+            index = self.episodes.open.episode if self.episodes.open is not None else self.episodes.next_index
+            return False, str(exc), index, []
+        return True, marker.describe(), marker.episode, [marker]
+
+    def _goal_ended(self, reason: str, success: bool) -> None:
+        """A goal's end, for the episode's outcome (in GoalKeeper.last_end's words)."""
+        self.episodes.goal_ended(reason or ("succeeded" if success else "aborted"), success)
 
     def reconfigure(self, config: TeleopConfig) -> None:
         self.config = config
         self.keeper.retry_period_ns = int(round(config.retry_period * NS))
         self.gate.limits = config.stamp_limits()
+        self.episodes.task = config.episode_task
 
     def diagnostics(self, now_ns: int) -> DiagnosticStatusData:
         """The node's status (name `teleop`): engaged or not, the input's rate and age, whether it is
@@ -223,6 +251,7 @@ class _Engaging:
         what, reason = self.keeper.last_end or ("none", "")
         values["last_goal"] = what
         values["last_goal_end"] = reason or "none"
+        values.update(self.episodes.status(now_ns))
         values.update(self._status_values())
         silent = self._last_arrival is None or now_ns - self._last_arrival[1] > NS
         if refused is not None:
@@ -287,11 +316,13 @@ class HandPoseTeleop(_Engaging):
     def on_goal_ended(self, reason: str, success: bool, now_ns: int) -> list:
         command, for_good = self.keeper.ended(reason, success, now_ns)
         self._since_end = 0
-        notes = []
+        self._goal_ended(reason, success)
+        notes: list = []
         if isinstance(command, TeleopGoal) and for_good:  # not cancelled by this node: by another client, or failed
             self.engaged = False
             notes.append(Note("warning" if reason == CANCELED else "error",
                               f"Teleoperate ended {reason}: disengaged; call ~/engage to resume"))
+            notes += self.episodes.failed(now_ns, reason)
         elif stop_code(reason) == INPUT_STALE:
             notes.append(Note("warning", "Teleoperate ended input_stale (the glove fell silent): resumes once the "
                                          "glove is back"))
@@ -404,6 +435,7 @@ class StagTeleop(_Engaging):
 
     def on_goal_ended(self, reason: str, success: bool, now_ns: int) -> list:
         command, for_good = self.keeper.ended(reason, success, now_ns)
+        self._goal_ended(reason, success)
         notes = []
         if isinstance(command, GraspCommand) and refusal_code(reason) == NOT_READY:
             # the hand was not ready for the pose: sent again later it would start at the end of the

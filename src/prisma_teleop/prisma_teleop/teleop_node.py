@@ -15,10 +15,16 @@ input stag: subscribes stag/hand_pose (prisma_msgs/ObjectEstimate) and stag/fram
 the total pressure) and sends prisma/grasp goals for held poses and a prisma/gripper_cmd goal at
 position 0 for the empty hand.
 Both: ~/engage (std_srvs/SetBool) engages (true) or disengages (false, cancelling the running goal);
-parameter engage_at_start. A sample whose header stamp is 0, ahead of this node's clock or older than
-max_input_age on arrival is refused (nothing moves on it), logged once per episode. /diagnostics every
-second: status `teleop` (engaged, the input's rate and age, a refusal and why, the last goal's end,
-the calibration in use). Every parameter is described (node_config.py); the deadband, the stamp
+parameter engage_at_start. Episodes (episodes.py): engaging starts one with the task of parameter
+episode_task, letting go (or the Teleoperate goal ending for good) ends it with its outcome;
+~/mark_episode (prisma_msgs/srv/MarkEpisode) starts one with a task or ends the open one with the
+operator's outcome. Each start and end goes out on prisma/teleop/episode
+(prisma_msgs/msg/EpisodeMarker; reliable, transient_local, depth 1: a recorder started later still
+gets the open episode's start). A sample whose header stamp is 0, ahead of this node's clock or
+older than max_input_age on arrival is refused (nothing moves on it), logged once per episode.
+/diagnostics every second: status `teleop` (engaged, the input's rate and age, a refusal and why,
+the last goal's end, the episode open and the last one, the calibration in use). Every parameter
+is described (node_config.py); the deadband, the stamp
 limits, the goals' fields and the STAG hysteresis and forces change at run time.
 """
 from __future__ import annotations
@@ -30,9 +36,12 @@ from action_msgs.msg import GoalStatus
 from control_msgs.action import GripperCommand
 from diagnostic_msgs.msg import DiagnosticArray
 from prisma_msgs.action import Grasp, Teleoperate
+from prisma_msgs.msg import EpisodeMarker as EpisodeMarkerMsg
 from prisma_msgs.msg import GloveFrame, ObjectEstimate
+from prisma_msgs.srv import MarkEpisode
 from rclpy.action import ActionClient
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
@@ -46,9 +55,11 @@ from prisma_node_wiring.sample_streams import stream_publisher, stream_subscript
 from stag_glove.ros_conversions import estimate_from_msg
 
 from .calibration import POSES, CalibrationError, load_calibration, save_calibration, unwritable
+from .episodes import EpisodeMarker
 from .node_config import TeleopConfig
 from .retargeting import nominal_calibration
 from .ros_conversions import (
+    episode_marker_to_msg,
     grasp_goal_to_msg,
     hand_pose_from_msg,
     motor_targets_to_msg,
@@ -61,6 +72,10 @@ from .teleop_core import CancelGoal, HandPoseTeleop, Note, SendGoal, StagTeleop,
 
 ACTIONS = {"teleoperate": (Teleoperate, "prisma/teleoperate"), "grasp": (Grasp, "prisma/grasp"),
            "open": (GripperCommand, "prisma/gripper_cmd")}
+EPISODE_TOPIC = "prisma/teleop/episode"
+# depth 1: a subscriber joining late (a recorder) gets the last marker only, the open episode's start
+# while one is open; reliable: no marker is lost to a busy subscriber (they come seconds apart)
+EPISODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class TeleopNode(Node):
@@ -94,6 +109,8 @@ class TeleopNode(Node):
             started = "input stag: stag/hand_pose and stag/frame -> prisma/grasp, prisma/gripper_cmd"
         self._goal_clients = {kind: ActionClient(self, *ACTIONS[kind]) for kind in kinds}
         self.create_service(SetBool, "~/engage", self._on_engage)
+        self._episode_pub = self.create_publisher(EpisodeMarkerMsg, EPISODE_TOPIC, EPISODE_QOS)
+        self.create_service(MarkEpisode, "~/mark_episode", self._on_mark_episode)
         # every input sample and goal end looks at the goal to keep (a retry is sent with the first
         # sample after retry_period); the status timer once a second looks too (a wake-up of rclpy's
         # executor per sample would cost more than the sample's own work: bench/bench_teleop.py)
@@ -106,6 +123,7 @@ class TeleopNode(Node):
             if why is not None:
                 self.get_logger().warning(f"calibration_file {config.calibration_file} cannot be written: {why}. "
                                           "Captures will be in use but NOT saved; give a writable calibration_file")
+        self._carry_out(self.core.begin(self._now_ns()))  # engaged at start: the first episode starts now
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
@@ -160,6 +178,15 @@ class TeleopNode(Node):
         response.success, response.message = True, message
         return response
 
+    def _on_mark_episode(self, request: MarkEpisode.Request, response: MarkEpisode.Response) -> MarkEpisode.Response:
+        done, message, episode, actions = self.core.mark_episode(request.event, self._now_ns(), request.task,
+                                                                 request.outcome)
+        if not done:
+            self.get_logger().warning(f"~/mark_episode refused: {message}")
+        self._carry_out(actions)
+        response.success, response.message, response.episode = done, message, episode
+        return response
+
     def _on_capture(self, pose: str, response: Trigger.Response) -> Trigger.Response:
         assert isinstance(self.core, HandPoseTeleop)
         ok, message, complete = self.core.capture(pose)
@@ -181,6 +208,9 @@ class TeleopNode(Node):
                 self._cancel(action.why)
             elif isinstance(action, Note):
                 self._log(action)
+            elif isinstance(action, EpisodeMarker):
+                self._episode_pub.publish(episode_marker_to_msg(self.types, action))
+                self.get_logger().info(action.describe())
 
     def _log(self, note: Note) -> None:
         # rclpy fixes a call site's severity at its first call: one call site per severity

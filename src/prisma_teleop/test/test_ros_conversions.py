@@ -1,13 +1,17 @@
 """Teleoperation converters, by CDR round trip through the typestore: the glove's hand pose, the
 motor targets (the interface with the manipulation node) and the goals the teleop node sends (the
-GripperCommand goal, a control_msgs type the typestore does not hold: test_teleop_node.py)."""
+GripperCommand goal, a control_msgs type the typestore does not hold: test_teleop_node.py), and the
+episode markers."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from prisma_common.typestore import get_typestore, types
+from prisma_teleop.episodes import EpisodeMarker
 from prisma_teleop.ros_conversions import (
+    episode_marker_from_msg,
+    episode_marker_to_msg,
     grasp_goal_to_msg,
     hand_pose_from_msg,
     hand_pose_to_msg,
@@ -62,3 +66,13 @@ def test_glove_frame_total_pressure():
     msg = cls(header=make_header(types, STAMP_NS, "stag_glove"), rows=32, cols=32, raw=np.zeros(1024, np.uint16),
               pressure=pressure, shorted=False, contact=True)
     assert pressure_total_from_msg(round_trip(msg)) == (STAMP_NS, 20.0, False)
+
+
+def test_an_episode_marker_round_trip_and_an_unknown_event():
+    marker = EpisodeMarker(STAMP_NS, 7, "end", "pinch the ball", "failure", "the goal ended motor_fault: overload")
+    msg = round_trip(episode_marker_to_msg(types, marker))
+    assert msg.__msgtype__ == "prisma_msgs/msg/EpisodeMarker"
+    assert episode_marker_from_msg(msg) == marker
+    msg.event = "pause"
+    with pytest.raises(ValueError, match="EpisodeMarker event 'pause', expected start or end"):
+        episode_marker_from_msg(msg)

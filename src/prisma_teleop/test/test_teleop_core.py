@@ -265,6 +265,7 @@ def test_the_status_of_an_engaged_teleop():
         "engaged": "true", "input": "glove/joint_states", "input_rate_hz": "60.0", "input_age_ms": "0",
         "input_silent_ms": "0", "input_refused": "no", "input_refused_samples": "0", "goals_sent": "1",
         "goal_running": "Teleoperate", "last_goal": "none", "last_goal_end": "none",
+        "episode": "none open", "episode_task": "teleoperate the PRISMA hand", "last_episode": "none",
         "calibration_operator": "nominal hand", "calibration_complete": "no: open hand, fist, thumb adducted, "
                                                                         "thumb opposed to capture"}
     core.on_goal_ended("sensor_stale: taxels/index silent for 110 ms", False, glove.t_ns)

@@ -1,7 +1,8 @@
 """teleop on real rclpy over DDS, against stand-ins for the manipulation node's action servers: the
 motor targets of each glove sample with its stamp, the Teleoperate goal kept (sent again after a
-refusal for now, cancelled by ~/engage false), the captures saved and loaded at the next start, and
-the STAG input's Grasp and open goals."""
+refusal for now, cancelled by ~/engage false), the episode markers (engage, let go, ~/mark_episode;
+latched for a late subscriber), the captures saved and loaded at the next start, and the STAG
+input's Grasp and open goals."""
 from __future__ import annotations
 
 import time
@@ -15,7 +16,8 @@ require_ros()
 from control_msgs.action import GripperCommand  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Teleoperate  # noqa: E402
-from prisma_msgs.msg import GloveFrame, ObjectEstimate  # noqa: E402
+from prisma_msgs.msg import EpisodeMarker, GloveFrame, ObjectEstimate  # noqa: E402
+from prisma_msgs.srv import MarkEpisode  # noqa: E402
 from rclpy.action import ActionServer, CancelResponse  # noqa: E402
 from rclpy.task import Future  # noqa: E402
 from rosidl_runtime_py.utilities import get_action, get_message  # noqa: E402
@@ -110,6 +112,36 @@ def test_targets_per_sample_and_the_teleoperate_goal_kept(ros):
     assert ros.call(SetBool, "/teleop/engage", SetBool.Request(data=True)).message == "engaged"
     publish_glove(ros, Synergies(0.0, 0.0, 0.0), 0.3)
     assert len(server.goals) == 3 and len(server.running) == 1
+
+
+def test_episodes_marked_by_engaging_letting_go_and_the_service_latched_for_a_late_subscriber(ros):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    server = FakeServer(ros, Teleoperate, "/prisma/teleoperate")
+    ros.node(TeleopNode, {"engage_at_start": True, "episode_task": "pinch the ball"}, params_files=[PARAMS])
+    publish_glove(ros, Synergies(0.5, 0.5, 0.0), 0.3)
+    assert len(server.running) == 1
+    # a subscriber joining now (a recorder started late) gets the open episode's start, and only it
+    late = ros.collect(EpisodeMarker, "/prisma/teleop/episode", latched)
+    assert ros.spin_until(lambda: len(late) == 1, 5.0)
+    assert (late[0].episode, late[0].event, late[0].task, late[0].reason) == (0, "start", "pinch the ball", "engaged")
+    assert ros.call(SetBool, "/teleop/engage", SetBool.Request(data=False)).message == "disengaged"
+    assert ros.spin_until(lambda: len(late) == 2, 5.0)
+    assert (late[1].episode, late[1].event, late[1].outcome, late[1].reason) == (
+        0, "end", "success", "let go; a goal was running")
+    started = ros.call(MarkEpisode, "/teleop/mark_episode", MarkEpisode.Request(event="start", task="lift the card"))
+    assert (started.success, started.episode, started.message) == (
+        True, 1, "episode 1 started (the operator): lift the card")
+    again = ros.call(MarkEpisode, "/teleop/mark_episode", MarkEpisode.Request(event="start"))
+    assert (again.success, again.episode) == (False, 1) and "end it first" in again.message
+    ended = ros.call(MarkEpisode, "/teleop/mark_episode", MarkEpisode.Request(event="end", outcome="failure"))
+    assert (ended.success, ended.episode) == (True, 1)
+    assert ros.spin_until(lambda: len(late) == 4, 5.0)
+    assert [(m.episode, m.event, m.task, m.outcome) for m in late[2:]] == [
+        (1, "start", "lift the card", ""), (1, "end", "lift the card", "failure")]
+    assert late[3].header.stamp.sec > 0  # stamped with the node's clock
+    server.finish("canceled", canceled=True)
 
 
 def test_captures_are_saved_and_loaded_at_the_next_start(ros, tmp_path):
