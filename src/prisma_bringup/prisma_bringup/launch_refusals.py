@@ -99,3 +99,15 @@ def stopped_because(launch_file: str, node: str, returncode: int, ran_s: float, 
     """The launch's last line when a required node of it exited on its own after `ran_s` seconds."""
     when = "at start-up" if ran_s < STARTUP_S else f"after {ran_s:.0f} s"
     return f"{launch_file}: {node} exited {returncode} {when}: {reason}; every node of this launch is stopped"
+
+
+def recording_refusal(launch_file: str, out: str, exists: bool) -> str | None:
+    """Why a recording launch refuses to start for its out:= (None: it may): none given, or one that
+    exists (ros2 bag record would stop on it after the graph came up, and a second take must not
+    replace the first)."""
+    if not out.strip():
+        return f"{launch_file}: no out:= given: name the bag directory to write, e.g. out:=demo_01. Starting nothing"
+    if exists:
+        return (f"{launch_file}: out:={out} already exists: give a new bag directory (a recording never replaces "
+                f"another). Starting nothing")
+    return None

@@ -1,11 +1,15 @@
 """prisma-dataset: bags of demonstrations as a LeRobot v3.0 dataset (export), and a look at one (show).
 
-    prisma-dataset export BAG... --out DIR --whole-bag [--fps 50] [--task TEXT] [--action targets|positions] [--append]
+    prisma-dataset export BAG... --out DIR [--whole-bag] [--fps 50] [--task TEXT] [--action targets|positions]
+                          [--namespace NS] [--append]
+    prisma-dataset topics [--namespace NS]
     prisma-dataset show DIR [--episode N] [--plots DIR | --no-plots]
     prisma-dataset replay DIR --episode N [--namespace NS] [--speed F] [--plots DIR | --no-plots]
 
 docs/dataset_replay.md: how a replay plays an episode into a running hand and what it compares.
 
+export: one episode per span the teleop node marked (prisma/teleop/episode), its task and outcome
+the markers'; --whole-bag: one episode per bag. topics: what a recording for export needs.
 docs/datasets.md: the features, the sampling rule, the invariants and the tests that check them.
 Exit status: 0; 1 when `show` finds a broken invariant or a replay misses its tolerances; 2 for a
 mistake in the command or its input, or a replay with no hand to play into (one line, no traceback).
@@ -43,19 +47,23 @@ def _task(text: str) -> str:
 
 def parser() -> ArgumentParser:
     top = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    commands = top.add_subparsers(dest="command", required=True, metavar="{export,show,replay}")
+    commands = top.add_subparsers(dest="command", required=True, metavar="{export,show,topics,replay}")
     export = commands.add_parser("export", help="bags -> one LeRobot v3.0 dataset",
-                                 description="Export bags as one LeRobot v3.0 dataset, one episode per bag "
-                                             "(--whole-bag); the dataset is written whole or not at all.")
+                                 description="Export bags as one LeRobot v3.0 dataset, one episode per marked "
+                                             "span (the teleop node's episode markers) or per bag (--whole-bag); "
+                                             "the dataset is written whole or not at all.")
     export.add_argument("bags", nargs="+", type=existing_path, metavar="BAG",
                         help="recorded bags (directories or .mcap files)")
     export.add_argument("--out", type=output_dir, required=True, metavar="DIR",
                         help="the dataset directory (new, empty, or with --append an existing dataset)")
     export.add_argument("--fps", type=positive_int, default=50, help="frames per second of the grid (default 50)")
     export.add_argument("--whole-bag", action="store_true",
-                        help="one episode per bag (the working mode: episode markers are not recorded yet)")
+                        help="one episode per bag, whatever markers it holds (a bag recorded without them)")
     export.add_argument("--task", type=_task, default=None,
-                        help="the episodes' task text (default 'teleoperate the PRISMA hand')")
+                        help="every episode's task text (default: the markers' task; with --whole-bag "
+                             "'teleoperate the PRISMA hand')")
+    export.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+                        help="the hand's namespace the bags were recorded in (default: none)")
     export.add_argument("--action", choices=("targets", "positions"), default="targets",
                         help="targets: /prisma/teleop/motor_targets (default); positions: the next frame's "
                              "motor positions, for bags without teleoperation")
@@ -67,6 +75,10 @@ def parser() -> ArgumentParser:
     show.add_argument("--plots", type=output_dir, default=DEFAULT_PLOTS, metavar="DIR",
                       help=f"where the episode PNGs go (default {DEFAULT_PLOTS})")
     show.add_argument("--no-plots", action="store_true", help="print the summary only")
+    listing = commands.add_parser("topics", help="the topics a recording for export needs, one a line",
+                                  description="Print the topics an export reads (record.launch.py records them).")
+    listing.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+                         help="the hand's namespace (default: none)")
     show.add_argument("--touch-limit", type=positive_float, default=None, metavar="N",
                       help="the touch limit drawn with the forces (default: the manipulation node's "
                            "teleop_max_pad_force, 2 N)")
@@ -114,6 +126,11 @@ def _replay_parser(commands) -> None:
          "prisma_dataset.lerobot_format:DatasetFormatError", "prisma_dataset.replay_plan:ReplayError")
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if args.command == "topics":
+        from .recorded_topics import record_topics
+
+        print("\n".join(record_topics(args.namespace)))
+        return 0
     if args.command == "replay":
         return replay_command(args)
     return export_command(args) if args.command == "export" else show_command(args)
@@ -134,14 +151,14 @@ def _check_out(out: Path, append: bool) -> None:
 
 
 def export_command(args: argparse.Namespace) -> int:
-    from .bag_export import DEFAULT_TASK, ExportOptions, export_bags
+    from .bag_export import ExportOptions, export_bags
     from .dataset_check import require_valid
     from .dataset_summary import summary_lines
     from .lerobot_format import append_episodes, read_dataset, write_dataset
 
     _check_out(args.out, args.append)
-    options = ExportOptions(fps=args.fps, task=args.task or DEFAULT_TASK, action=args.action,
-                            whole_bag=args.whole_bag)
+    options = ExportOptions(fps=args.fps, task=args.task, action=args.action, whole_bag=args.whole_bag,
+                            namespace=args.namespace)
     existing = read_dataset(args.out) if args.append else None
     if existing is not None and existing.fps != args.fps:
         raise UserError(f"--append: the dataset at {args.out} is at {existing.fps} fps; export with "

@@ -14,6 +14,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from prisma_teleop.episodes import OUTCOMES as MARKED_OUTCOMES
+
+from .episode_spans import UNFINISHED
 from .lerobot_format import (
     CODEBASE_VERSION,
     EPISODES_PATH,
@@ -31,6 +34,8 @@ from .lerobot_format import (
     timestamps,
 )
 
+# meta/episodes' outcome column (the episode markers'; "" = not marked, --whole-bag)
+OUTCOMES = (*MARKED_OUTCOMES, UNFINISHED, "")
 # info.json: key -> the types its value may have
 INFO_TYPES: dict[str, tuple[type, ...]] = {
     "codebase_version": (str,), "robot_type": (str, type(None)), "total_episodes": (int,), "total_frames": (int,),
@@ -194,6 +199,8 @@ def _check_episode(row: dict[str, Any], number: int, start: int, features: dict[
                    frames: dict[str, np.ndarray], file_of_row: list[tuple[int, int]], tasks: list[str], fps: int,
                    problems: list[str]) -> None:
     where = f"episode {number}"
+    if row.get("outcome") not in (None, *OUTCOMES):  # this suite's column: a dataset without it is read as well
+        problems.append(f"{where}: outcome {row['outcome']!r} is none of {', '.join(map(repr, OUTCOMES))}")
     if row["episode_index"] != number:
         problems.append(f"{where}: episode_index {row['episode_index']}, rows must be 0, 1, ... in order")
     lo, hi, length = row["dataset_from_index"], row["dataset_to_index"], row["length"]

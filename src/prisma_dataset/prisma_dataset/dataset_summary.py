@@ -1,11 +1,13 @@
-"""`prisma-dataset show`: a dataset's summary (episodes, frames, tasks, what ended each episode and
-how much of its bag was dropped, the invariant check) and one picture per episode: motor positions
-against the actions, the five fingertips' normal forces with the touch limit, and the taxel
-voltages of every pad at the first contact (the first frame with any `observation.contact`) and at
-the peak force (the frame of the largest normal force on any pad)."""
+"""`prisma-dataset show`: a dataset's summary (episodes, frames, tasks, each episode's outcome and
+the outcomes counted, what ended each episode and how much of its bag was dropped, the invariant
+check) and one picture per episode: motor positions against the actions, the five fingertips'
+normal forces with the touch limit, and the taxel voltages of every pad at the first contact (the
+first frame with any `observation.contact`) and at the peak force (the frame of the largest normal
+force on any pad)."""
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +46,7 @@ def summary_lines(report: CheckReport, episode: int | None = None) -> list[str]:
         ages = ", ".join(f"{k} {v:g} s" for k, v in notes["max_age_s"].items())
         lines.append(f"  sampling: sample-and-hold, max age {ages}; action: {notes.get('action')}")
     gaps = 0
+    outcomes: Counter[str] = Counter()
     for row in report.episodes:
         number = row["episode_index"]
         if episode is not None and number != episode:
@@ -51,12 +54,18 @@ def summary_lines(report: CheckReport, episode: int | None = None) -> list[str]:
         note = episode_notes.get(number, {})
         seconds = row["length"] / info["fps"] if info.get("fps") else float("nan")
         line = f"  episode {number}: {row['length']} frames ({seconds:.2f} s), task {row['tasks']}"
+        if row.get("outcome"):
+            line += f", {row['outcome']}"
+            if note.get("outcome_reason"):
+                line += f" ({note['outcome_reason']})"
+        outcomes[row.get("outcome") or "not marked"] += 1
         if note:
             line += f", from {note.get('source')}, ended by {note.get('ended')}"
             if note.get("gap"):
                 gaps += 1
                 line += f"; {note.get('dropped_s', 0):.2f} s of the bag dropped"
         lines.append(line)
+    lines.append(f"  outcomes: {', '.join(f'{n} {o}' for o, n in sorted(outcomes.items())) or 'no episode'}")
     lines.append(f"  gaps that ended episodes: {gaps}")
     if report.ok:
         lines.append("  invariants: all hold (info.json, features, index, episodes, timestamps, tasks, stats)")

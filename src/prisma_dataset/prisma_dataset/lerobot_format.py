@@ -4,7 +4,8 @@ releases that write v3.0 pin an older torch than the suite's).
     meta/info.json                               codebase_version "v3.0", fps, features, totals, paths, splits
     meta/stats.json                              per feature: min, max, mean, std, count, q01 q10 q50 q90 q99
     meta/tasks.parquet                           task_index, indexed by the task text (pandas metadata)
-    meta/episodes/chunk-000/file-000.parquet     one row per episode: where its frames are, its tasks, its stats
+    meta/episodes/chunk-000/file-000.parquet     one row per episode: where its frames are, its tasks, its stats,
+                                                 and this suite's `outcome` column (the episode markers')
     data/chunk-CCC/file-FFF.parquet              the frames: every feature, then timestamp, frame_index,
                                                  episode_index, index, task_index
     meta/prisma_export.json                      this suite's own notes (streams, max ages, why each episode
@@ -90,6 +91,7 @@ class Episode:
     task: str
     values: dict[str, np.ndarray]
     notes: dict[str, Any] = field(default_factory=dict)
+    outcome: str = ""  # success | failure | unfinished from the episode markers; "" = not marked (--whole-bag)
 
     @property
     def length(self) -> int:
@@ -262,7 +264,7 @@ def _write(root: Path, dataset: Dataset) -> None:
                           index=np.arange(start, start + n, dtype=np.int64),
                           task_index=np.full(n, task_index[episode.task], dtype=np.int64))
             row: dict[str, Any] = {
-                "episode_index": number, "tasks": [episode.task], "length": n,
+                "episode_index": number, "tasks": [episode.task], "length": n, "outcome": episode.outcome,
                 "data/chunk_index": chunk_index, "data/file_index": file_index,
                 "dataset_from_index": start, "dataset_to_index": start + n,
                 "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
@@ -282,6 +284,7 @@ def _write(root: Path, dataset: Dataset) -> None:
 
     episode_schema = [
         ("episode_index", pa.int64()), ("tasks", pa.list_(pa.string())), ("length", pa.int64()),
+        ("outcome", pa.string()),
         ("data/chunk_index", pa.int64()), ("data/file_index", pa.int64()),
         ("dataset_from_index", pa.int64()), ("dataset_to_index", pa.int64()),
         ("meta/episodes/chunk_index", pa.int64()), ("meta/episodes/file_index", pa.int64()),
@@ -372,7 +375,7 @@ def read_dataset(root: str | Path) -> Dataset:
         episode_values = {f.name: values[f.name][span] for f in recorded}
         note = dict(episode_notes[number]) if number < len(episode_notes) else {}
         note.pop("episode_index", None)
-        episodes.append(Episode(row["tasks"][0], episode_values, note))
+        episodes.append(Episode(row["tasks"][0], episode_values, note, row.get("outcome") or ""))
     return Dataset(int(info["fps"]), recorded, episodes, info.get("robot_type") or "prisma_hand", notes,
                    int(info.get("data_files_size_in_mb", DATA_FILES_SIZE_IN_MB)),
                    int(info.get("chunks_size", CHUNKS_SIZE)))

@@ -7,6 +7,8 @@ starts at the first instant every stream has a sample (the latest of the streams
 steps by 1/fps (t_k = start + floor(k * 1e9 / fps) ns) up to the last stamp of any stream. The first
 frame where a stream's newest sample is older than that stream's max age ends the episode: that
 frame and every one after it are dropped, and the result names the stream, its age and the instant.
+A marked episode's span narrows the grid: it starts at the later of the span's start and the streams'
+first instant, and ends at the earlier of the span's end and the streams' last stamp.
 """
 from __future__ import annotations
 
@@ -81,11 +83,15 @@ def grid(start_ns: int, end_ns: int, fps: int) -> np.ndarray:
     return instants[instants <= end_ns]
 
 
-def sample_and_hold(streams: Sequence[Stream], fps: int) -> Sampled:
+def sample_and_hold(streams: Sequence[Stream], fps: int, span: tuple[int, int] | None = None) -> Sampled:
+    """The frames of `streams` on the grid; `span` (start, end ns, inclusive: a marked episode) narrows
+    the grid to start no earlier than its start and to end no later than its end."""
     if not streams:
         raise ValueError("no streams to sample")
     start = max(int(s.stamps_ns[0]) for s in streams)
     end = max(int(s.stamps_ns[-1]) for s in streams)
+    if span is not None:
+        start, end = max(start, int(span[0])), min(end, int(span[1]))
     instants = grid(start, end, fps)
     cut = len(instants)
     gap = None

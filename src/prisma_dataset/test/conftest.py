@@ -3,7 +3,8 @@ and what it holds (stream key -> [(stamp_ns, value)]) for the tests to compute e
 
 Streams, as the graph publishes them: /joint_states and each finger's taxels, wrench and contact at
 100 Hz (each finger 1 ms after the previous one, jittered by up to 2 ms), the teleop node's motor
-targets and the glove at 60 Hz. Values are distinct per sample, so a frame that took the wrong
+targets and the glove at 60 Hz, the STAG glove's 32 x 32 frames at 7.3 fps (`stag`), and the teleop
+node's episode markers (`markers`). Values are distinct per sample, so a frame that took the wrong
 sample shows it.
 """
 from __future__ import annotations
@@ -28,11 +29,17 @@ from prisma_motor_driver.backend import MotorState
 from prisma_motor_driver.ros_conversions import joint_state_to_msg
 from prisma_tactile_driver.ros_conversions import hand_taxels_to_msg, taxel_frame_to_msg
 from prisma_tactile_driver.taxels import TaxelFrame
-from prisma_teleop.ros_conversions import hand_pose_to_msg, motor_targets_to_msg
+from prisma_teleop.episodes import EpisodeMarker
+from prisma_teleop.ros_conversions import episode_marker_to_msg, hand_pose_to_msg, motor_targets_to_msg
+from stag_glove.processing import ProcessedFrame
+from stag_glove.ros_conversions import glove_frame_to_msg
 
 MS = 1_000_000
 START_NS = 1_000 * MS  # the bag's first stamp
 GLOVE_JOINTS = ("index_mcp", "thumb_cmc_flexion")
+STAG_FPS = 7.3
+STAG_SIZE = 32
+EPISODE_TOPIC = "/prisma/teleop/episode"
 
 
 @dataclass
@@ -53,11 +60,21 @@ def stamp_of(msg: Any) -> int:
     return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
+def marker(event: str, at_s: float, episode: int, task: str = "pinch the ball", outcome: str = "") -> EpisodeMarker:
+    """An episode marker `at_s` seconds into the bag."""
+    return EpisodeMarker(START_NS + round(at_s * 1e9), episode, event, task, outcome,
+                         "engaged" if event == "start" else "let go")
+
+
 def write_bag(path: Path, seconds: float = 1.0, seed: int = 0, targets: bool = True, glove: bool = False,
-              gap: tuple[str, float, float] | None = None, per_hand: bool = False) -> RecordedBag:
+              gap: tuple[str, float, float] | None = None, per_hand: bool = False, stag: bool = False,
+              shorted: tuple[int, ...] = (), markers: tuple[EpisodeMarker, ...] = (),
+              namespace: str = "") -> RecordedBag:
     """`gap`: (stream key, from s, to s) of the bag during which that stream publishes nothing;
     `per_hand`: the fingertip samples of each scan in one HandTaxels, HandWrench and HandContact
-    (each sample keeps its own stamp) instead of the per-finger topics."""
+    (each sample keeps its own stamp) instead of the per-finger topics; `stag`: the STAG glove's frames
+    on /stag/frame, those numbered in `shorted` flagged shorted (and not recorded as values);
+    `markers`: on /prisma/teleop/episode; `namespace`: every topic in it."""
     rng = np.random.default_rng(seed)
     recorded = RecordedBag(path)
     monitor = ContactMonitor(min_mean_voltage=1.0)
@@ -116,8 +133,21 @@ def write_bag(path: Path, seconds: float = 1.0, seed: int = 0, targets: bool = T
                 angles = dict(zip(GLOVE_JOINTS, rng.uniform(0, 1.5, len(GLOVE_JOINTS))))
                 messages.append((stamp, "/glove/joint_states", hand_pose_to_msg(types, stamp, angles)))
                 recorded.add("glove", stamp, np.array(list(angles.values())))
+        if stag:
+            for k in range(int(seconds * STAG_FPS) + 1):
+                stamp = START_NS + round(k * 1e9 / STAG_FPS) + int(rng.integers(0, 5 * MS))
+                pressure = rng.uniform(0, 1, (STAG_SIZE, STAG_SIZE)).astype(np.float32)
+                raw = (pressure * 1023).astype(np.uint16)
+                frame = ProcessedFrame(stamp, raw, pressure, k in shorted, True)
+                if not silent("glove_pressure", stamp):
+                    messages.append((stamp, "/stag/frame", glove_frame_to_msg(types, frame, "stag_glove")))
+                    if k not in shorted:
+                        recorded.add("glove_pressure", stamp, pressure)
+        for m in markers:
+            messages.append((m.stamp_ns, EPISODE_TOPIC, episode_marker_to_msg(types, m)))
+        prefix = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
         for stamp, topic, msg in sorted(messages, key=lambda item: item[0]):
-            bag.write(topic, msg, stamp)
+            bag.write(prefix + topic, msg, stamp)
     return recorded
 
 
@@ -130,3 +160,14 @@ def make_bag(tmp_path_factory) -> Callable[..., RecordedBag]:
         return write_bag(root / name, **options)
 
     return make
+
+
+@pytest.fixture(scope="session")
+def mark() -> Callable[..., EpisodeMarker]:
+    """`marker`: mark(event, at_s, episode, task, outcome), at_s seconds into a bag write_bag makes."""
+    return marker
+
+
+@pytest.fixture(scope="session")
+def bag_start_ns() -> int:
+    return START_NS

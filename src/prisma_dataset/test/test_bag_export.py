@@ -129,7 +129,10 @@ def test_bad_input_names_the_problem(make_bag, tmp_path, capsys):
     recorded = make_bag("plain", seconds=0.3)
     assert main(["export", str(recorded.path), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
-    assert "has no episode markers" in err and "export it with --whole-bag" in err
+    assert err.count("\n") == 1
+    assert "has no episode marker (/prisma/teleop/episode)" in err and "or export the bag as one episode with " \
+        "--whole-bag" in err
+    assert "ros2 service call /teleop/mark_episode prisma_msgs/srv/MarkEpisode" in err
     foreign = tmp_path / "thesis"
     foreign.mkdir()
     (foreign / "thesis.tex").write_text("mine")
@@ -143,7 +146,7 @@ def test_bad_input_names_the_problem(make_bag, tmp_path, capsys):
 def test_bags_with_other_features_are_not_mixed_and_show_takes_one_episode(make_bag, tmp_path, capsys):
     with_glove, without = make_bag("glove_on", seconds=0.3, glove=True), make_bag("glove_off", seconds=0.3)
     with pytest.raises(ExportError, match=rf"bag {without.path} records other features than {with_glove.path} "
-                                          r"\(without /glove/joint_states\)"):
+                                          r"\(without observation.glove_pose\)"):
         export_bags([with_glove.path, without.path], ExportOptions(whole_bag=True))
     out = tmp_path / "ds"
     assert main(["export", str(without.path), str(without.path), "--whole-bag", "--out", str(out)]) == 0
