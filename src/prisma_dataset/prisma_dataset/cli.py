@@ -217,7 +217,7 @@ def replay_command(args: argparse.Namespace) -> int:
     tolerances = replace(tolerances, **{k: v for k, v in given.items() if v is not None})
     core = ReplayCore(episode, ReplayOptions(speed=args.speed))
     try:
-        from .replay_node import run_replay
+        from .replay_ros import run_replay
     except ImportError as exc:
         raise UserError(f"replay needs ROS 2 (rclpy, prisma_msgs): {exc}; source the ROS setup and the "
                         f"workspace's install/setup.bash") from None

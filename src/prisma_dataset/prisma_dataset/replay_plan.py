@@ -1,4 +1,4 @@
-"""What `prisma-dataset replay` plays and in which steps (ROS-free; replay_node.py carries the steps out).
+"""What `prisma-dataset replay` plays and in which steps (ROS-free; replay_ros.py carries the steps out).
 
 An episode's `action` column is the three motor targets the hand followed, one per frame. A replay
 publishes them on prisma/teleop/motor_targets as the teleop node does, each with a fresh stamp, and
@@ -116,7 +116,7 @@ class ReplayOptions:
             raise ReplayError(f"--speed {self.speed}: give a factor from 0.05 to 4 (1 = as recorded)")
 
 
-# ---- the steps, as data: replay_node.py carries them out ---------------------------------------
+# ---- the steps, as data: replay_ros.py carries them out ---------------------------------------
 @dataclass(frozen=True)
 class Publish:
     """Publish these targets stamped `stamp_ns` (the tick's instant); `frame` is the episode's frame

@@ -1,5 +1,6 @@
 """The rclpy side of `prisma-dataset replay`: a node that carries out ReplayCore's steps on a running
-hand (replay_plan.py decides, replay_compare.py judges) and records what the hand did.
+hand (replay_plan.py decides, replay_compare.py judges) and records what the hand did. Not a
+`*_node.py`: no launch file starts it and it has no parameters; it lives as long as one replay.
 
 Publishes prisma/teleop/motor_targets (sensor_msgs/JointState, freshly stamped, the teleop node's
 converter) and keeps one prisma/teleoperate goal (prisma_msgs/action/Teleoperate, the teleop node's
