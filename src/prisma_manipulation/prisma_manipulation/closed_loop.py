@@ -43,24 +43,16 @@ from prisma_tactile_driver.taxels import TaxelFrame
 
 from .contact_monitor import ContactEvaluation
 from .controllers import Controller, JointSample
-from .manipulation_core import (
-    Finished,
-    GraspRequest,
-    GripperRequest,
-    ManipulateRequest,
-    ManipulationCore,
-    SendMove,
-    StopMotors,
-)
+from .goal_kind import GoalKind
+from .goal_kinds import GOAL_KINDS
+from .manipulation_core import ActionHandlers, Finished, ManipulationCore, SendMove, StopMotors
 from .node_config import ManipulationConfig
-from .teleop_goal import TeleopRequest
 
 if TYPE_CHECKING:
     from prisma_force_estimator.force_estimator_core import WrenchSample
     from prisma_force_estimator.inference import ForceEstimator
 
 NS = 1_000_000_000
-Request = GraspRequest | ManipulateRequest | GripperRequest | TeleopRequest
 FRAME_ID_FORMAT = "prisma_{finger}_pad"  # tactile_driver's and force_estimator's default frame ids
 
 
@@ -122,11 +114,13 @@ class ClosedLoop:
         pad_params: PadParams | None = None,
         seed: int = 0,
         observer: Callable[[Scan], Any] | None = None,
+        kinds: tuple[GoalKind, ...] = GOAL_KINDS,
     ) -> None:
+        """`kinds`: the goal kinds its manipulation core serves (a test adds one to GOAL_KINDS)."""
         self.world = world
         self.period_ns = int(round(1e9 / rate_hz))
         self.observer = observer
-        self.core = ManipulationCore(config or ManipulationConfig())
+        self.core = ManipulationCore(config or ManipulationConfig(), kinds)
         motor_config = MotorDriverConfig(backend="sim")
         # the motors' clock starts at the first scan, whatever its stamp
         self.bus = SimMotorBus(motor_config.motors(), initial_positions=world.positions, start_ns=None)
@@ -143,6 +137,10 @@ class ClosedLoop:
             self.pipeline = WrenchPipeline({f: estimator for f in FINGERS}, FRAME_ID_FORMAT, batch_window_ns)
         self.controller: Controller | None = None  # the goal's controller, kept after it ends
         self.finished: Finished | None = None
+        self._stamp_ns = 0  # the scan whose decisions are being carried out
+        # as the node carries them out, on the sim motor driver's core (the rest is only recorded)
+        self._handlers = ActionHandlers(send_move=self._send_move, stop_motors=self._stop_motors,
+                                        finished=self._finished)
 
     # ---- one scan --------------------------------------------------------------------------
     def scan(self, stamp_ns: int, inputs: Iterable[tuple[str, int, Any]] = ()) -> tuple[Scan, np.ndarray, np.ndarray]:
@@ -192,17 +190,21 @@ class ClosedLoop:
         return scan, volts, used
 
     def _carry_out(self, actions: list, scan: Scan) -> None:
-        for action in actions:
-            if isinstance(action, SendMove):
-                self.motor.start(velocity_goal(action.velocities_rpm, action.timeout_s, scan.stamp_ns), scan.stamp_ns)
-            elif isinstance(action, StopMotors):
-                self.motor.cancel()
-            elif isinstance(action, Finished):
-                self.finished = action
-            scan.actions.append(action)
+        self._stamp_ns = scan.stamp_ns
+        self._handlers.carry_out(actions)
+        scan.actions.extend(actions)
+
+    def _send_move(self, action: SendMove) -> None:
+        self.motor.start(velocity_goal(action.velocities_rpm, action.timeout_s, self._stamp_ns), self._stamp_ns)
+
+    def _stop_motors(self, action: StopMotors) -> None:
+        self.motor.cancel()  # as on the node, the canceled goal's result changes no decision
+
+    def _finished(self, action: Finished) -> None:
+        self.finished = action
 
     # ---- a goal ----------------------------------------------------------------------------
-    def start(self, request: Request, scan: Scan) -> None:
+    def start(self, request: Any, scan: Scan) -> None:
         """Send the goal at the scan's stamp as a client would: refused (RuntimeError naming why)
         where the manipulation node would refuse it."""
         core, t = self.core, scan.stamp_ns
@@ -214,7 +216,7 @@ class ClosedLoop:
         self.controller = core.controller
         self._carry_out(actions, scan)
 
-    def run(self, request: Request, duration_s: float, start_ns: int = 0,
+    def run(self, request: Any, duration_s: float, start_ns: int = 0,
             settle_s: float = 0.0, progress: Callable[[str], None] | None = None) -> Trace:
         """Scan once, send the goal, and scan on until it has finished (then `settle_s` more) or
         `duration_s` has passed."""

@@ -48,7 +48,7 @@ class ControlInput:
     contacts: Mapping[str, ContactEvaluation]
     forces: Mapping[str, float]  # normal force per finger, N (pressing into the pad is positive)
     joints: JointSample
-    inputs: Mapping[str, Any] = field(default_factory=dict)  # a goal kind's extra inputs (goal_kinds.py)
+    inputs: Mapping[str, Any] = field(default_factory=dict)  # a goal kind's extra inputs (goal_kind.py)
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,12 @@
-"""The shape every goal kind of the manipulation node has (issue 28): a kind declares how its request
-is validated, the streams it needs, how it builds its controller, and how it reports feedback and
-result, in core data and as its action's messages. ManipulationCore keeps what is common to all of
-them (one goal at a time, admission, the MoveMotors lease, the watchdog, stepping once per scan) and
-the node serves one action server per kind through one generic path. A new kind is one new module
-(a `GoalKind` subclass and its request, status and converters) and one line in
-manipulation_core.GOAL_KINDS.
+"""The shape every goal kind of the manipulation node has (issue 28): a kind declares its action (name
+and ROS type), how its request is validated, the streams it needs, how it builds its controller, how
+it reports feedback and result, in core data and as its action's messages (both ways: the goal too),
+and how the action server ends a finished goal (`outcome`). ManipulationCore keeps what is common to
+all of them (one goal at a time, admission, the MoveMotors lease, the watchdog, stepping once per
+scan); the node, the closed loop and the sim recorder serve every kind through one generic path and
+read each of these facts from the kind. A new kind is one new module (a `GoalKind` subclass and its
+request, status and converters) and one line in goal_kinds.GOAL_KINDS (issue 42; the test suite's
+test_fifth_goal_kind.py adds one that way).
 
 A kind's extra input (a teleoperation goal following the glove's targets, issue 27) is one more
 `InputStream` in `GoalKind.inputs` (topic, message type, converter): the node subscribes to it and
@@ -26,7 +28,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from .controllers import SENSOR_STALE, ControlLimits, Controller, JointSample
+from . import goal_ends
+from .controllers import CANCELED, SENSOR_STALE, ControlLimits, Controller, JointSample
 from .node_config import ManipulationConfig
 
 Types = Callable[[str], Any]
@@ -142,7 +145,18 @@ class GoalKind(Generic[R]):
         """The end reason when `stream` falls silent during a goal."""
         return SENSOR_STALE
 
+    def outcome(self, done: Finished) -> str:
+        """How its action server ends a finished goal (goal_ends: SUCCEEDED, CANCELED or ABORTED): a
+        cancel as canceled, whatever its success (a teleoperation's cancel is its normal end)."""
+        if done.reason == CANCELED:
+            return goal_ends.CANCELED
+        return goal_ends.SUCCEEDED if done.success else goal_ends.ABORTED
+
     def request_from_msg(self, msg: Any) -> R:
+        raise NotImplementedError
+
+    def request_to_msg(self, types: Types, req: R) -> Any:
+        """The goal message of a request, as a client sends it (the sim's summaries, a recorder)."""
         raise NotImplementedError
 
     def feedback_to_msg(self, types: Types, fb: Feedback) -> Any:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .controllers import Controller
-from .goal_kinds import (
+from .goal_kind import (
     Built,
     Feedback,
     Finished,
@@ -79,6 +79,9 @@ class GraspGoal(GoalKind[GraspRequest]):
     def request_from_msg(self, msg: Any) -> GraspRequest:
         return grasp_request_from_msg(msg)
 
+    def request_to_msg(self, types: Types, req: GraspRequest) -> Any:
+        return grasp_request_to_msg(types, req)
+
     def feedback_to_msg(self, types: Types, fb: Feedback) -> Any:
         return grasp_feedback_to_msg(types, fb)
 
@@ -89,6 +92,12 @@ class GraspGoal(GoalKind[GraspRequest]):
 def grasp_request_from_msg(msg: Any) -> GraspRequest:
     return GraspRequest(str(msg.grasp), float(msg.finger_force), float(msg.thumb_force), float(msg.speed_rpm),
                         float(msg.timeout))
+
+
+def grasp_request_to_msg(types: Types, req: GraspRequest) -> Any:
+    return types("prisma_msgs/action/Grasp_Goal")(grasp=req.grasp, finger_force=float(req.finger_force),
+                                                  thumb_force=float(req.thumb_force), speed_rpm=float(req.speed_rpm),
+                                                  timeout=float(req.timeout_s))
 
 
 def grasp_feedback_to_msg(types: Types, fb: Feedback) -> Any:

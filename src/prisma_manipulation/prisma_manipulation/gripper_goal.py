@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .controllers import Controller
-from .goal_kinds import Built, Feedback, Finished, GoalContext, GoalKind, Streams, Types, f32, finite
+from .goal_kind import Built, Feedback, Finished, GoalContext, GoalKind, Streams, Types, f32, finite
 from .gripper_controller import GripperController
 
 
@@ -68,6 +68,9 @@ class GripperGoal(GoalKind[GripperRequest]):
     def request_from_msg(self, msg: Any) -> GripperRequest:
         return gripper_request_from_msg(msg)
 
+    def request_to_msg(self, types: Types, req: GripperRequest) -> Any:
+        return gripper_request_to_msg(types, req)
+
     def feedback_to_msg(self, types: Types, fb: Feedback) -> Any:
         return gripper_feedback_to_msg(types, fb)
 
@@ -78,6 +81,12 @@ class GripperGoal(GoalKind[GripperRequest]):
 def gripper_request_from_msg(msg: Any) -> GripperRequest:
     """control_msgs/GripperCommand goal: command.position = fingers motor rad, command.max_effort N."""
     return GripperRequest(float(msg.command.position), float(msg.command.max_effort))
+
+
+def gripper_request_to_msg(types: Types, req: GripperRequest) -> Any:
+    """control_msgs/GripperCommand goal: command.position = fingers motor rad, command.max_effort N."""
+    command = types("control_msgs/msg/GripperCommand")(position=float(req.position), max_effort=float(req.max_effort))
+    return types("control_msgs/action/GripperCommand_Goal")(command=command)
 
 
 def gripper_feedback_to_msg(types: Types, fb: Feedback) -> Any:

@@ -9,7 +9,7 @@ from typing import Any
 
 from .contact_monitor import check_k
 from .controllers import Controller
-from .goal_kinds import (
+from .goal_kind import (
     Built,
     Feedback,
     Finished,
@@ -102,6 +102,9 @@ class ManipulateGoal(GoalKind[ManipulateRequest]):
     def request_from_msg(self, msg: Any) -> ManipulateRequest:
         return manipulate_request_from_msg(msg)
 
+    def request_to_msg(self, types: Types, req: ManipulateRequest) -> Any:
+        return manipulate_request_to_msg(types, req)
+
     def feedback_to_msg(self, types: Types, fb: Feedback) -> Any:
         return manipulate_feedback_to_msg(types, fb)
 
@@ -112,6 +115,12 @@ class ManipulateGoal(GoalKind[ManipulateRequest]):
 def manipulate_request_from_msg(msg: Any) -> ManipulateRequest:
     return ManipulateRequest(str(msg.motion), float(msg.speed_rpm), float(msg.k), bool(msg.use_force),
                              float(msg.timeout))
+
+
+def manipulate_request_to_msg(types: Types, req: ManipulateRequest) -> Any:
+    return types("prisma_msgs/action/Manipulate_Goal")(motion=req.motion, speed_rpm=float(req.speed_rpm),
+                                                       k=float(req.k), use_force=bool(req.use_force),
+                                                       timeout=float(req.timeout_s))
 
 
 def manipulate_feedback_to_msg(types: Types, fb: Feedback) -> Any:

@@ -5,7 +5,7 @@ The node feeds it messages (taxels, wrenches, joint states, a goal kind's extra 
 results, cancel requests, watchdog ticks) as plain data and carries out the returned actions:
 - SendMove: send a MoveMotors velocity goal (it preempts the previous one on the motor driver);
 - StopMotors: cancel the running MoveMotors goal (cancel = stop);
-- Feedback / Finished: the running goal's feedback and end, with its kind's status (goal_kinds.py);
+- Feedback / Finished: the running goal's feedback and end, with its kind's status (goal_kind.py);
 - Ignored: an input set aside (a /joint_states message without the hand's joints), for the log;
 - StampNews (prisma_common.sample_stamps): a stream's samples refused by their stamp (stamped 0,
   ahead of the node's clock, older than max_stamp_age on arrival), or accepted again: once per
@@ -15,8 +15,13 @@ results, cancel requests, watchdog ticks) as plain data and carries out the retu
 ContactState for every finger on every sample comes from `on_taxels` whether or not a goal runs.
 
 What differs between goal kinds is each kind's module (grasp_goal.py, manipulate_goal.py, gripper_goal.py,
-teleop_goal.py: a `GoalKind` each, listed in GOAL_KINDS): its request's validation and defaults, the
-streams and inputs it needs, its controller, its status. The core finds a request's kind by its type.
+teleop_goal.py: a `GoalKind` each, listed in goal_kinds.GOAL_KINDS): its request's validation and
+defaults, the streams and inputs it needs, its controller, its status. The core finds a request's
+kind by its type.
+
+Its users carry its actions out through `ActionHandlers.carry_out`, the one dispatch over the
+actions' types: each user (the node, the closed loop, the sim recorder) names what it does with each
+type, and a type it does not name is let pass.
 
 Goals are admitted in two steps. `accept` answers a `Refusal` (prisma_common.goal_refusal:
 `invalid`, `busy`, `not_ready`, `no_contact` and why) or None: the request within the limits
@@ -35,6 +40,7 @@ oldest input the watchdog watches arrived, so no command outlives its data by mo
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,7 +48,7 @@ import numpy as np
 
 from prisma_common.diagnostics import OK, WARN, DiagnosticStatusData
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
-from prisma_common.sample_stamps import StampGate
+from prisma_common.sample_stamps import StampGate, StampNews
 
 from .contact_monitor import ContactEvaluation, ContactMonitor, check_k
 from .controllers import (
@@ -58,24 +64,21 @@ from .controllers import (
     Controller,
     JointSample,
 )
-from .goal_kinds import Feedback, Finished, GoalContext, GoalKind, Streams
-from .grasp_goal import GRASP_GOAL, GraspRequest, GraspStatus
-from .gripper_goal import GRIPPER_GOAL, GripperRequest, GripperStatus
-from .manipulate_goal import MANIPULATE_GOAL, MOTIONS, ManipulateRequest, ManipulateStatus
+from .goal_kind import Feedback, Finished, GoalContext, GoalKind, Streams
+from .goal_kinds import GOAL_KINDS, kind_of
+from .grasp_goal import GraspRequest, GraspStatus
+from .gripper_goal import GripperRequest, GripperStatus
+from .manipulate_goal import MOTIONS, ManipulateRequest, ManipulateStatus
 from .move_lease import MOVE_LEASE_S, MOVE_REFRESH_S, MoveLease, SendMove, StopMotors
 from .node_config import ManipulationConfig
 from .sample_alignment import SampleAligner
-from .teleop_goal import TELEOP_GOAL
 from .watchdog import JOINT_STATES, SensorWatchdog
 
-# The goal kinds the node serves, one action server each: a new kind is its module and one entry here.
-GOAL_KINDS: tuple[GoalKind, ...] = (GRASP_GOAL, MANIPULATE_GOAL, GRIPPER_GOAL, TELEOP_GOAL)
-GRASP, MANIPULATE, GRIPPER = GRASP_GOAL.name, MANIPULATE_GOAL.name, GRIPPER_GOAL.name
 STAMP_STATUS = "manipulation: stamps"  # its /diagnostics status of the streams' stamps
 
-__all__ = ["GOAL_KINDS", "MOTIONS", "MOVE_LEASE_S", "MOVE_REFRESH_S", "Feedback", "Finished", "GraspRequest",
+__all__ = ["MOTIONS", "MOVE_LEASE_S", "MOVE_REFRESH_S", "ActionHandlers", "Feedback", "Finished", "GraspRequest",
            "GraspStatus", "GripperRequest", "GripperStatus", "ManipulateRequest", "ManipulateStatus", "MoveLease",
-           "SendMove", "StopMotors"]  # the kinds' data and the lease's decisions, for the core's users
+           "SendMove", "StampNews", "StopMotors"]  # the kinds' data and the core's decisions, for its users
 
 @dataclass(frozen=True)
 class Ignored:
@@ -83,6 +86,40 @@ class Ignored:
 
     topic: str
     reason: str
+
+
+def _let_pass(action: Any) -> None:
+    """What a user does with an action type it does not name."""
+
+
+@dataclass(frozen=True)
+class ActionHandlers:
+    """How one user of the core carries out its decisions, a callable per action type (each lets
+    its actions pass unless named): the node sends and cancels MoveMotors goals, publishes feedback,
+    ends the goal and logs; the closed loop drives the sim motor driver's core; the sim recorder
+    writes the messages the node would publish."""
+
+    send_move: Callable[[SendMove], None] = _let_pass
+    stop_motors: Callable[[StopMotors], None] = _let_pass
+    feedback: Callable[[Feedback], None] = _let_pass
+    finished: Callable[[Finished], None] = _let_pass
+    ignored: Callable[[Ignored], None] = _let_pass
+    stamp_news: Callable[[StampNews], None] = _let_pass
+
+    def carry_out(self, actions: Iterable[Any]) -> None:
+        """Each action, in order, to its type's callable; TypeError for an action of no such type
+        (a core that decides something new must say who carries it out)."""
+        for action in actions:
+            handler = _HANDLER_FIELDS.get(type(action))
+            if handler is None:
+                raise TypeError(f"{type(action).__name__} is none of the core's actions "
+                                f"{[t.__name__ for t in _HANDLER_FIELDS]}")
+            getattr(self, handler)(action)
+
+
+# the one place an action's type picks what is done with it
+_HANDLER_FIELDS: dict[type, str] = {SendMove: "send_move", StopMotors: "stop_motors", Feedback: "feedback",
+                                    Finished: "finished", Ignored: "ignored", StampNews: "stamp_news"}
 
 
 class GoalRefused(ValueError):
@@ -151,10 +188,8 @@ class ManipulationCore:
 
     # ---- goal validation -------------------------------------------------------------------
     def kind_of(self, req: Any) -> GoalKind:
-        """The goal kind a request belongs to (by its type)."""
-        if type(req) not in self.kinds:
-            raise TypeError(f"{type(req).__name__} is none of the goal requests {[t.__name__ for t in self.kinds]}")
-        return self.kinds[type(req)]
+        """The goal kind a request belongs to (by its type); TypeError for a request of no kind it serves."""
+        return self.kinds.get(type(req)) or kind_of(req, tuple(self.kinds.values()))
 
     def resolve(self, req: Any) -> tuple[Any, Refusal | None]:
         """The request with defaults filled in, or why it is invalid (beyond the limits)."""

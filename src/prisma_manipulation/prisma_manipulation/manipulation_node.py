@@ -1,5 +1,5 @@
 """manipulation: Algorithm 1 on every fingertip sample (/prisma/<finger>/contact, also when idle),
-one action server per goal kind (manipulation_core.GOAL_KINDS: Grasp on /prisma/grasp, Manipulate
+one action server per goal kind (goal_kinds.GOAL_KINDS: Grasp on /prisma/grasp, Manipulate
 on /prisma/manipulate, control_msgs GripperCommand on /prisma/gripper_cmd, Teleoperate on
 /prisma/teleoperate following /prisma/teleop/motor_targets), one goal at a time across them, a
 client of /prisma/motors/move, and the 100 ms sensor watchdog.
@@ -48,17 +48,18 @@ from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publish
 from prisma_node_wiring.single_instance import AlreadyRunning, refuse_if_running
 from prisma_tactile_driver.ros_conversions import hand_taxels_samples
 
-from .goal_ends import ABORTED, CANCELED, REFUSED, SUCCEEDED, GoalEnd, GoalEnds
-from .goal_kinds import GoalKind, InputStream
+from .controllers import TIMEOUT
+from .goal_ends import CANCELED, REFUSED, SUCCEEDED, GoalEnd, GoalEnds
+from .goal_kind import GoalKind, InputStream
+from .goal_kinds import GOAL_KINDS
 from .manipulation_core import (
-    GOAL_KINDS,
+    ActionHandlers,
     Feedback,
     Finished,
     GoalRefused,
     Ignored,
     ManipulationCore,
     SendMove,
-    StopMotors,
 )
 from .node_config import ManipulationConfig
 from .ros_conversions import (
@@ -68,7 +69,6 @@ from .ros_conversions import (
     normal_force_from_wrench,
 )
 
-GOAL_ACTIONS = tuple(kind.action for kind in GOAL_KINDS)
 # finished goals kept a minute for their results, not rclpy's 15: each status change sends every kept goal to
 # each client, and longer arrays slowed a soak's goals (docs/performance.md "Soak")
 RESULT_TIMEOUT_S = 60
@@ -80,13 +80,14 @@ DIAGNOSTICS_PERIOD_S = 1.0
 
 
 class ManipulationNode(Node):
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, kinds: tuple[GoalKind, ...] = GOAL_KINDS, **kwargs) -> None:
+        """`kinds`: the goal kinds it serves (a test adds one to GOAL_KINDS)."""
         super().__init__("manipulation", **kwargs)
         # one controller per hand: a second would start every goal too and send MoveMotors for it
-        refuse_if_running(self, GOAL_ACTIONS)  # AlreadyRunning: exit 1
+        refuse_if_running(self, tuple(kind.action for kind in kinds))  # AlreadyRunning: exit 1
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = declare_config(self, ManipulationConfig)
-        self.core = ManipulationCore(self.config)
+        self.core = ManipulationCore(self.config, kinds)
         self.types = robot_types(get_message, get_action)
         accept_live_changes(self, ManipulationConfig, self._reconfigure)
 
@@ -96,6 +97,9 @@ class ManipulationNode(Node):
         self._move_result: Future | None = None  # its result's future
         self._releasing: Future | None = None  # the result of the MoveMotors goal last stopped
         self._move_seq = 0  # increments with every MoveMotors goal we send or stop
+        self._handlers = ActionHandlers(send_move=self._send_move, stop_motors=lambda _: self._stop_motors(),
+                                        feedback=self._publish_feedback, finished=self._finish,
+                                        ignored=self._log_ignored, stamp_news=self._log_stamp_news)
         group = ReentrantCallbackGroup()
 
         self._contact_pubs = {f: stream_publisher(self, ContactState, f"prisma/{f}/contact")
@@ -109,9 +113,9 @@ class ManipulationNode(Node):
                                             hand_wrench_samples, self._on_wrench, callback_group=group)
         stream_subscription(self, JointState, "joint_states", self._on_joints, callback_group=group)
         self._move_client = ActionClient(self, MoveMotors, self.config.move_action, callback_group=group)
-        self._kinds = {kind.name: kind for kind in GOAL_KINDS}
+        self._kinds = {kind.name: kind for kind in kinds}
         # a kind's extra inputs (none for grasp, manipulate, gripper): fed to the core like the sensors
-        for kind in GOAL_KINDS:
+        for kind in kinds:
             for spec in kind.inputs:
                 stream_subscription(self, get_message(spec.msg_type), spec.topic, self._input_callback(spec),
                                     callback_group=group)
@@ -119,11 +123,11 @@ class ManipulationNode(Node):
         # callback): _execute aborts a refused one at once
         self._servers = [ActionServer(self, get_action(kind.action_type), kind.action, self._executor(kind),
                                       cancel_callback=self._on_cancel, callback_group=group,
-                                      result_timeout=RESULT_TIMEOUT_S) for kind in GOAL_KINDS]
+                                      result_timeout=RESULT_TIMEOUT_S) for kind in kinds]
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
         # each goal's end, on /diagnostics at once and every second (`manipulation: goals`), and which
         # ends the log shows: a kind without a result text logs a failure once per episode
-        self.goal_ends = GoalEnds(frozenset(k.name for k in GOAL_KINDS if not k.result_has_text))
+        self.goal_ends = GoalEnds(frozenset(k.name for k in kinds if not k.result_has_text))
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)
         self.get_logger().info(f"k={self.config.k}, fingers {', '.join(self.config.fingers)}, "
@@ -213,23 +217,21 @@ class ManipulationNode(Node):
 
     # ---- carrying out the core's decisions -------------------------------------------------
     def _apply(self, actions: list) -> None:
-        for action in actions:
-            if isinstance(action, SendMove):
-                self._send_move(action)
-            elif isinstance(action, StopMotors):
-                self._stop_motors()
-            elif isinstance(action, Feedback):
-                if self._goal is not None:
-                    self._goal.publish_feedback(self._kinds[action.kind].feedback_to_msg(self.types, action))
-            elif isinstance(action, Finished):
-                self._finish(action)
-            elif isinstance(action, Ignored):
-                self.get_logger().warning(f"ignoring {action.topic}: {action.reason}", throttle_duration_sec=10.0)
-            elif isinstance(action, StampNews):  # a stream refused by its stamps, or accepted again: once each
-                if action.level == "warning":
-                    self.get_logger().warning(action.text)
-                else:
-                    self.get_logger().info(action.text)
+        self._handlers.carry_out(actions)
+
+    def _publish_feedback(self, action: Feedback) -> None:
+        if self._goal is not None:
+            self._goal.publish_feedback(self._kinds[action.kind].feedback_to_msg(self.types, action))
+
+    def _log_ignored(self, action: Ignored) -> None:
+        self.get_logger().warning(f"ignoring {action.topic}: {action.reason}", throttle_duration_sec=10.0)
+
+    def _log_stamp_news(self, action: StampNews) -> None:
+        """A stream refused by its stamps, or accepted again: once each."""
+        if action.level == "warning":
+            self.get_logger().warning(action.text)
+        else:
+            self.get_logger().info(action.text)
 
     def _send_move(self, action: SendMove) -> None:
         self._move_seq += 1
@@ -264,7 +266,7 @@ class ManipulationNode(Node):
             return  # preempted by our own newer goal (a refresh or a new command)
         self._move_handle = self._move_result = None
         result = move_result_from_msg(future.result().result)
-        if result.reason == "timeout" and self.core.busy:
+        if result.reason == TIMEOUT and self.core.busy:
             self.get_logger().warning("MoveMotors goal expired before its refresh (the motors stopped): re-sending")
         self._apply(self.core.on_move_result(result.reason, self._now_ns()))
 
@@ -297,16 +299,15 @@ class ManipulationNode(Node):
         releasing.add_done_callback(lambda _: report_once())
 
     def _report(self, done: Finished, handle: Any, future: Future) -> None:
-        """The goal's end to its client, and the log line."""
-        if done.reason == "canceled":
+        """The goal's end to its client (as its kind ends it), and the log line."""
+        kind = self._kinds[done.kind]
+        end = kind.outcome(done)
+        if end == CANCELED:
             handle.canceled()
-            end = CANCELED
-        elif done.success:
+        elif end == SUCCEEDED:
             handle.succeed()
-            end = SUCCEEDED
         else:
             handle.abort()
-            end = ABORTED
         reason = f"{done.reason}: {done.detail}" if done.detail else done.reason
         message = f"{done.kind} goal ended: {done.reason}" + (f" ({done.detail})" if done.detail else "")
         # rclpy fixes a call site's severity at its first call: one call site per severity
@@ -315,7 +316,7 @@ class ManipulationNode(Node):
                 self.get_logger().info(message)
             else:
                 self.get_logger().warning(message)
-        future.set_result(self._kinds[done.kind].result_to_msg(self.types, done))
+        future.set_result(kind.result_to_msg(self.types, done))
 
     def _goal_ended(self, end: GoalEnd) -> bool:
         """Record a goal's end, on /diagnostics at once; whether the log shows it."""

@@ -24,7 +24,7 @@ from prisma_common.hand import MOTOR_NAMES
 from prisma_common.messages import ns_from_stamp, sequence_field
 
 from .controllers import Controller
-from .goal_kinds import Built, Feedback, Finished, GoalContext, GoalKind, InputStream, Streams, Types, f32, finite
+from .goal_kind import Built, Feedback, Finished, GoalContext, GoalKind, InputStream, Streams, Types, f32, finite
 from .node_config import MAX_INPUT_TIMEOUT_S
 from .teleop_controller import PRESSING_MOTORS, TARGET_STREAM, TeleopController, TeleopTarget, pads_of
 
@@ -94,6 +94,9 @@ class TeleopGoal(GoalKind[TeleopRequest]):
     def request_from_msg(self, msg: Any) -> TeleopRequest:
         return teleop_request_from_msg(msg)
 
+    def request_to_msg(self, types: Types, req: TeleopRequest) -> Any:
+        return teleop_request_to_msg(types, req)
+
     def feedback_to_msg(self, types: Types, fb: Feedback) -> Any:
         return teleop_feedback_to_msg(types, fb)
 
@@ -123,6 +126,12 @@ def teleop_target_from_msg(msg: Any) -> tuple[int, TeleopTarget]:
 
 def teleop_request_from_msg(msg: Any) -> TeleopRequest:
     return TeleopRequest(float(msg.max_pad_force), float(msg.max_speed_rpm), float(msg.input_timeout))
+
+
+def teleop_request_to_msg(types: Types, req: TeleopRequest) -> Any:
+    return types("prisma_msgs/action/Teleoperate_Goal")(max_pad_force=float(req.max_pad_force),
+                                                        max_speed_rpm=float(req.max_speed_rpm),
+                                                        input_timeout=float(req.input_timeout_s))
 
 
 def _status_fields(cls: Any, s: TeleopStatus) -> dict[str, Any]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from prisma_common.diagnostics import OK, WARN
 from prisma_manipulation.goal_ends import ABORTED, CANCELED, REFUSED, SUCCEEDED, GoalEnd, GoalEnds, same_reason
-from prisma_manipulation.manipulation_core import GOAL_KINDS
+from prisma_manipulation.goal_kinds import GOAL_KINDS
 
 NOT_HOMED = "not_homed: fingers (id 1) not homed since the servo powered up (the zero may be a turn off): home first"
 

@@ -1,4 +1,4 @@
-"""The goal-kind shape (goal_kinds.py): the core serves every kind in its list the same way, and a
+"""The goal-kind shape (goal_kind.py): the core serves every kind in its list the same way, and a
 kind with an extra input stream (as teleoperation follows the glove's targets) is one class and
 one more entry: it is admitted before its input flows and waits for it, steps once per scan with
 the input's latest value (sample-and-hold: the input never shares a scan's stamp), ends with its own
@@ -18,9 +18,9 @@ from prisma_manipulation.controllers import (
     JointSample,
     MotorCommand,
 )
-from prisma_manipulation.goal_kinds import Built, GoalContext, GoalKind, InputStream, Streams
+from prisma_manipulation.goal_kind import Built, GoalContext, GoalKind, InputStream, Streams
+from prisma_manipulation.goal_kinds import GOAL_KINDS
 from prisma_manipulation.manipulation_core import (
-    GOAL_KINDS,
     Feedback,
     Finished,
     GraspRequest,

@@ -12,7 +12,7 @@ import pytest
 from prisma_common.messages import make_header
 from prisma_common.typestore import get_typestore, types
 from prisma_manipulation.controllers import JointSample
-from prisma_manipulation.goal_kinds import Feedback, Finished
+from prisma_manipulation.goal_kind import Feedback, Finished
 from prisma_manipulation.manipulation_core import GraspRequest, ManipulationCore, SendMove, StopMotors
 from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.teleop_goal import (

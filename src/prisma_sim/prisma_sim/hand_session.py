@@ -11,8 +11,9 @@ with the nodes' converters:
 - taxels: the tactile hub's frames -> `taxel_frame_to_msg`;
 - wrench: the estimator pipeline's samples -> `wrench_to_msg`;
 - contact: the manipulation core's Algorithm 1 evaluation of every frame -> `contact_state_to_msg`;
-- the Grasp / Manipulate goal's status and feedback from the core's Feedback and Finished decisions,
-  the MoveMotors goals from its SendMove (a new goal preempts the running one) and StopMotors (a
+- the goal's status and feedback from the core's Feedback and Finished decisions, by its kind's
+  converter and outcome (prisma_manipulation.goal_kinds: any kind the loop's core serves), the
+  MoveMotors goals from its SendMove (a new goal preempts the running one) and StopMotors (a
   cancel), their feedback and ends from the motor driver core;
 - /diagnostics once per second from each driver's core (tactile hub, estimator pipeline, motor
   driver).
@@ -20,6 +21,7 @@ Stamps are the loop's sample stamps (sim time from 0), so every topic is ordered
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import uuid
 from collections.abc import Callable
@@ -38,13 +40,10 @@ from prisma_force_estimator.diagnostics import pipeline_diagnostics
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_force_estimator.ros_conversions import wrench_to_msg
 from prisma_manipulation.closed_loop import Scan
-from prisma_manipulation.manipulation_core import Feedback, Finished, GraspRequest, SendMove, StopMotors
-from prisma_manipulation.ros_conversions import (
-    contact_state_to_msg,
-    grasp_feedback_to_msg,
-    manipulate_feedback_to_msg,
-    teleop_feedback_to_msg,
-)
+from prisma_manipulation.goal_kind import GoalKind
+from prisma_manipulation.goal_kinds import GOAL_KINDS, kind_named, kind_of
+from prisma_manipulation.manipulation_core import ActionHandlers, Feedback, Finished
+from prisma_manipulation.ros_conversions import contact_state_to_msg
 from prisma_manipulation.scenarios import Scenario, build, scenario_request
 from prisma_motor_driver.ros_conversions import joint_state_to_msg, move_feedback_to_msg
 from prisma_tactile_driver.node_config import TactileDriverConfig
@@ -61,21 +60,39 @@ def goal_status() -> Any:
     return typestore_types("action_msgs/msg/GoalStatus")
 
 
-# default topic names (docs/architecture.md, Topic table)
-ACTIONS = {"grasp": "/prisma/grasp", "manipulate": "/prisma/manipulate", "teleoperate": "/prisma/teleoperate",
-           "move": MOVE_MOTORS}
-ACTION_TYPES = {"grasp": "prisma_msgs/action/Grasp", "manipulate": "prisma_msgs/action/Manipulate",
-                "teleoperate": "prisma_msgs/action/Teleoperate", "move": "prisma_msgs/action/MoveMotors"}
-FEEDBACK = {"grasp": grasp_feedback_to_msg, "manipulate": manipulate_feedback_to_msg,
-            "teleoperate": teleop_feedback_to_msg}
+MOVE = "move"  # the motor driver's MoveMotors goals, beside the goal kinds' actions
 
 
-def feedback_topic(action: str) -> str:
-    return f"{ACTIONS[action]}/_action/feedback"
+def action_server(action: str, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> tuple[str, str]:
+    """(default name, ROS type) of an action server: MOVE the motor driver's MoveMotors, any other a
+    goal kind's, by its name or its server's last name ("grasp", "teleoperate": goal_kinds.kind_named)."""
+    if action == MOVE:
+        return MOVE_MOTORS, "prisma_msgs/action/MoveMotors"
+    kind = kind_named(action, kinds)
+    return f"/{kind.action}", kind.action_type
 
 
-def status_topic(action: str) -> str:
-    return f"{ACTIONS[action]}/_action/status"
+def feedback_topic(action: str, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> str:
+    return f"{action_server(action, kinds)[0]}/_action/feedback"
+
+
+def status_topic(action: str, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> str:
+    return f"{action_server(action, kinds)[0]}/_action/status"
+
+
+def message_fields(msg: Any) -> dict[str, Any]:
+    """A typestore message's fields as plain values (arrays as lists, nested messages as dicts), for
+    a JSON summary or a message class's keyword arguments."""
+    def plain(value: Any) -> Any:
+        if dataclasses.is_dataclass(value):
+            return message_fields(value)
+        return value.tolist() if isinstance(value, np.ndarray) else value
+    return {f.name: plain(getattr(msg, f.name)) for f in dataclasses.fields(msg)}
+
+
+def goal_result(done: Finished, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> dict[str, Any]:
+    """A finished goal's result as the manipulation node returns it: its kind's result message's fields."""
+    return message_fields(kind_named(done.kind, kinds).result_to_msg(typestore_types, done))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -85,18 +102,22 @@ def status_topic(action: str) -> str:
 @dataclass(frozen=True)
 class HandScenarioSpec:
     name: str
-    action: str  # "grasp" | "manipulate": the goal the scenario stands for
     description: str
 
     @property
+    def kind(self) -> GoalKind:
+        """The kind of the goal the scenario sends."""
+        return kind_of(scenario_request(self.name))
+
+    @property
+    def action(self) -> str:
+        """The action the scenario's goal is sent on, by its server's last name ("grasp", "manipulate")."""
+        return self.kind.action.rsplit("/", 1)[-1]
+
+    @property
     def goal(self) -> dict:
-        """The goal's fields as the action defines them."""
-        r = scenario_request(self.name)
-        if isinstance(r, GraspRequest):
-            return {"grasp": r.grasp, "finger_force": r.finger_force, "thumb_force": r.thumb_force,
-                    "speed_rpm": r.speed_rpm, "timeout": r.timeout_s}
-        return {"motion": r.motion, "speed_rpm": r.speed_rpm, "k": r.k, "use_force": r.use_force,
-                "timeout": r.timeout_s}
+        """The goal's fields as the action defines them (its kind's goal message)."""
+        return message_fields(self.kind.request_to_msg(typestore_types, scenario_request(self.name)))
 
     def make(self, estimator: ForceEstimator | None = None) -> Scenario:
         return build(self.name, estimator=estimator)
@@ -105,27 +126,27 @@ class HandScenarioSpec:
 HAND_SCENARIOS: dict[str, HandScenarioSpec] = {
     spec.name: spec for spec in (
         HandScenarioSpec(
-            "pinch_grasp", "grasp",
+            "pinch_grasp",
             "foam ball on a stand; fingers close at 60 rpm to 0.8 N on the index pad, then the thumb "
             "flexes at 60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
-            "lateral_grasp", "grasp",
+            "lateral_grasp",
             "card against the side of the index: fingers close to the lateral fist, thumb flexes at "
             "60 rpm to 1 N (estimated Fz)"),
         HandScenarioSpec(
-            "horizontal", "manipulate",
+            "horizontal",
             "ball pinched at 1 N; thumb rotates clockwise at 20 rpm until the right taxels 6-3-0 are "
             "lost, then back to the start angle"),
         HandScenarioSpec(
-            "vertical", "manipulate",
+            "vertical",
             "ball pinched at 1 N; fingers close + thumb extends at 10 rpm until the top row 6-7-8 is "
             "lost, then the reverse until the bottom row 0-1-2 is lost"),
         HandScenarioSpec(
-            "disturbance", "manipulate",
+            "disturbance",
             "ball pinched; at 0.5 s a push slips it 4 mm toward the thumb pad's right side; the thumb "
             "rotates at 20 rpm until two left taxels are back above v_t"),
         HandScenarioSpec(
-            "combined", "manipulate",
+            "combined",
             "as disturbance, and the object slips to a narrower section: the estimated thumb force "
             "is restored to 1 N while the voltages steer the rotation"),
     )
@@ -172,13 +193,14 @@ class HandRecording:
 
 class HandRecorder:
     """Attach to a Scenario (built with an estimator) before `run()`; writes every message to
-    `writer` as the loop runs."""
+    `writer` as the loop runs. `action`: the goal's kind, by its name or its action server's last
+    name ("grasp", "teleoperate"), one of those the loop's core serves."""
 
     def __init__(self, scenario: Scenario, writer: BagWriter, action: str,
                  types: Callable[[str], Any] = typestore_types) -> None:
-        if action not in FEEDBACK:
-            raise ValueError(f"action must be one of {', '.join(FEEDBACK)}, got {action!r}")
         loop = scenario.loop
+        self.kinds = tuple(loop.core.kinds.values())
+        self.kind = kind_named(action, self.kinds)  # ValueError naming the kinds
         if loop.pipeline is None or loop.estimator is None:
             raise ValueError(f"scenario {scenario.name} has no force estimator: its wrench topics would be empty")
         self.pipeline = loop.pipeline
@@ -189,9 +211,15 @@ class HandRecorder:
         self.contact_frame_id = loop.core.config.frame_id_format
         self.bundle_paths = {f: loop.estimator.path for f in FINGERS}
         self._next_diagnostics_ns: int | None = None
-        self._goal: _Goal | None = None  # the Grasp/Manipulate goal
+        self._goal: _Goal | None = None  # the goal of `kind`
         self._move: _Goal | None = None  # the MoveMotors goal it is running
         self._moves = 0
+        self._stamp_ns = 0  # the scan whose decisions are being recorded
+        # what the manipulation node publishes for its core's decisions
+        self._handlers = ActionHandlers(send_move=lambda _: self._send_move(self._stamp_ns),
+                                        stop_motors=lambda _: self._end_move(goal_status().STATUS_CANCELED,
+                                                                             self._stamp_ns),
+                                        feedback=self._record_feedback, finished=self._record_finished)
         loop.observer = self.record
 
     # ---- one period --------------------------------------------------------------------------
@@ -220,27 +248,22 @@ class HandRecorder:
                            else goal_status().STATUS_ABORTED, t)
         if scan.goal_started:
             self._goal = self._new_goal(self.action, _goal_uuid(self.scenario.name, self.action), t)
-        for action in scan.actions:
-            self._record_decision(action, t)
+        self._stamp_ns = t
+        self._handlers.carry_out(scan.actions)
         if self._next_diagnostics_ns is None or t >= self._next_diagnostics_ns:
             self._next_diagnostics_ns = t + DIAGNOSTICS_PERIOD_NS
             self._write_diagnostics(t)
 
-    def _record_decision(self, action: Any, t: int) -> None:
-        """What the manipulation node publishes for one of its core's decisions."""
-        if isinstance(action, SendMove):
-            self._send_move(t)
-        elif isinstance(action, StopMotors):
-            if self._move is not None:
-                self._end_move(goal_status().STATUS_CANCELED, t)  # a stop cancels the running goal
-        elif isinstance(action, Feedback) and self._goal is not None:
-            self._write_feedback(self._goal, FEEDBACK[self.action](self.types, action), t)
+    def _record_feedback(self, action: Feedback) -> None:
+        if self._goal is not None:
+            self._write_feedback(self._goal, self.kind.feedback_to_msg(self.types, action), self._stamp_ns)
             self._goal.record.feedback += 1
-        elif isinstance(action, Finished) and self._goal is not None:
-            codes = goal_status()
-            status = codes.STATUS_SUCCEEDED if action.success else \
-                codes.STATUS_CANCELED if action.reason == "canceled" else codes.STATUS_ABORTED
-            self._end(self._goal, status, t)
+
+    def _record_finished(self, action: Finished) -> None:
+        """The goal's end as its action server ends it (its kind's outcome: SUCCEEDED, CANCELED, ABORTED)."""
+        if self._goal is not None:
+            status = getattr(goal_status(), f"STATUS_{self.kind.outcome(action).upper()}")
+            self._end(self._goal, status, self._stamp_ns)
             self._goal = None
 
     # ---- messages ----------------------------------------------------------------------------
@@ -260,7 +283,7 @@ class HandRecorder:
         if self._move is not None:
             self._end_move(goal_status().STATUS_ABORTED, t)  # preempted
         self._moves += 1
-        self._move = self._new_goal("move", _goal_uuid(self.scenario.name, "move", self._moves), t)
+        self._move = self._new_goal(MOVE, _goal_uuid(self.scenario.name, MOVE, self._moves), t)
 
     def _end_move(self, status: int, t: int) -> None:
         if self._move is not None:
@@ -279,9 +302,9 @@ class HandRecorder:
 
     def _write_feedback(self, goal: _Goal, feedback: Any, t: int) -> None:
         types = self.types
-        msg = types(f"{ACTION_TYPES[goal.action]}_FeedbackMessage")(
+        msg = types(f"{action_server(goal.action, self.kinds)[1]}_FeedbackMessage")(
             goal_id=types("unique_identifier_msgs/msg/UUID")(uuid=goal.goal_id), feedback=feedback)
-        self._write(feedback_topic(goal.action), msg, t)
+        self._write(feedback_topic(goal.action, self.kinds), msg, t)
 
     def _write_status(self, goal: _Goal, status: int, t: int) -> None:
         types = self.types
@@ -289,7 +312,7 @@ class HandRecorder:
                                                  stamp=stamp_from_ns(types, goal.accepted_ns))
         msg = types("action_msgs/msg/GoalStatusArray")(
             status_list=[types("action_msgs/msg/GoalStatus")(goal_info=info, status=status)])
-        self._write(status_topic(goal.action), msg, t)
+        self._write(status_topic(goal.action, self.kinds), msg, t)
 
     def finish(self) -> HandRecording:
         """Close open goals at the last sample (a run cut by its duration ends them aborted)."""
@@ -310,8 +333,8 @@ def expected_hand_topics(action: str) -> dict[str, str]:
         topics[CONTACT.format(finger=f)] = "prisma_msgs/msg/ContactState"
     topics[JOINT_STATES] = "sensor_msgs/msg/JointState"
     topics[DIAGNOSTICS] = "diagnostic_msgs/msg/DiagnosticArray"
-    for a in (action, "move"):
-        topics[feedback_topic(a)] = f"{ACTION_TYPES[a]}_FeedbackMessage"
+    for a in (action, MOVE):
+        topics[feedback_topic(a)] = f"{action_server(a)[1]}_FeedbackMessage"
         topics[status_topic(a)] = "action_msgs/msg/GoalStatusArray"
     return topics
 

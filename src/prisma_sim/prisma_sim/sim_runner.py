@@ -28,14 +28,15 @@ from pathlib import Path
 from prisma_common.atomic import atomic_output
 from prisma_common.bag import BagWriter
 from prisma_force_estimator.force_estimator_core import load_estimator as load_bundle_estimator
+from prisma_hand_sim.scenario_worlds import SCENARIO_NAMES
 from prisma_manipulation.scenarios_cli import ending, plot, summarise
 
 GLOVE = "glove"
 TELEOP = "teleop"  # teleop_session.TELEOP, spelled out as the hand scenarios' names are
 NS = 1_000_000_000
-# hand_session.HAND_SCENARIOS' names, spelled out so that the command line is built without
-# importing the closed loop and torch (test_sim_runner checks that they agree)
-HAND_SCENARIO_NAMES = ("pinch_grasp", "lateral_grasp", "horizontal", "vertical", "disturbance", "combined")
+# hand_session.HAND_SCENARIOS' names, read from the worlds' module so that the command line is built
+# without importing the closed loop and torch (test_sim_runner checks that they agree)
+HAND_SCENARIO_NAMES = SCENARIO_NAMES
 
 # The stop each experiment ends with in the paper (docs/manipulation.md); a run that ends otherwise
 # is reported and makes prisma-sim exit 1.
@@ -160,7 +161,7 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
              root: Path | None = None) -> dict:
     """One hand scenario into `root` (default options.out): its bag, plot and summary."""
 
-    from .hand_session import HAND_SCENARIOS, HandRecorder
+    from .hand_session import HAND_SCENARIOS, HandRecorder, goal_result
 
     root = options.out if root is None else root
     spec = HAND_SCENARIOS[name]
@@ -178,13 +179,7 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
     checks = force_errors(scenario, trace)
     worst = max((max(e["used_error_n"], e["true_error_n"]) for e in checks.values()), default=None)
     done = scenario.loop.finished  # the goal's result, as the manipulation node returns it
-    if done is None:
-        result = None
-    elif spec.action == "grasp":
-        result = {"success": done.success, "reason": done.reason, "finger_force": done.status.finger_force,
-                  "thumb_force": done.status.thumb_force}
-    else:
-        result = {"success": done.success, "stop_reason": done.reason, "stop_time": done.stop_time_s}
+    result = None if done is None else goal_result(done)
     first_ns, last_ns = recording.first_ns or 0, recording.last_ns or 0
     summary.update({
         "description": spec.description,
