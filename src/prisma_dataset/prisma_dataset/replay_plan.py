@@ -15,7 +15,8 @@ touch limit and stale-input stop apply as they did in the recording. The steps:
 4. tail: the last action held `tail_s` more (the comparison looks that far past the last frame), then
    the goal is cancelled, as the teleop node cancels it when the operator lets go.
 A goal that ends on its own before that (input_stale, sensor_stale, a motor fault) ends the replay
-there; one refused `not_ready` before the lead-in is sent again after `retry_s` (the graph coming up).
+there, as does another node starting to publish the targets (its goal cancelled); one refused
+`not_ready` before the lead-in is sent again after `retry_s` (the graph coming up).
 """
 from __future__ import annotations
 
@@ -167,6 +168,7 @@ class ReplayCore:
     _phase_start_ns: int = 0
     _last_due: int = -1
     _retry_at_ns: int = 0
+    _stopped_why: str = ""  # why the replay cancelled its goal before the last frame
 
     @property
     def period_ns(self) -> int:
@@ -232,12 +234,28 @@ class ReplayCore:
         """The goal's end (its result's reason: canceled, input_stale: ..., a refusal)."""
         if self.phase == STOPPING:
             self.phase = DONE
+            if self._stopped_why:
+                return [Finished(self._stopped_why, False)]
             return [Finished("played every frame", True)]
         if self.phase in (WAITING_GOAL, LEAD_IN) and refusal_code(reason) == NOT_READY:
             # the graph is coming up: primed again and sent again after retry_s, as the teleop node does
             self.phase, self.primed = PRIMING, 0
             self._retry_at_ns = now_ns + round(self.options.retry_s * NS)
             return []
-        where = f"at frame {self._last_due} of {self.episode.frames}" if self.published else f"in the {self.phase}"
-        self.phase = DONE
+        self.phase, where = DONE, self._where()
         return [Finished(f"the Teleoperate goal ended {where}: {reason}", False)]
+
+    def _where(self) -> str:
+        return f"at frame {self._last_due} of {self.episode.frames}" if self.published else f"in the {self.phase}"
+
+    def on_other_publisher(self, names: Sequence[str]) -> list[Step]:
+        """Another node began publishing the targets mid-replay (a teleop node started): two sources
+        would fight over the hand, so the replay stops, its goal cancelled."""
+        if self.phase in (STOPPING, DONE):
+            return []
+        why = f"stopped {self._where()}: {', '.join(names)} began publishing the targets"
+        if self.phase in STARTING:  # no goal of ours runs (one on its way is cancelled as it ends: see the node)
+            self.phase = DONE
+            return [CancelGoal(why), Finished(why, False)]
+        self.phase, self._stopped_why = STOPPING, why
+        return [CancelGoal(why)]

@@ -8,7 +8,7 @@ default fields: 0 = the manipulation node's touch limit, speed and input timeout
 joint_states, prisma/hand/wrench (Fz = the pad's normal force) and prisma/hand/contact, all under
 `--namespace`. Refuses (ReplayRefused: one line, exit 2) when no Teleoperate server answers within
 the wait and when another node already publishes the targets (a teleop node running: two
-publishers would fight over the hand).
+publishers would fight over the hand); one that starts publishing them mid-replay stops it.
 
 Imported by cli.py only for `replay`, so export and show run without ROS.
 """
@@ -44,6 +44,7 @@ TARGETS_TOPIC = "prisma/teleop/motor_targets"
 TELEOPERATE_ACTION = "prisma/teleoperate"
 DEPTH = 10
 DISCOVERY_SETTLE_S = 1.0  # after the server appeared: the rest of the graph (a teleop node's publisher) too
+WATCH_PERIOD_S = 0.5  # how often a replay looks for another publisher of the targets
 RESULT_WAIT_S = 5.0  # after the cancel: the goal's result
 
 
@@ -90,6 +91,7 @@ class ReplayNode(Node):
         """Start publishing: the timer at the frame period carries the replay."""
         self._publisher = self.create_publisher(JointState, TARGETS_TOPIC, DEPTH)
         self._timer = self.create_timer(self.core.period_ns / NS, self._on_tick)
+        self._watch = self.create_timer(WATCH_PERIOD_S, self._on_watch)
 
     # ---- recording ---------------------------------------------------------------------------
     def _on_joints(self, msg: JointState) -> None:
@@ -115,6 +117,11 @@ class ReplayNode(Node):
     def _on_tick(self) -> None:
         self._carry_out(self.core.tick(self._now_ns(), self.latest_positions))
 
+    def _on_watch(self) -> None:
+        others = self.other_target_publishers()
+        if others:
+            self._carry_out(self.core.on_other_publisher(sorted(others)))
+
     def _carry_out(self, steps: list) -> None:
         for step in steps:
             if isinstance(step, Publish):
@@ -136,6 +143,8 @@ class ReplayNode(Node):
             self._carry_out(self.core.on_goal_ended("rejected", self._now_ns()))
             return
         self._handle = handle
+        if self.finished is not None:  # the replay stopped while its goal was on its way
+            handle.cancel_goal_async()
         handle.get_result_async().add_done_callback(self._on_result)
 
     def _on_feedback(self, _feedback) -> None:

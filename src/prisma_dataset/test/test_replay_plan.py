@@ -211,3 +211,20 @@ def test_a_goal_ending_on_its_own_ends_the_replay_where_it_was():
         core.tick(i * 20 * MS, None)
     assert core.on_goal_ended("not_homed: fingers", 70 * MS) == [
         Finished("the Teleoperate goal ended in the waiting for the goal: not_homed: fingers", False)]
+
+
+def test_another_publisher_of_the_targets_mid_replay_stops_it_and_cancels_the_goal():
+    core = ReplayCore(ramp_episode())
+    start = run_to_playing(core, 0)
+    core.tick(start + 20 * MS, None)
+    why = "stopped at frame 1 of 5: /teleop began publishing the targets"
+    assert core.on_other_publisher(["/teleop"]) == [CancelGoal(why)]
+    assert core.phase == STOPPING and core.tick(start + 40 * MS, None) == []  # nothing more published
+    assert core.on_other_publisher(["/teleop"]) == []  # said once
+    assert core.on_goal_ended("canceled", start + 50 * MS) == [Finished(why, False)]
+    # before the goal runs: over at once (a goal on its way is cancelled by the node when it arrives)
+    core = ReplayCore(ramp_episode())
+    core.tick(0, None)
+    why = "stopped in the priming: /a, /b began publishing the targets"
+    assert core.on_other_publisher(["/a", "/b"]) == [CancelGoal(why), Finished(why, False)]
+    assert core.phase == DONE
