@@ -224,7 +224,9 @@ def test_the_sim_recorder_writes_the_fifth_kind_s_action(tmp_path):
     assert goal.status == 4 and goal.feedback >= 10  # SUCCEEDED, a feedback per scan while it turned
     assert recording.counts["/prisma/test_thumb_turn/_action/feedback"] == goal.feedback
     assert recording.counts["/prisma/test_thumb_turn/_action/status"] == 2  # executing, succeeded
+    # the result as the node would return it: the kind's result message's fields, and only those
     result = goal_result(loop.finished, KINDS)
+    assert list(result) == ["success", "final_positions", "reason"]
     assert (result["success"], result["reason"]) == (True, REACHED)
     assert result["final_positions"] == [pytest.approx(-0.6, abs=TOLERANCE_RAD)]
     assert bag_topics(tmp_path / "bag")["/prisma/test_thumb_turn/_action/feedback"] == \

@@ -131,13 +131,23 @@ def test_summary_markdown_plots_and_printed_summary(run, capsys):
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000, png
 
 
+# (goal fields, result fields) of prisma_msgs' Grasp and Manipulate actions
+ACTION_FIELDS = {"grasp": (["grasp", "finger_force", "thumb_force", "speed_rpm", "timeout"],
+                           ["success", "reason", "finger_force", "thumb_force"]),
+                 "manipulate": (["motion", "speed_rpm", "k", "use_force", "timeout"],
+                                ["success", "stop_reason", "stop_time"])}
+
+
 @pytest.mark.parametrize("name", list(EXPECTED))
 def test_hand_bag_topics_stamps_and_counts(run, name):
-    action, _ = EXPECTED[name]
+    action, reason = EXPECTED[name]
     summary = run.summaries[name]
     bag = run.out / summary["bag"]
     messages, types = read_all(bag)
     assert types == hand_topics(action)
+    # the goal and its result as the action defines them (its kind's converters), and nothing else
+    assert (list(summary["goal"]), list(summary["result"])) == ACTION_FIELDS[action]
+    assert summary["result"]["reason" if action == "grasp" else "stop_reason"] == reason
     for topic, items in messages.items():
         log = [t for t, _ in items]
         assert log == sorted(log), topic

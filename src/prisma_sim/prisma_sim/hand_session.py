@@ -87,7 +87,8 @@ def message_fields(msg: Any) -> dict[str, Any]:
         if dataclasses.is_dataclass(value):
             return message_fields(value)
         return value.tolist() if isinstance(value, np.ndarray) else value
-    return {f.name: plain(getattr(msg, f.name)) for f in dataclasses.fields(msg)}
+    # (a typestore class carries its type name as a field too, `__msgtype__`: not the message's)
+    return {f.name: plain(getattr(msg, f.name)) for f in dataclasses.fields(msg) if not f.name.startswith("__")}
 
 
 def goal_result(done: Finished, kinds: tuple[GoalKind, ...] = GOAL_KINDS) -> dict[str, Any]:
