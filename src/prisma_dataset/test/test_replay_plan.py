@@ -2,6 +2,7 @@
 steps of a replay, tick by tick, with the instants and frames they must give."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -228,3 +229,12 @@ def test_another_publisher_of_the_targets_mid_replay_stops_it_and_cancels_the_go
     why = "stopped in the priming: /a, /b began publishing the targets"
     assert core.on_other_publisher(["/a", "/b"]) == [CancelGoal(why), Finished(why, False)]
     assert core.phase == DONE
+
+
+def test_without_ros_the_cli_says_so_in_one_line(dataset, monkeypatch, capsys):
+    # rclpy absent (None in sys.modules makes its import fail), the replay's ROS module not loaded yet
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    monkeypatch.delitem(sys.modules, "prisma_dataset.replay_ros", raising=False)
+    assert main(["replay", str(dataset), "--episode", "0", "--no-plots"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("prisma-dataset: error: replay needs ROS 2 (rclpy, prisma_msgs): "), err
