@@ -16,7 +16,9 @@ shipped files from the root:
 - every `ros2 launch prisma_bringup <file> name:=value ...` line (documents and the launch files'
   docstrings) passes arguments that file declares, with a value among its choices where it has any;
 - docs/architecture.md's launch-file table names, for each launch file, exactly the arguments it
-  declares (an argument added, renamed or dropped shows up here, not in a user's `ros2 launch`).
+  declares (an argument added, renamed or dropped shows up here, not in a user's `ros2 launch`);
+- README.md stays a front door: at most README_MAX_LINES lines, its links into the handbook resolve,
+  and it shows a launch of each kind of hand and one grasp.
 The rest (launches, goals, training for minutes, commands on recordings) are run by the launch,
 CLI and training tests; here their paths are checked.
 """
@@ -39,6 +41,9 @@ NODE_MODULES = sorted(p for p in (ROOT / "src").glob("*/*/*_node.py"))
 REPOSITORY_PATH = re.compile(r"(?<![\w/.$~-])((?:config|launch|docs|src|test|firmware|bench|tools)/[\w./*<>|{}-]*)")
 # named in the documents, not paths of this repository
 NOT_THIS_REPOSITORY = {"src/prisma": "the robot workspace's clone of this repository (README, On the robot)"}
+
+
+README_MAX_LINES = 220  # issue 42: the rest belongs in the handbook (docs/)
 
 
 def named_paths() -> dict[str, list[str]]:
@@ -179,3 +184,26 @@ def test_a_documented_launch_line_passes_arguments_its_file_declares(where, file
         assert name in declared, f"{where}: {file} declares no argument {name} (it has {sorted(declared)})"
         choices = declared[name]
         assert choices is None or value in choices, f"{where}: {name}:={value}, but {file} takes {choices}"
+
+
+def test_the_readme_is_a_front_door_not_a_manual():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= README_MAX_LINES, (
+        f"README.md has {len(lines)} lines, at most {README_MAX_LINES}: move the detail into a docs/ page "
+        "and link it from the README's table 'Where each task is documented'")
+
+
+def test_the_readme_starts_each_kind_of_hand_and_sends_one_grasp():
+    text = (ROOT / "README.md").read_text()
+    launches = [rest for _, file, rest in launch_lines() if file == "hand.launch.py"]
+    for kind in ("sim:=true", "hardware:=emulated", "sim:=false"):
+        assert kind in text and any(kind in rest for rest in launches), f"README.md: no hand.launch.py line with {kind}"
+    assert "ros2 action send_goal --feedback /prisma/grasp prisma_msgs/action/Grasp" in text
+
+
+def test_the_readmes_links_into_the_handbook_resolve():
+    text = (ROOT / "README.md").read_text()
+    pages = set(re.findall(r"\]\((docs/[\w.]+\.md)(?:#[\w-]+)?\)", text))
+    assert len(pages) >= 10, f"README.md links {sorted(pages)}: the table 'Where each task is documented'"
+    missing = sorted(p for p in pages if not (ROOT / p).is_file())
+    assert not missing, f"README.md links pages that are not in docs/: {missing}"

@@ -53,7 +53,7 @@ JAZZY_ROS_PACKAGES = {
 # ros/rosdistro rosdep/python.yaml (commit b045bb7): keys with an apt package for Ubuntu 24.04
 # (noble); every one maps to the apt package of the same name there. Not keys: python3-dynamixel-sdk
 # (use the ROS package dynamixel_sdk), python3-rosbags (only python3-rosbags-pip, which PEP 668
-# refuses on noble: rosbags is pip-installed in the venv, see the README), pyarrow
+# refuses on noble: rosbags is pip-installed in the venv, see docs/install.md), pyarrow
 # (no key found for it: pip-installed in the venv like rosbags).
 NOBLE_ROSDEP_KEYS = {
     "python3-h5py", "python3-hypothesis", "python3-matplotlib", "python3-numpy", "python3-pytest",
@@ -68,7 +68,7 @@ MODULE_DEPENDENCY = {
     "h5py": "python3-h5py", "matplotlib": "python3-matplotlib", "dynamixel_sdk": "dynamixel_sdk",
     "urdf_parser_py": "urdfdom_py", "tf2_ros": "tf2_ros_py",
 }
-# Modules with no rosdep key usable on noble: the README's venv installs them with pip, and the
+# Modules with no rosdep key usable on noble: docs/install.md's venv installs them with pip, and the
 # package.xml of a package importing one says so in a comment naming it.
 PIP_ONLY = {"rosbags", "pyarrow"}
 DEPENDENCY_TAGS = ("depend", "build_depend", "buildtool_depend", "build_export_depend", "exec_depend",
@@ -108,7 +108,7 @@ def test_every_dependency_resolves_in_rosdep_for_jazzy_on_noble(package):
         f"src/{package}/package.xml names {sorted(unknown)}: neither a workspace package, a ROS package "
         f"released for Jazzy nor a rosdep key with a noble entry. Check it in ros/rosdistro "
         f"(jazzy/distribution.yaml, rosdep/python.yaml, rosdep/base.yaml) and add it to the list in "
-        f"this test, or drop it and document the pip install in the README")
+        f"this test, or drop it and document the pip install in docs/install.md")
 
 
 @pytest.mark.parametrize("package", PYTHON_PACKAGES)
@@ -196,12 +196,12 @@ def test_integration_tests_are_a_package_colcon_test_runs():
 
 
 def _robot_section() -> str:
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "install.md").read_text()
     start = text.index("## On the robot (ROS 2)")
-    return text[start:text.index("\n### ", start)]
+    return text[start:text.index("\n## ", start + 1)]
 
 
-def test_readme_robot_setup_matches_the_declared_keys():
+def test_the_robot_setup_in_the_docs_matches_the_declared_keys():
     section = _robot_section()
     rosdep = next(line for line in section.splitlines() if line.lstrip().startswith("rosdep install"))
     skipped = set(re.search(r"--skip-keys\s+\"?([\w\- ]+)\"?", rosdep).group(1).split())
@@ -211,7 +211,7 @@ def test_readme_robot_setup_matches_the_declared_keys():
     pip = " ".join(line for line in section.splitlines() if re.match(r"\s*(python3 -m )?pip install", line))
     # setuptools<80: torch pulls a newer one, whose `develop` has no --editable (--symlink-install)
     for requirement in ("numpy<2", "setuptools<80", "torch==", *PIP_ONLY):
-        assert requirement in pip, f"the README's robot venv does not pip install {requirement}"
+        assert requirement in pip, f"docs/install.md's robot venv does not pip install {requirement}"
     assert "--system-site-packages" in section and "python3 -m colcon build" in section
 
 

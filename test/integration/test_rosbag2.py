@@ -29,14 +29,14 @@ from prisma_common.bag import read_bag  # noqa: E402
 from prisma_common.bag import stamp_ns as bag_stamp_ns  # noqa: E402
 from prisma_common.hand import FINGERS  # noqa: E402
 
-# The README's "Record and replay" topic list: the sensor streams and what the nodes computed.
+# docs/recording.md's "Record and replay" topic list: the sensor streams and what the nodes computed.
 RECORD_TOPICS = ["/joint_states", "/diagnostics"] + [
     f"/prisma/{f}/{kind}" for f in FINGERS for kind in ("taxels", "wrench", "contact")]
 TOPIC_TYPES = {"/joint_states": "sensor_msgs/msg/JointState", "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
                **{f"/prisma/{f}/taxels": "prisma_msgs/msg/TaxelArray" for f in FINGERS},
                **{f"/prisma/{f}/wrench": "geometry_msgs/msg/WrenchStamped" for f in FINGERS},
                **{f"/prisma/{f}/contact": "prisma_msgs/msg/ContactState" for f in FINGERS}}
-# The goals' feedback and status: hidden topics, recorded with `--include-hidden-topics` (README).
+# The goals' feedback and status: hidden topics, recorded with `--include-hidden-topics` (docs/recording.md).
 ACTION_TOPICS = [f"/prisma/{a}/_action/{k}"
                  for a in ("grasp", "manipulate", "motors/move") for k in ("feedback", "status")]
 SENSOR_TOPICS = ["/joint_states"] + [f"/prisma/{f}/taxels" for f in FINGERS]
@@ -102,7 +102,7 @@ def sim_bags(tmp_path_factory) -> Path:
 
 
 def test_record_live_sim_graph(ros, tmp_path):
-    """The README's two recordings of `hand.launch.py sim:=true` while a pinch Grasp runs. The
+    """docs/recording.md's two recordings of `hand.launch.py sim:=true` while a pinch Grasp runs. The
     sensor and output topics, read with the project's bag tools: every topic, taxels at ~100 Hz
     per finger, each ContactState and each wrench carrying the stamp (and, for the contact, the
     voltages) of a taxel message of its finger. The goals' action topics, in their own bag (rosbag2
@@ -217,10 +217,10 @@ def test_bag_info_reads_every_prisma_sim_bag(sim_bags):
         assert re.search(r"Storage id:\s+mcap", result.output), result.output
 
 
-def readme_block(containing: str) -> str:
-    """The README's fenced code block that contains `containing` (one only), as written."""
+def recording_block(containing: str) -> str:
+    """docs/recording.md's fenced code block that contains `containing` (one only), as written."""
     blocks, block = [], None
-    for line in (ROOT / "README.md").read_text().splitlines(keepends=True):
+    for line in (ROOT / "docs" / "recording.md").read_text().splitlines(keepends=True):
         if line.startswith("```") and block is None:  # an opening fence, with or without a language
             block = []
         elif line.startswith("```"):
@@ -233,7 +233,7 @@ def readme_block(containing: str) -> str:
 
 
 def test_replay_reproduces_wrench_and_contact(ros, sim_bags, tmp_path):
-    """The README's replay, its commands run as written by bash from a directory where `hand_run`
+    """docs/recording.md's replay, its commands run as written by bash from a directory where `hand_run`
     is a prisma-sim bag: force_estimator and manipulation on use_sim_time with their config files,
     `ros2 bag play --clock` of the sensor topics once both answer: every recorded
     /prisma/<finger>/wrench and /prisma/<finger>/contact comes back with its stamp and values, and
@@ -247,8 +247,8 @@ def test_replay_reproduces_wrench_and_contact(ros, sim_bags, tmp_path):
     # subscribed before the nodes start, deep enough for the whole bag: nothing can be missed here
     replayed = {t: ros.collect(WrenchStamped if t.endswith("wrench") else ContactState, t) for t in OUTPUT_TOPICS}
     (tmp_path / "hand_run").symlink_to(bag)
-    # F: the README's recording block sets it; the replay block uses it
-    script = 'F="thumb index middle ring little"\n' + readme_block("ros2 bag play hand_run")
+    # F: the page's recording block sets it; the replay block uses it
+    script = 'F="thumb index middle ring little"\n' + recording_block("ros2 bag play hand_run")
     assert "list_parameters" in script and "kill %1 %2; wait" in script, script
     replay = NodeProcess(["bash", "-c", script], cwd=tmp_path)
     try:

@@ -54,7 +54,7 @@ The control path (the four nodes, and the emulator with hardware:=emulated) runs
 scheduling, SCHED_FIFO rt_priority:=20, ahead of every ordinary process: a plotting tool, a recorder,
 a browser on the same cores cannot hold up the taxel, wrench and motor streams until a goal stops
 sensor_stale (prisma_common/scheduling.py). Where real-time scheduling is not permitted (not root, no
-`rtprio` limit in /etc/security/limits.conf; README, "On the robot") the nodes run at nice:=-5 if
+`rtprio` limit in /etc/security/limits.conf; docs/real_hand.md, "Real-time limits") the nodes run at nice:=-5 if
 that is permitted, else at the default priority, and say so in their first log line. rt_priority:=0
 asks for niceness only.
 

@@ -1,4 +1,4 @@
-"""Teleoperation: a glove drives the hand (README, "Teleoperate with a glove").
+"""Teleoperation: a glove drives the hand (docs/teleoperation.md).
 
     ros2 launch prisma_bringup teleop.launch.py                                # hand-pose glove (synthetic), sim hand
     ros2 launch prisma_bringup teleop.launch.py glove:=none                    # your glove on /glove/joint_states

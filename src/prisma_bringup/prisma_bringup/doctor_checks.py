@@ -136,7 +136,7 @@ def check_realtime(facts: HandFacts, rt_priority: int = CONTROL_PATH_RT_PRIORITY
     return failed(name, f"RLIMIT_RTPRIO {soft}: the nodes cannot run at SCHED_FIFO {rt_priority} and fall back to "
                   f"nice{raise_soft}",
                   f"add the line `{user_name()} - rtprio {rt_priority}` to /etc/security/limits.conf, then log "
-                  "in again (README, 'On the robot')")
+                  "in again (docs/real_hand.md, 'Real-time limits')")
 
 
 def _ports_used(facts: HandFacts) -> dict[str, str]:

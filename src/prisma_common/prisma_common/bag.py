@@ -173,7 +173,7 @@ def _undefined_schema_message(path: Path, encoding: str) -> str:
     which = f": {', '.join(feedback)}" if feedback else " (rosbag2 records action feedback so)"
     return (f"bag {path} holds topics recorded without a message definition (schema encoding {encoding!r}), "
             f"which the bag tools cannot read{which}; record action topics into a bag of their own and give "
-            f"the tools the bag of sensor topics (README, \"Record and replay\")")
+            f"the tools the bag of sensor topics (docs/recording.md, \"Record and replay\")")
 
 
 def _listed_topics(path: Path) -> dict[str, str]:

@@ -13,7 +13,7 @@ since taken 1.4-1.7 cores (docs/performance.md, "The emulated servo bus on a ful
 starves the rest (the kernel's workers that move serial bytes too, it seems: not shown) until the kernel's real-time
 budget (95% of each second) throttles it.
 
-Real-time scheduling needs root, CAP_SYS_NICE or an `rtprio` limit (README, "On the robot"). Where
+Real-time scheduling needs root, CAP_SYS_NICE or an `rtprio` limit (docs/real_hand.md, "Real-time limits"). Where
 it is refused the process falls back to a raised niceness, which needs the `nice` limit, and
 otherwise runs at the default priority; `apply_priority` says which happened, for the node's log.
 

@@ -206,7 +206,7 @@ def test_an_action_topics_bag_as_rosbag2_records_it_is_refused_in_one_line(tmp_p
     expected = (f"bag {bag} holds topics recorded without a message definition (schema encoding 'unknown'), "
                 "which the bag tools cannot read: /prisma/grasp/_action/feedback "
                 "(prisma_msgs/action/Grasp_FeedbackMessage); record action topics into a bag of their own and give "
-                'the tools the bag of sensor topics (README, "Record and replay")')
+                'the tools the bag of sensor topics (docs/recording.md, "Record and replay")')
     for read in (lambda: bag_topics(bag), lambda: require_topics(bag, ["/prisma/thumb/taxels"]),
                  lambda: list(read_bag(bag, ["/prisma/thumb/taxels"]))):
         with pytest.raises(BagError) as refused:
@@ -218,4 +218,4 @@ def test_an_action_topics_bag_as_rosbag2_records_it_is_refused_in_one_line(tmp_p
         bag_topics(mcap)
     assert str(refused.value).endswith("which the bag tools cannot read (rosbag2 records action feedback so); record "
                                        'action topics into a bag of their own and give the tools the bag of sensor '
-                                       'topics (README, "Record and replay")')
+                                       'topics (docs/recording.md, "Record and replay")')

@@ -122,7 +122,7 @@ def save_calibration(calibration: OperatorCalibration, path: str | Path) -> Path
     cannot be written (the old file, if any, is left as it was)."""
     target = Path(path).expanduser()
     text = ("# prisma_teleop: one operator's hand-pose glove calibration (rad), written by the teleop node's\n"
-            "# ~/capture_* services; docs: README, 'Teleoperate with a glove'\n"
+            "# ~/capture_* services; docs: docs/teleoperation.md, 'Calibration'\n"
             + yaml.safe_dump(calibration_document(calibration), sort_keys=False, default_flow_style=False, width=120))
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

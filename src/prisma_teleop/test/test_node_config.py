@@ -40,7 +40,7 @@ def test_the_docs_state_the_default_filter_delay():
     assert delay == "36.3 ms"
     assert delay in retargeting.__doc__
     assert delay in (CONFIG / "teleop.yaml").read_text()
-    assert delay in (ROOT / "README.md").read_text()
+    assert delay in (ROOT / "docs" / "teleoperation.md").read_text()
 
 
 @pytest.mark.parametrize("values,message", [
