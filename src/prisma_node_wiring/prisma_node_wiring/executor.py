@@ -1,4 +1,12 @@
-"""The executor every node process spins: rclpy's single-threaded one, one wait per callback, no Task per message.
+"""The executor every node process spins, and the fast one it may be: rclpy's single-threaded one,
+one wait per callback, no Task per message.
+
+This is the one module of the suite that touches rclpy's private names (test_rclpy_public_api.py
+holds every other to rclpy's public API). SingleWaitExecutor overrides SingleThreadedExecutor's
+`_make_handler` and `_spin_once_impl` and reads its private state, as rclpy 7.1.3 lays it out; so
+`process_executor` spins it only where executor_choice.choose_executor keeps it (an rclpy it is
+proven on, and `fast_executor_self_test` passing there), and rclpy's stock SingleThreadedExecutor
+anywhere else, saying which and why in one log line per process.
 
 rclpy's executor wakes itself: a callback's handler triggers the executor's guard condition once the
 message is taken and again when the callback returns, so the wait after every callback returns at
@@ -22,13 +30,26 @@ with parameter services and five action endpoints on the node.
 from __future__ import annotations
 
 import inspect
+import time
 from collections.abc import Callable
 from typing import Any
 
-from rclpy.executors import SingleThreadedExecutor
+import rclpy
+import rclpy.logging
+from rclpy.context import Context
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
+
+from prisma_node_wiring.executor_choice import (
+    EVENTS,
+    FAST,
+    ExecutorChoice,
+    choose_executor,
+    rclpy_version,
+    requested_executor,
+)
 
 
 class _DirectHandler:
@@ -118,13 +139,110 @@ class SingleWaitExecutor(SingleThreadedExecutor):
             self._own_wake.wait(0)
 
 
-_process_executor: SingleWaitExecutor | None = None
+# The private API SingleWaitExecutor builds on, as rclpy 7.1.3 has it: each method's parameters.
+# Humble's _make_handler takes a fourth (call_coroutine) and would fail at the first spin.
+FAST_EXECUTOR_OVERRIDES = {
+    "_make_handler": ("self", "entity", "node", "take_from_wait_list"),
+    "_spin_once_impl": ("self", "timeout_sec", "wait_condition"),
+}
+FAST_EXECUTOR_STATE = ("_is_shutdown", "_guard", "_work_tracker", "_context")  # read by its handlers
+SELF_TEST_NODE = "_prisma_executor_self_test"  # hidden (leading underscore) from `ros2 node list`
+SELF_TEST_TIMEOUT_S = 2.0  # a round takes milliseconds; a loaded machine's start gets the rest
+EXECUTOR_LOGGER = "prisma_executor"
 
 
-def process_executor() -> SingleWaitExecutor:
+def fast_executor_self_test(context: Context | None = None) -> str | None:
+    """Whether SingleWaitExecutor works on the running rclpy: the private methods it overrides have
+    the parameters it passes, the private state it reads exists, and one round on a throw-away node
+    of `context` (a timer publishes until its own subscription has received a message, both run by
+    the direct handlers) completes. None where all holds, else what failed, in one line."""
+    for name, expected in FAST_EXECUTOR_OVERRIDES.items():
+        method = getattr(SingleThreadedExecutor, name, None)
+        if method is None:
+            return f"rclpy's SingleThreadedExecutor has no {name}"
+        found = tuple(inspect.signature(method).parameters)
+        if found != expected:
+            return f"SingleThreadedExecutor.{name} takes ({', '.join(found)}), not ({', '.join(expected)})"
+    if not callable(getattr(_rclpy, "WaitSet", None)):
+        return "rclpy's implementation has no WaitSet"
+    try:
+        return _self_test_round(context)
+    except Exception as exc:  # whatever the running rclpy does differently: the stock executor then
+        return f"{type(exc).__name__}: {exc}"
+
+
+def _self_test_round(context: Context | None) -> str | None:
+    # any message will do: one from a package this one depends on anyway (node_parameters' descriptors)
+    from rcl_interfaces.msg import IntegerRange
+
+    # no global arguments: a launch's `__node:=` remap or parameter file is the real node's
+    node = rclpy.create_node(SELF_TEST_NODE, context=context, use_global_arguments=False,
+                             enable_rosout=False, start_parameter_services=False)
+    executor = SingleWaitExecutor(context=context)
+    try:
+        missing = [name for name in FAST_EXECUTOR_STATE if not hasattr(executor, name)]
+        if missing:
+            return f"SingleThreadedExecutor has none of {', '.join(missing)}"
+        received: list = []
+        publisher = node.create_publisher(IntegerRange, "~/round", 1)
+        subscription = node.create_subscription(IntegerRange, "~/round", received.append, 1)
+        timer = node.create_timer(0.005, lambda: publisher.publish(IntegerRange(step=7)))
+        if not (hasattr(subscription, "_executor_event") and hasattr(timer, "_executor_event")):
+            return "rclpy's subscriptions and timers carry no _executor_event mark"
+        executor.add_node(node)
+        deadline = time.monotonic() + SELF_TEST_TIMEOUT_S
+        while not received and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        if not received or received[0].step != 7:
+            return f"a message its timer published never reached its subscription in {SELF_TEST_TIMEOUT_S} s"
+        return None
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
+def events_executor_class() -> type[Executor] | None:
+    """rclpy.experimental.EventsExecutor where the running rclpy has it (7.1.4 on), else None."""
+    try:
+        from rclpy.experimental import EventsExecutor  # type: ignore[import-not-found,unused-ignore]
+    except ImportError:
+        return None
+    return EventsExecutor  # type: ignore[no-any-return,unused-ignore]
+
+
+_choice_made: ExecutorChoice | None = None  # this process's, made once (process_executor_choice)
+
+
+def process_executor_choice(context: Context | None = None) -> ExecutorChoice:
+    """This process's executor choice (PRISMA_EXECUTOR, executor_choice.choose_executor), made on first
+    use (after rclpy.init; the self-test runs on `context`, default: rclpy's) and logged then, once."""
+    global _choice_made
+    if _choice_made is None:
+        _choice_made = choose_executor(requested_executor(), rclpy_version(),
+                                       lambda: fast_executor_self_test(context),
+                                       events_executor_class() is not None)
+        rclpy.logging.get_logger(EXECUTOR_LOGGER).info(_choice_made.log_line())
+    return _choice_made
+
+
+def new_executor(context: Context | None = None) -> Executor:
+    """An executor of this process's choice (process_executor_choice) on `context`."""
+    kind = process_executor_choice(context).kind
+    if kind == FAST:
+        return SingleWaitExecutor(context=context)
+    events = events_executor_class()
+    if kind == EVENTS and events is not None:
+        return events(context=context)
+    return SingleThreadedExecutor(context=context)
+
+
+_process_executor: Executor | None = None
+
+
+def process_executor() -> Executor:
     """The executor `run_node` spins the process's node on: one per process, made on first use (after
     rclpy.init), as rclpy's global executor is for rclpy.spin."""
     global _process_executor
     if _process_executor is None:
-        _process_executor = SingleWaitExecutor()
+        _process_executor = new_executor()
     return _process_executor

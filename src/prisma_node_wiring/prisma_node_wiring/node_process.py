@@ -4,8 +4,8 @@ A node process ends one of three ways, and the exit status says which:
 - ctrl-C, SIGTERM or `ros2 launch` shutting down: exit 0, no traceback, whatever the node was doing
   at that instant (rclpy's signal handler shuts the context down under a running callback, so a
   publish raises RCLError and a constructor still starting up raises other errors);
-- a configuration error the operator fixes (a parameter value, a model bundle): logged as fatal with
-  the message that names the value, exit 1;
+- a configuration error the operator fixes (a parameter value, a model bundle, PRISMA_EXECUTOR or
+  the priority variables): logged as fatal with the message that names the value, exit 1;
 - anything else while the context is still up: a bug, re-raised with its traceback.
 """
 from __future__ import annotations
@@ -22,6 +22,7 @@ from rclpy.node import Node
 
 from prisma_common.scheduling import apply_priority, priority_from_env
 from prisma_node_wiring.executor import process_executor
+from prisma_node_wiring.executor_choice import requested_executor
 
 SHUTDOWN_CHECK_PERIOD_S = 0.25  # the longest a stop request can wait when rclpy's wake-up comes too early
 
@@ -47,6 +48,7 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
     signal.signal(signal.SIGINT, lambda signum, frame: None)
     try:
         priority = priority_from_env()
+        requested_executor()  # a PRISMA_EXECUTOR that names no executor stops the node before it starts
     except ValueError as exc:
         rclpy.logging.get_logger(logger_name).fatal(str(exc))
         raise SystemExit(1) from None
@@ -70,6 +72,7 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
             # an executor made on the shut-down context fails half-built, and rclpy prints its __del__'s
             # traceback as the process ends
             return
+        # the executor PRISMA_EXECUTOR and the running rclpy allow, logged once (executor.py)
         rclpy.spin(node, executor=process_executor())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -1,24 +1,43 @@
 """SingleWaitExecutor: one wait per message where rclpy's own executor waits twice (woken the second
 time by its own guard condition), and what another thread hands it still wakes it; plain callbacks
 run without a Task (their exceptions still reach spin_once), async ones and busy callback groups as
-rclpy runs them."""
+rclpy runs them. Which executor a process gets: the fast one only on a proven rclpy whose self-test
+passes, rclpy's stock one on any other (a faked unknown version here), said in one log line.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1). The fast executor's own tests run where the
+running rclpy is one it is proven on.
+"""
 from __future__ import annotations
 
 import threading
 import time
-from typing import Any
 
 import pytest
 
-pytest.importorskip("rclpy", reason="prisma_node_wiring needs rclpy (source ROS 2)")
+from prisma_testing.ros_harness import require_ros
+
+require_ros()
 
 import rclpy  # noqa: E402
 import rclpy.executors  # noqa: E402
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.impl.implementation_singleton import rclpy_implementation  # noqa: E402
+from rclpy.task import Task  # noqa: E402
 from std_msgs.msg import Int32  # noqa: E402
 
-from prisma_node_wiring.executor import SingleWaitExecutor  # noqa: E402
+from prisma_node_wiring import executor as executor_module  # noqa: E402
+from prisma_node_wiring.executor import SingleWaitExecutor, fast_executor_self_test, new_executor  # noqa: E402
+from prisma_node_wiring.executor_choice import (  # noqa: E402
+    EXECUTOR_ENV,
+    PROVEN_RCLPY_VERSIONS,
+    rclpy_version,
+    requested_executor,
+)
+
+RUNNING_RCLPY = rclpy_version()
+fast_only = pytest.mark.skipif(RUNNING_RCLPY not in PROVEN_RCLPY_VERSIONS,
+                               reason=f"the fast executor is not proven on rclpy {RUNNING_RCLPY}")
 
 
 @pytest.fixture
@@ -42,25 +61,33 @@ def spun(context):
 
 
 class CountedWaitSets:
-    """rclpy's executor module with its WaitSet counted: the executor builds one per wait."""
+    """rclpy's WaitSet, counted: the executor builds one per wait."""
 
-    def __init__(self, real: Any) -> None:
+    def __init__(self, real: type) -> None:
         self.real = real
         self.built = 0
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.real, name)
-
-    def WaitSet(self, *args: Any) -> Any:  # noqa: N802 - stands in for the pybind class
+    def __call__(self, *args: object) -> object:
         self.built += 1
-        return self.real.WaitSet(*args)
+        return self.real(*args)
+
+
+class CountedTasks:
+    """rclpy's Task as the executor module makes it, counted."""
+
+    def __init__(self) -> None:
+        self.made = 0
+
+    def __call__(self, *args: object, **kwargs: object) -> Task:
+        self.made += 1
+        return Task(*args, **kwargs)
 
 
 def waits_per_message(executor, context, monkeypatch, messages: int = 10) -> float:
     """Wait sets `executor` built per message, each published from another thread 50 ms after the
     last was received."""
-    counted = CountedWaitSets(rclpy.executors._rclpy)
-    monkeypatch.setattr(rclpy.executors, "_rclpy", counted)
+    counted = CountedWaitSets(rclpy_implementation.WaitSet)
+    monkeypatch.setattr(rclpy_implementation, "WaitSet", counted)
     node = rclpy.create_node("executor_probe", context=context)
     try:
         received: list = []
@@ -95,6 +122,7 @@ def waits_per_message(executor, context, monkeypatch, messages: int = 10) -> flo
         executor.shutdown()
 
 
+@fast_only
 def test_one_wait_per_message(context, monkeypatch):
     assert waits_per_message(SingleWaitExecutor(context=context), context, monkeypatch) <= 1.2
 
@@ -105,6 +133,7 @@ def test_rclpy_executor_waits_twice_per_message(context, monkeypatch):
     assert waits_per_message(SingleThreadedExecutor(context=context), context, monkeypatch) >= 1.5
 
 
+@fast_only
 def test_a_task_from_another_thread_wakes_the_wait(spun):
     executor, node = spun
     ran: list[float] = []
@@ -116,6 +145,7 @@ def test_a_task_from_another_thread_wakes_the_wait(spun):
     assert ran and ran[0] - start < 1.0
 
 
+@fast_only
 def test_a_coroutine_callback_resumes_when_the_future_it_awaits_is_set(spun):
     executor, node = spun
     future = rclpy.task.Future(executor=executor)
@@ -135,6 +165,7 @@ def test_a_coroutine_callback_resumes_when_the_future_it_awaits_is_set(spun):
     assert done == [42]
 
 
+@fast_only
 def test_a_callback_that_shuts_the_context_down_ends_its_spin_quietly(context, spun):
     # as rclpy's signal handler does under a running callback: the guard condition the executor
     # would clear is then invalid
@@ -144,8 +175,11 @@ def test_a_callback_that_shuts_the_context_down_ends_its_spin_quietly(context, s
     assert not context.ok()
 
 
-def test_a_plain_callbacks_exception_reaches_spin_once_and_the_timer_runs_again(spun):
+@fast_only
+def test_a_plain_callbacks_exception_reaches_spin_once_and_the_timer_runs_again(spun, monkeypatch):
     executor, node = spun
+    tasks = CountedTasks()
+    monkeypatch.setattr(rclpy.executors, "Task", tasks)
     calls: list[int] = []
 
     def fails() -> None:
@@ -160,9 +194,30 @@ def test_a_plain_callbacks_exception_reaches_spin_once_and_the_timer_runs_again(
     while len(calls) < 3 and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.5)
     assert len(calls) >= 3  # not left out of the wait set by the failed call
-    assert not executor._tasks  # no Task kept for a plain callback
+    assert tasks.made == 0  # no Task for a plain callback
 
 
+def test_rclpy_executor_makes_a_task_per_callback(context, monkeypatch):
+    # what the count above would see if the fast executor wrapped plain callbacks as rclpy does
+    tasks = CountedTasks()
+    monkeypatch.setattr(rclpy.executors, "Task", tasks)
+    executor = SingleThreadedExecutor(context=context)
+    node = rclpy.create_node("executor_probe", context=context)
+    try:
+        calls: list[int] = []
+        node.create_timer(0.01, lambda: calls.append(1))
+        executor.add_node(node)
+        deadline = time.monotonic() + 5.0
+        while len(calls) < 3 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.5)
+        assert len(calls) >= 3 and tasks.made >= len(calls)
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown()
+
+
+@fast_only
 def test_an_async_callback_and_a_busy_callback_group_run_as_in_rclpy(spun):
     executor, node = spun
     group = MutuallyExclusiveCallbackGroup()
@@ -192,3 +247,82 @@ def test_an_async_callback_and_a_busy_callback_group_run_as_in_rclpy(spun):
         executor.spin_once(timeout_sec=0.1)
     assert log == ["async started", "async ended"]
     assert [m.data for m in received] == [5]
+
+
+# ---- which executor a process gets ---------------------------------------------------------------
+@pytest.fixture
+def fresh_choice(monkeypatch):
+    """This process's executor choice not made yet, and made again by the test (then forgotten)."""
+    monkeypatch.setattr(executor_module, "_choice_made", None)
+
+
+def test_an_unknown_rclpy_version_gets_the_stock_executor_and_says_so(context, fresh_choice, monkeypatch, capfd):
+    monkeypatch.setattr(executor_module, "rclpy_version", lambda: "7.1.99")
+    monkeypatch.delenv(EXECUTOR_ENV, raising=False)
+    self_tests: list[int] = []
+    monkeypatch.setattr(executor_module, "fast_executor_self_test", lambda context=None: self_tests.append(1))
+    executor = new_executor(context)
+    node = rclpy.create_node("executor_probe", context=context)
+    try:
+        assert type(executor) is SingleThreadedExecutor
+        assert self_tests == []  # an unproven rclpy is not tried
+        calls: list[int] = []
+        node.create_timer(0.01, lambda: calls.append(1))
+        executor.add_node(node)
+        deadline = time.monotonic() + 5.0
+        while len(calls) < 3 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.5)
+        assert len(calls) >= 3  # and it spins the node
+        assert type(new_executor(context)) is SingleThreadedExecutor  # the choice kept for the process
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown()
+    logged = [line for line in capfd.readouterr().err.splitlines() if "[prisma_executor]" in line]
+    assert len(logged) == 1, logged  # once per process, not per executor
+    assert logged[0].endswith("executor: stock, rclpy's SingleThreadedExecutor: PRISMA_EXECUTOR=auto: "
+                              "rclpy 7.1.99 is not one the fast executor is proven on (7.1.3)")
+
+
+@fast_only
+def test_fast_asked_on_the_proven_rclpy_gets_the_fast_executor_after_its_self_test(context, fresh_choice,
+                                                                                    monkeypatch, capfd):
+    monkeypatch.setenv(EXECUTOR_ENV, "fast")
+    executor = new_executor(context)
+    try:
+        assert type(executor) is SingleWaitExecutor
+    finally:
+        executor.shutdown()
+    logged = [line for line in capfd.readouterr().err.splitlines() if "[prisma_executor]" in line]
+    assert len(logged) == 1 and logged[0].endswith(
+        f"executor: fast, SingleWaitExecutor (prisma_node_wiring.executor): PRISMA_EXECUTOR=fast: "
+        f"rclpy {RUNNING_RCLPY} is proven and the self-test passed"), logged
+
+
+@fast_only
+def test_the_self_test_passes_here_and_names_a_changed_private_method(context, monkeypatch):
+    assert fast_executor_self_test(context) is None
+    # as on Humble, whose _make_handler takes a fourth argument: the expectation faked, not rclpy
+    humble = dict(executor_module.FAST_EXECUTOR_OVERRIDES)
+    humble["_make_handler"] = (*humble["_make_handler"], "call_coroutine")
+    monkeypatch.setattr(executor_module, "FAST_EXECUTOR_OVERRIDES", humble)
+    assert fast_executor_self_test(context) == ("SingleThreadedExecutor._make_handler takes (self, entity, node, "
+                                                "take_from_wait_list), not (self, entity, node, "
+                                                "take_from_wait_list, call_coroutine)")
+
+
+def test_the_self_test_on_a_shut_down_context_fails_with_a_reason_not_an_exception():
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    rclpy.shutdown(context=context)
+    failure = fast_executor_self_test(context)
+    assert isinstance(failure, str) and failure
+
+
+def test_the_harness_spins_the_executor_this_process_chose(ros):
+    # the node tests run their nodes on what PRISMA_EXECUTOR asks (CI's stock lane: rclpy's)
+    requested = requested_executor()
+    if requested == "stock" or RUNNING_RCLPY not in PROVEN_RCLPY_VERSIONS:
+        assert type(ros.executor) is SingleThreadedExecutor
+    elif requested in ("auto", "fast"):
+        assert type(ros.executor) is SingleWaitExecutor

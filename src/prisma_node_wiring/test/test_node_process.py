@@ -1,5 +1,10 @@
 """run_node: a node is built at the niceness and takes its real-time rung once built (every thread);
-settle_garbage_collector: what a node holds from its start is left out of later collections."""
+it spins on the executor PRISMA_EXECUTOR and the running rclpy allow, said in one log line, and a
+PRISMA_EXECUTOR naming no executor stops it before it starts; settle_garbage_collector: what a node
+holds from its start is left out of later collections.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
 from __future__ import annotations
 
 import gc
@@ -11,8 +16,11 @@ import time
 
 import pytest
 
-pytest.importorskip("rclpy", reason="prisma_node_wiring needs rclpy (source ROS 2)")
+from prisma_testing.ros_harness import require_ros
 
+require_ros()
+
+from prisma_node_wiring.executor_choice import PROVEN_RCLPY_VERSIONS, rclpy_version  # noqa: E402
 from prisma_node_wiring.node_process import settle_garbage_collector  # noqa: E402
 
 
@@ -96,3 +104,41 @@ def test_ctrl_c_again_and_again_while_the_node_exits_still_ends_it_with_0():
         if node.poll() is None:
             node.kill()
             node.wait()
+
+
+SPUN_NODE = """
+import rclpy
+from rclpy.node import Node
+from prisma_node_wiring.node_process import run_node
+
+def make_node():
+    node = Node("executor_probe")
+    node.create_timer(0.05, rclpy.shutdown)  # spun once: the executor runs its timers
+    return node
+
+run_node(make_node, "executor_probe", ())
+"""
+
+
+@pytest.mark.parametrize(("requested", "kind"), [
+    ("stock", "stock, rclpy's SingleThreadedExecutor: PRISMA_EXECUTOR=stock"),
+    ("", "fast, SingleWaitExecutor (prisma_node_wiring.executor): PRISMA_EXECUTOR=auto: rclpy "
+         f"{rclpy_version()} is proven and the self-test passed"),
+])
+def test_a_node_process_says_once_which_executor_spins_it_and_why(requested, kind):
+    if requested == "" and rclpy_version() not in PROVEN_RCLPY_VERSIONS:
+        pytest.skip(f"the fast executor is not proven on rclpy {rclpy_version()}")
+    env = {**os.environ, "PRISMA_EXECUTOR": requested}  # the test process's domain (conftest.py)
+    out = subprocess.run([sys.executable, "-c", SPUN_NODE], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    logged = [line for line in out.stderr.splitlines() if "executor:" in line]
+    assert len(logged) == 1 and logged[0].endswith(f"[prisma_executor]: executor: {kind}"), out.stderr
+
+
+def test_a_prisma_executor_naming_no_executor_stops_the_node_with_one_line_naming_it():
+    env = {**os.environ, "PRISMA_EXECUTOR": "single_wait"}
+    out = subprocess.run([sys.executable, "-c", SPUN_NODE], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 1
+    assert "Traceback" not in out.stderr
+    assert out.stderr.strip().endswith("[executor_probe]: PRISMA_EXECUTOR='single_wait' is not an executor: set it "
+                                       "to one of auto, fast, stock, events (or leave it unset for auto)"), out.stderr
