@@ -43,10 +43,12 @@ def _wait_line() -> int:
     active: its samples are set aside as waiting, so only CPU work is attributed)."""
     import inspect
 
-    from rclpy.executors import Executor
+    import rclpy.executors
 
-    lines, first = inspect.getsourcelines(Executor._wait_for_ready_callbacks)
-    return first + next(i for i, line in enumerate(lines) if "wait_set.wait(" in line)
+    # read from the module's source: the method is private to rclpy, its name only py-spy's
+    lines = inspect.getsource(rclpy.executors).splitlines()
+    method = next(i for i, line in enumerate(lines) if "def _wait_for_ready_callbacks(" in line)
+    return 1 + next(i for i in range(method, len(lines)) if "wait_set.wait(" in lines[i])
 
 
 def _read_stacks(raw: Path) -> tuple[list[tuple[list[tuple[str, str]], int]], int]:

@@ -857,7 +857,7 @@ def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
     from action_msgs.msg import GoalStatusArray
     from rclpy.serialization import serialize_message
 
-    motor = ros.node(MotorDriverNode, namespace=NS)
+    ros.node(MotorDriverNode, namespace=NS)
     status = ros.collect(GoalStatusArray, f"{NS}/prisma/motors/move/_action/status")
     move = ros.action_client(MoveMotors, f"{NS}/prisma/motors/move")
     tracked, sent = [], []
@@ -867,10 +867,16 @@ def test_move_goals_at_ten_per_second_keep_the_drivers_bookkeeping_bounded(ros):
         goal = MoveMotors.Goal(motors=["thumb_rotation"], mode="velocity", targets=[1.0 if k % 20 < 10 else -1.0],
                                timeout=MOVE_LEASE_S)
         sent.append(time.monotonic())
-        assert ros.send_goal(move, goal).accepted
+        handle = ros.send_goal(move, goal)
+        assert handle.accepted
+        # the goals the driver keeps: its status as this goal started lists every one (expiry publishes nothing)
+        started = bytes(handle.goal_id.uuid)
+        assert ros.spin_until(lambda started=started: bool(status) and started in {
+            bytes(s.goal_info.goal_id.uuid) for s in status[-1].status_list}, 5.0)
+        kept = len(status[-1].status_list)
         ros.spin_for(max(0.0, start + 0.1 * (k + 1) - time.monotonic()))
         late = max(late, time.monotonic() - (start + 0.1 * (k + 1)))
-        tracked.append((time.monotonic(), len(motor._server._goal_handles), late))
+        tracked.append((time.monotonic(), kept, late))
     ros.spin_for(0.1)
     counts = [count for _, count, _ in tracked]
     # +1 each 0.1 s until the first goals expire 10 s after they ended
@@ -903,18 +909,32 @@ def test_the_manipulation_node_forgets_a_finished_goal_after_its_result_timeout(
     from prisma_manipulation import manipulation_node
 
     monkeypatch.setattr(manipulation_node, "RESULT_TIMEOUT_S", 3)
-    manip = ros.node(ManipulationNode, namespace=NS)
-    server = manip._servers[[kind.name for kind in manipulation_node.GOAL_KINDS].index("grasp")]
+    ros.node(ManipulationNode, namespace=NS)
     grasp = ros.action_client(Grasp, f"{NS}/prisma/grasp")
     first_ended = None
+    handles = []
     for _ in range(5):
-        assert ros.result(ros.send_goal(grasp, Grasp.Goal(grasp="pinch"))).status == GoalStatus.STATUS_ABORTED
+        handles.append(ros.send_goal(grasp, Grasp.Goal(grasp="pinch")))
+        assert ros.result(handles[-1]).status == GoalStatus.STATUS_ABORTED
         first_ended = first_ended or time.monotonic()
-    assert len(server._goal_handles) == 5
-    assert ros.spin_until(lambda: len(server._goal_handles) < 5, 10.0)
+
+    def kept() -> int:
+        """The goals the server still keeps: it answers a result request for a forgotten one UNKNOWN."""
+        return sum(ros.result(h).status != GoalStatus.STATUS_UNKNOWN for h in handles)
+
+    def spin_until_kept_below(count: int, timeout_sec: float) -> bool:
+        deadline = time.monotonic() + timeout_sec
+        while kept() >= count:
+            if time.monotonic() > deadline:
+                return False
+            ros.spin_for(0.05)
+        return True
+
+    assert kept() == 5
+    assert spin_until_kept_below(5, 10.0)
     # none before its 3 s (less the moment its result took to reach this client)
     assert time.monotonic() - first_ended >= 2.9
-    assert ros.spin_until(lambda: not server._goal_handles, 10.0)  # all within seconds, not 15 minutes
+    assert spin_until_kept_below(1, 10.0)  # all within seconds, not 15 minutes
 
 
 # ---- one controller per hand -------------------------------------------------------------------

@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import functools
+import inspect
 import math
 import os
 import re
@@ -167,7 +168,7 @@ class RosHarness:
         nodes publish and `settle` must find their messages collected."""
         import rclpy
 
-        from prisma_node_wiring.executor import SingleWaitExecutor
+        from prisma_node_wiring.executor import new_executor
 
         self.rclpy = rclpy
         rclpy.init()
@@ -176,7 +177,7 @@ class RosHarness:
         # this process's nodes share its DDS participant and see each other at once: the wait for
         # other processes' nodes would only add 0.5 s to every node a test builds
         single_instance.DISCOVERY_WAIT_S = 0.0
-        self.executor = SingleWaitExecutor()  # the nodes' own: as their processes spin them
+        self.executor = new_executor()  # the nodes' own (PRISMA_EXECUTOR): as their processes spin them
         self.nodes: list = []
         self.sim_nodes: list = []
         self._sim_now: int | None = None
@@ -600,28 +601,37 @@ class RosHarness:
         process's executor ran in the next second (a process kept from the CPU serves every stream a
         few times; a stalled subscription none), and how many messages its DDS reader then held
         untaken (taken now, as its handler would; thousands: the executor is behind, none: DDS never
-        delivered them). The executor's mark and handlers tell an rclpy stall (a subscription marked
-        taken by a handler that never ran is left out of every wait set)."""
+        delivered them). Whether the executor would take it now tells an rclpy stall (a subscription
+        marked taken by a handler that never ran is left out of every wait set)."""
         served: collections.Counter = collections.Counter()
-        make = self.executor._make_handler
+        wrapped = [s for node in self.executor.get_nodes() for s in node.subscriptions]
+        callbacks = [s.callback for s in wrapped]
 
-        def counted(entity: Any, node: Any, take: Any) -> Any:
-            served[getattr(entity, "topic_name", type(entity).__name__)] += 1
-            return make(entity, node, take)
+        def counted(topic: str, callback: Callable) -> Callable:
+            def call(*args: Any) -> Any:
+                served[topic] += 1
+                return callback(*args)
 
-        self.executor._make_handler = counted
+            async def call_async(*args: Any) -> Any:  # awaited by the executor, as the callback was
+                served[topic] += 1
+                return await callback(*args)
+            return call_async if inspect.iscoroutinefunction(callback) else call
+
+        for s, callback in zip(wrapped, callbacks):
+            s.callback = counted(s.topic_name, callback)
         try:
             self.spin_for(1.0)
         finally:
-            del self.executor._make_handler
-        handlers = sum(1 for task, entity, _ in list(self.executor._tasks)
-                       if entity is subscription and not task.done())
+            for s, callback in zip(wrapped, callbacks):
+                s.callback = callback
+        can_execute = getattr(self.executor, "can_execute", None)  # the events executor has none
+        takes = "?" if can_execute is None else can_execute(subscription)
         held = 0
         with subscription.handle:
             while held < 10_000 and subscription.handle.take_message(subscription.msg_type, False):
                 held += 1
         return (f"callbacks in the next 1 s: {dict(served)}; its reader then held {held} untaken; "
-                f"executor mark {subscription._executor_event}, {handlers} unfinished handler(s)")
+                f"the executor would take it now: {takes}")
 
     def wait_until_keeping_up(self, leader: list, follower: list, lag_sec: float, checks: int = 20,
                               timeout_sec: float = 60.0, period_sec: float = 0.1) -> None:
