@@ -115,7 +115,7 @@ def _per_finger_or_hand(present: dict[str, str], pattern: str, hand: str) -> lis
 
 def no_markers(bag: Path | str) -> str:
     """The refusal of a bag without episode markers: how to mark one, or --whole-bag."""
-    return (f"bag {bag} has no episode marker ({EPISODE_TOPIC}): record the teleop node's markers (engaging starts "
+    return (f"bag {bag} has no episode markers ({EPISODE_TOPIC}): record the teleop node's markers (engaging starts "
             f"an episode, letting go ends it; or mark one: {MARK_EPISODE_COMMAND}, then event: end), or export "
             f"the bag as one episode with --whole-bag")
 
@@ -128,6 +128,8 @@ def plan_bag(bag: Path, options: ExportOptions) -> BagPlan:
     def name(topic: str) -> str:
         return in_namespace(topic, ns)
 
+    if not options.whole_bag and name(EPISODE_TOPIC) not in present:  # the first thing to fix
+        raise ExportError(no_markers(bag))
     missing = []
     if name(topics.JOINT_STATES) not in present:
         missing.append(f"'{name(topics.JOINT_STATES)}' (observation.state)")
@@ -149,8 +151,6 @@ def plan_bag(bag: Path, options: ExportOptions) -> BagPlan:
         has = ", ".join(sorted(present)) or "no topics at all"
         where = f" (namespace '{ns.strip('/')}')" if ns.strip("/") else ""
         raise ExportError(f"bag {bag}{where} has no topic {'; no topic '.join(missing)}; it has: {has}")
-    if not options.whole_bag and name(EPISODE_TOPIC) not in present:
-        raise ExportError(no_markers(bag))
     return BagPlan(bag, found["taxels"], found["wrench"], found["contact"], name(GLOVE_TOPIC) in present,
                    options.action == "targets", name(STAG_FRAME_TOPIC) in present, not options.whole_bag, ns)
 

@@ -130,7 +130,7 @@ def test_bad_input_names_the_problem(make_bag, tmp_path, capsys):
     assert main(["export", str(recorded.path), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
-    assert "has no episode marker (/prisma/teleop/episode)" in err and "or export the bag as one episode with " \
+    assert "has no episode markers (/prisma/teleop/episode)" in err and "or export the bag as one episode with " \
         "--whole-bag" in err
     assert "ros2 service call /teleop/mark_episode prisma_msgs/srv/MarkEpisode" in err
     foreign = tmp_path / "thesis"

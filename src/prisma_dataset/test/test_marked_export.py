@@ -132,8 +132,10 @@ def test_glove_pressure_sampled_and_held_within_its_max_age(make_bag, tmp_path):
 def test_a_namespaced_recording_and_the_topics_a_recording_needs(make_bag, mark, capsys):
     recorded = make_bag("left", seconds=1.0, per_hand=True, namespace="left",
                         markers=(mark("start", 0.1, 0), mark("end", 0.5, 0, outcome="success")))
-    with pytest.raises(ExportError, match=r"has no topic '/joint_states'"):
+    with pytest.raises(ExportError, match=r"has no episode markers \(/prisma/teleop/episode\)"):
         export_bags([recorded.path], ExportOptions())
+    with pytest.raises(ExportError, match=r"has no topic '/joint_states'"):
+        export_bags([recorded.path], ExportOptions(whole_bag=True))
     (episode,) = export_bags([recorded.path], ExportOptions(namespace="left")).episodes
     assert (episode.task, episode.outcome, episode.length) == ("pinch the ball", "success", 21)
     assert main(["topics", "--namespace", "left"]) == 0
