@@ -32,6 +32,8 @@ from graph_bench.processes import relay_command, start, stop
 from prisma_common.hand import FINGERS
 from run import Benchmark
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "support"))  # prisma_testing: not installed
+
 TOPICS = [(f"/prisma/{f}/taxels", "TaxelArray") for f in FINGERS] + [("/joint_states", "JointState")]
 HOLD_S = 40.0
 CPU_S = 20.0

@@ -23,6 +23,8 @@ from pathlib import Path
 
 from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "support"))  # prisma_testing: not installed
+
 HERE = Path(__file__).resolve().parent
 
 NODES = ("tactile_driver", "force_estimator", "motor_driver", "manipulation")
