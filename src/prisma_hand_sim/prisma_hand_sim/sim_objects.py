@@ -47,3 +47,14 @@ def released(obj: ObjectParams | str) -> ObjectParams:
     """The object already held by the hand alone (manipulation scenarios start from a pinch)."""
     base = OBJECTS[obj] if isinstance(obj, str) else obj
     return replace(base, released=True)
+
+
+def pinch_ball_variant(index_contact_rad: float, thumb_contact_rad: float, stiffness_n_per_mm: float) -> ObjectParams:
+    """The pinch ball presented elsewhere or of another size (the motor angles at which the index and
+    the thumb pad first touch it: a larger or nearer ball is touched earlier) and stiffness: the
+    objects prisma-sim's demonstrations and prisma-policy's trials vary."""
+    return replace(OBJECTS["pinch_ball"],
+                   name=f"pinch_ball(index {index_contact_rad:.2f} rad, thumb {thumb_contact_rad:.2f} rad, "
+                        f"{stiffness_n_per_mm:.2f} N/mm)",
+                   finger_contact_rad={"index": index_contact_rad}, thumb_contact_rad=thumb_contact_rad,
+                   stiffness_n_per_mm=stiffness_n_per_mm)
