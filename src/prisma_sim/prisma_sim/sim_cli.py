@@ -4,6 +4,7 @@
     prisma-sim --scenarios horizontal vertical --out /tmp/sim
     prisma-sim --short                  # the quick configuration the tests use
     prisma-sim --list
+    prisma-sim --dataset DIR --episodes 20 [--seed 0]   # teleop demonstrations as a LeRobot v3.0 dataset
 
 Each scenario writes <out>/bags/<scenario>/ (MCAP; `ros2 bag play` it, or open it with rosbags or
 mcap_ros2), <out>/<scenario>.png, and a line in <out>/summary.md and summary.json, which also name
@@ -12,6 +13,10 @@ run's output; a directory holding anything else is refused. Exit status 1 when a
 another reason than the paper's, or misses one of its force set points (a grasp's finger or thumb
 force, the combined hold's thumb force) by more than the force tolerance, 0.15 N by default, in
 the estimated or the true force.
+
+With --dataset, the teleop session runs --episodes times with the operator, the ball and the speed
+varied (seeded: `prisma_sim.demonstrations`) and is written as one LeRobot v3.0 dataset at DIR
+(new or empty), whole or not at all; no bags, plots or summary are kept.
 """
 from __future__ import annotations
 
@@ -24,7 +29,9 @@ from prisma_common.cli_args import (
     ArgumentParser,
     UserError,
     check_bundle_dir,
+    check_replaceable_dir,
     command,
+    non_negative_int,
     output_dir,
     positive_float,
     positive_int,
@@ -44,6 +51,7 @@ from .sim_runner import (
 )
 
 DEFAULT_BUNDLE = "config/models/cnn2"
+DEFAULT_EPISODES = 20
 
 
 @command("prisma-sim", "prisma_force_estimator.bundle:BundleError")
@@ -68,7 +76,18 @@ def main(argv: list[str] | None = None) -> int:
                              "a larger miss makes the run exit 1")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    parser.add_argument("--dataset", type=output_dir, default=None, metavar="DIR",
+                        help="run the teleop session --episodes times, varied, into one LeRobot v3.0 dataset at DIR "
+                             "(new or empty) instead of the scenarios")
+    parser.add_argument("--episodes", type=positive_int, default=None, metavar="N",
+                        help=f"demonstrations in the --dataset (default {DEFAULT_EPISODES})")
+    parser.add_argument("--seed", type=non_negative_int, default=0,
+                        help="seed of the demonstrations' operator, ball and speed (default 0)")
     args = parser.parse_args(argv)
+    if args.dataset is not None:
+        return dataset_command(args)
+    if args.episodes is not None:
+        raise UserError(f"--episodes {args.episodes} needs --dataset DIR: the directory the demonstrations go to")
     if args.list:
         from .hand_session import HAND_SCENARIOS
         from .teleop_session import DESCRIPTION
@@ -106,6 +125,28 @@ def main(argv: list[str] | None = None) -> int:
         for line in failed:
             print(f"prisma-sim: not as expected: {line}", file=sys.stderr)
         return 1
+    return 0
+
+
+def dataset_command(args: argparse.Namespace) -> int:
+    """--dataset: the demonstrations, the dataset's summary and how long it took."""
+    out: Path = args.dataset
+    if (out / "meta" / "info.json").is_file():
+        raise UserError(f"--dataset {out} already holds a dataset; give a new directory (prisma-dataset export "
+                        f"--append adds bags to one)")
+    check_replaceable_dir(out, (), "a LeRobot dataset", "--dataset")
+    check_bundle_dir(args.bundle)
+    from .demonstrations import record_dataset
+    from .sim_runner import load_estimator
+
+    started = time.perf_counter()
+    estimator = load_estimator(args.bundle)
+    episodes = args.episodes or DEFAULT_EPISODES
+    run = record_dataset(out, episodes, args.seed, estimator, progress=lambda line: print(line, flush=True))
+    print()
+    print("\n".join(run.summary()))
+    print(f"{episodes} demonstration(s) (seed {args.seed}) in {time.perf_counter() - started:.1f} s: sessions "
+          f"{run.sessions_s:.1f} s, export {run.export_s:.1f} s; dataset in {out}")
     return 0
 
 

@@ -32,6 +32,7 @@ from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_common.typestore import types as typestore_types
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_hand_sim.hand_world import HandWorld
+from prisma_hand_sim.sim_objects import ObjectParams
 from prisma_manipulation.closed_loop import ClosedLoop
 from prisma_manipulation.node_config import ManipulationConfig
 from prisma_manipulation.scenarios import Scenario
@@ -74,26 +75,29 @@ class TeleopTrace:
         return np.asarray(getattr(self, name))
 
 
-def make_loop(estimator: ForceEstimator | None) -> ClosedLoop:
-    """The sim hand of `hand.launch.py sim:=true`: the pinch ball between the open fingers."""
-    return ClosedLoop(HandWorld(obj="pinch_ball"), estimator)
+def make_loop(estimator: ForceEstimator | None, obj: ObjectParams | str = "pinch_ball") -> ClosedLoop:
+    """The sim hand of `hand.launch.py sim:=true`: the pinch ball (or `obj`) between the open fingers."""
+    return ClosedLoop(HandWorld(obj=obj), estimator)
 
 
-def operator_glove(script: OperatorScript | None = None) -> SyntheticGlove:
+def operator_glove(script: OperatorScript | None = None, seed: int | None = None) -> SyntheticGlove:
     """The synthetic_glove node's operator with its default parameters, once through its script."""
     c = SyntheticGloveConfig()
     script = script or OperatorScript(c.rest_s, c.close_s, c.hold_s, c.open_s, c.sweep_s, c.closure)
-    return SyntheticGlove(script, noise_rad=c.noise_rad, seed=c.seed, loop=False)
+    return SyntheticGlove(script, noise_rad=c.noise_rad, seed=c.seed if seed is None else seed, loop=False)
 
 
 def run_teleop_session(writer: BagWriter, estimator: ForceEstimator, progress: Callable[[str], None] | None = None,
                        types: Callable[[str], Any] = typestore_types,
-                       script: OperatorScript | None = None) -> tuple[TeleopTrace, Any]:
-    """Run the session into `writer`; (the trace, the HandRecorder's recording)."""
-    loop = make_loop(estimator)
-    glove = operator_glove(script)
+                       script: OperatorScript | None = None, obj: ObjectParams | str = "pinch_ball",
+                       request: TeleopRequest | None = None, seed: int | None = None) -> tuple[TeleopTrace, Any]:
+    """Run the session into `writer`; (the trace, the HandRecorder's recording). The operator's
+    `script`, the object and the goal's fields (`request`: its speed cap) vary a demonstration; `seed`
+    the glove's noise (default: the synthetic_glove node's)."""
+    loop = make_loop(estimator, obj)
+    glove = operator_glove(script, seed)
     teleop = HandPoseTeleop(TeleopConfig(engage_at_start=True), nominal_calibration())
-    request = TeleopRequest()
+    request = request or TeleopRequest()
     duration_s = glove.script.duration_s + SILENT_S
     scenario = Scenario(TELEOP, loop, request, duration_s)  # type: ignore[arg-type]  # a Teleoperate goal
     recorder = HandRecorder(scenario, writer, "teleoperate", types)
