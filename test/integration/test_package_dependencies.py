@@ -108,6 +108,8 @@ def test_declared_graph_is_acyclic():
     assert not dependers & {"prisma_common", "prisma_node_wiring", "prisma_hand_sim", "prisma_tactile_driver",
                             "prisma_motor_driver", "prisma_force_estimator", "prisma_manipulation", "prisma_teleop",
                             "stag_glove", "prisma_hand_emulator"}
+    # the policy learns from datasets and drives the hand through Teleoperate: a tool, nothing depends on it
+    assert not [p for p in PACKAGES if "prisma_policy" in declared(p)]
     # the emulator stands in for the hardware the drivers talk to: below the launch files that start
     # it, and no node package depends on it (the drivers reach it through their hardware backends)
     assert [p for p in PACKAGES if "prisma_hand_emulator" in declared(p)] == ["prisma_bringup"]

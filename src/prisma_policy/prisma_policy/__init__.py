@@ -1,0 +1,1 @@
+"""prisma_policy: a behaviour-cloning policy learned from prisma-dataset LeRobot datasets."""
