@@ -51,8 +51,9 @@ from prisma_testing.ros_harness import NodeProcess, process_deaths, require_ros,
 
 require_ros()
 
-from prisma_common.scheduling import PROBE_RT_PRIORITY, try_rt_priority  # noqa: E402
+from prisma_common.scheduling import try_rt_priority  # noqa: E402
 from prisma_testing.host_probe import HostProbe  # noqa: E402
+from prisma_testing.priorities import PROBE_RT_PRIORITY  # noqa: E402
 from prisma_testing.two_hosts import HostsUnavailable, TwoHosts  # noqa: E402
 
 HANDS = ("left", "right")

@@ -130,8 +130,8 @@ def test_every_third_party_import_is_declared(package):
     check_test_imports_declared(package)
 
 
-# The shared test helpers (the package prisma_testing in test/support/, installed by `pip install -e .`)
-# and the test runners.
+# The shared test helpers (the package prisma_testing in test/support/, on the path pyproject.toml's
+# pytest `pythonpath` gives; not installed) and the test runners.
 TEST_SUPPORT = {"prisma_testing"}
 # bench/'s scripts and its graph_bench package, which tests of bench/ import from that folder: part of
 # this repository, not something colcon or rosdep provides
@@ -343,7 +343,7 @@ def wheel_names(tmp_path_factory) -> set[str]:
     tree = work / "tree"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
     shutil.copytree(SRC, tree / "src", ignore=ignore)
-    shutil.copytree(ROOT / "test" / "support", tree / "test" / "support", ignore=ignore)
+    shutil.copytree(ROOT / "test" / "support", tree / "test" / "support", ignore=ignore)  # to be left out
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, tree / name)
     cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(work / "dist"), str(tree)]
@@ -366,9 +366,16 @@ def test_wheel_carries_bundles_layout_and_message_definitions(wheel_names):
             "config/glove/layout.yaml"} <= WHEEL_SHARE["share/prisma_bringup/"]
     assert {"msg/TaxelArray.msg", "action/Grasp.action"} <= WHEEL_SHARE["share/prisma_msgs/"]
     assert "prisma_common/share_data.py" in wheel_names
-    assert "prisma_testing/ros_harness.py" in wheel_names  # the test helpers, for tests and bench/ alike
     # the Apache-2.0 text in the wheel's metadata (setuptools picks LICENSE up by name)
     assert any(n.split("/")[0].endswith(".dist-info") and n.endswith("/LICENSE") for n in wheel_names)
+
+
+def test_the_wheel_ships_the_suite_not_its_test_support(wheel_names):
+    """`pip install .` installs the packages a lab runs; prisma_testing (test/support/) serves the tests
+    and bench/ of a checkout, from its folder."""
+    top_level = {name.split("/")[0] for name in wheel_names if "/" in name}
+    assert "prisma_testing" not in top_level, "the wheel carries prisma_testing: drop test/support from pyproject"
+    assert {"prisma_common", "prisma_manipulation", "prisma_bringup"} <= top_level
 
 
 # ---------------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import os
 import subprocess
 import time
 
-from prisma_common.scheduling import TEST_COLLECTOR_NICE, TEST_DDS_NICE
+from prisma_testing.priorities import TEST_COLLECTOR_NICE, TEST_DDS_NICE
 from prisma_testing.ros_harness import RosHarness, process_deaths, require_ros
 
 require_ros()

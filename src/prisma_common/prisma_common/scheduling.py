@@ -35,30 +35,15 @@ NICE_ENV = "PRISMA_NICE"  # niceness when real-time scheduling is not asked for 
 RT_PRIORITY_RANGE = (0, 99)
 NICE_RANGE = (-20, 19)
 
-# The priority ladder, top first (SCHED_FIFO: a higher priority runs first; niceness: a lower one).
-# A test probe that times the control path runs above it, or it would measure its own wait for a core
-# (test_launch_two_hosts: /joint_states seen up to 10 s late at the default priority).
-PROBE_RT_PRIORITY = 30
-# The control path (drivers, force estimator, manipulation, emulated hardware): hand.launch.py's
-# rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused.
+# The control path's rung (drivers, force estimator, manipulation, emulated hardware): hand.launch.py's
+# rt_priority:= and nice:= defaults, the niceness where real-time scheduling is refused. SCHED_FIFO: a
+# higher priority runs first; niceness: a lower one. The test processes' rungs, above and below it, are
+# test support's (test/support/prisma_testing/priorities.py).
 CONTROL_PATH_RT_PRIORITY = 20
 CONTROL_PATH_NICE = -5
-# A test process's DDS threads (receive, delivery): level with the control path's niceness, ahead of
-# the ordinary processes of a busy machine, so that every sample the graph publishes reaches the
-# test's reader history while its Python thread waits for a core. A receive thread kept from running
-# lets the socket buffer overflow and the writers' reliable history (10 deep) move on: samples lost,
-# not late. The test's Python thread stays at the default, and so do the processes it starts: an
-# observer must not outrank the default-priority nodes it observes (tried on SCHED_FIFO 5: it kept up
-# with its streams, and a pass beside the load harness failed no fewer tests; docs/performance.md).
+# ros_harness.py (edited apart under issue 42) still imports these two from here: delete them once it
+# imports them from prisma_testing.priorities, which defines them.
 TEST_DDS_NICE = CONTROL_PATH_NICE
-# A launch test's collector process (prisma_testing.collector): it only appends each sample of the
-# streams the test checks to a file, as a recorder on the robot would; on the test DDS threads' rung,
-# ahead of the ordinary processes, not real-time: the sim graph takes up to 1.7 of 2 cores at SCHED_FIFO
-# 20 on a slow VM, and real-time CPU above it counts against the kernel's 95% real-time budget
-# (docs/performance.md, "A collector apart").
-TEST_COLLECTOR_NICE = CONTROL_PATH_NICE
-# The fault CLI a test runs acts when the test says: above every ordinary process, below the control
-# path, which it must not hold up (a default-priority start took 4-15 s on a loaded 2-core machine).
 FAULT_CLI_RT_PRIORITY = 10
 
 
@@ -69,7 +54,7 @@ def control_path_env() -> dict[str, str]:
 
 def try_rt_priority(priority: int) -> bool:
     """This thread at SCHED_FIFO `priority` where permitted (False where not: the caller runs on at
-    its priority). For a test's own process or a child's preexec_fn."""
+    its priority). For a process's main thread before rclpy starts its threads, or a child's preexec_fn."""
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except OSError:  # EPERM: no rtprio limit or CAP_SYS_NICE

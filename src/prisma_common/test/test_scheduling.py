@@ -10,13 +10,11 @@ import pytest
 from prisma_common.scheduling import (
     CONTROL_PATH_NICE,
     CONTROL_PATH_RT_PRIORITY,
-    FAULT_CLI_RT_PRIORITY,
-    PROBE_RT_PRIORITY,
-    TEST_DDS_NICE,
     apply_priority,
     apply_priority_from_env,
     control_path_env,
 )
+from prisma_testing.priorities import FAULT_CLI_RT_PRIORITY, PROBE_RT_PRIORITY, TEST_COLLECTOR_NICE, TEST_DDS_NICE
 
 IS_ROOT = os.geteuid() == 0
 
@@ -84,7 +82,7 @@ def test_niceness_only_when_real_time_is_not_asked_for():
 def test_the_ladder_runs_probes_above_the_control_path_above_the_fault_cli():
     assert PROBE_RT_PRIORITY > CONTROL_PATH_RT_PRIORITY > FAULT_CLI_RT_PRIORITY > 0 and CONTROL_PATH_NICE < 0
     # a test's DDS threads ahead of ordinary processes, never ahead of the control path's fallback
-    assert CONTROL_PATH_NICE <= TEST_DDS_NICE < 0
+    assert CONTROL_PATH_NICE <= TEST_DDS_NICE < 0 and CONTROL_PATH_NICE <= TEST_COLLECTOR_NICE < 0
     lines = run_probe(control_path_env())
     if IS_ROOT:
         assert lines[0] == f"real-time scheduling (SCHED_FIFO {CONTROL_PATH_RT_PRIORITY})"
@@ -95,8 +93,8 @@ def test_the_ladder_runs_probes_above_the_control_path_above_the_fault_cli():
 
 @pytest.mark.skipif(not IS_ROOT, reason="SCHED_FIFO needs root or an rtprio limit")
 def test_try_rt_priority_sets_the_calling_process():
-    code = ("import os; from prisma_common.scheduling import FAULT_CLI_RT_PRIORITY, try_rt_priority; "
-            "print(try_rt_priority(FAULT_CLI_RT_PRIORITY), os.sched_getscheduler(0), "
+    code = ("import os; from prisma_common.scheduling import try_rt_priority; "
+            f"print(try_rt_priority({FAULT_CLI_RT_PRIORITY}), os.sched_getscheduler(0), "
             "os.sched_getparam(0).sched_priority)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["True", str(os.SCHED_FIFO), str(FAULT_CLI_RT_PRIORITY)]

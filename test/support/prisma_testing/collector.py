@@ -10,7 +10,7 @@ Why a process apart: a launch test's own process, at the default priority beside
 ran 130-190 executor callbacks a second against the ~750 messages a second its 100 Hz collections
 receive, so every wait for "the message stamped now" worked through seconds of backlog
 (docs/performance.md). rclpy's executor takes one message per Python callback; here the callback only
-appends bytes to a file, at scheduling.TEST_COLLECTOR_NICE, and the test process takes no
+appends bytes to a file, at priorities.TEST_COLLECTOR_NICE, and the test process takes no
 message at all: it reads the files' new bytes and deserializes only the messages it looks at.
 
 Requests (stdin, one JSON line each; one JSON line answers each):
@@ -34,8 +34,8 @@ import threading
 from collections.abc import Iterator, Sequence
 from typing import Any, overload
 
-from prisma_common.scheduling import TEST_COLLECTOR_NICE
 from prisma_testing.json_line_process import JsonLineProcess
+from prisma_testing.priorities import TEST_COLLECTOR_NICE
 
 _LENGTH = struct.Struct("<I")
 
