@@ -352,6 +352,7 @@ def _episode(plan: BagPlan, options: ExportOptions, streams: list[Stream], task:
     notes = {
         "source": str(plan.bag), "start_s": (int(sampled.instants_ns[0]) - origin) / NS,
         "frames": keep, "ended": ended, "dropped_s": round(sampled.dropped_ns / NS, 6),
+        "skipped_start_frames": sampled.skipped,
         "gap": None if sampled.gap is None else {
             "stream": sampled.gap.stream, "at_s": (sampled.gap.at_ns - origin) / NS,
             "age_s": sampled.gap.age_ns / NS, "max_age_s": sampled.gap.max_age_ns / NS},

@@ -8,7 +8,10 @@ steps by 1/fps (t_k = start + floor(k * 1e9 / fps) ns) up to the last stamp of a
 frame where a stream's newest sample is older than that stream's max age ends the episode: that
 frame and every one after it are dropped, and the result names the stream, its age and the instant.
 A marked episode's span narrows the grid: it starts at the later of the span's start and the streams'
-first instant, and ends at the earlier of the span's end and the streams' last stamp.
+first instant, and ends at the earlier of the span's end and the streams' last stamp. Frames at the
+start of a span where a stream is already older than its max age (a recording begun in a moment a
+stream stalled) are skipped: the episode starts at the first frame every stream is fresh, and the
+result counts the frames skipped (`skipped`); the whole-bag grid starts as before.
 """
 from __future__ import annotations
 
@@ -66,6 +69,7 @@ class Sampled:
     values: dict[str, np.ndarray]
     gap: Gap | None
     end_ns: int
+    skipped: int = 0  # frames of a span's start skipped while a stream was stale
 
     @property
     def dropped_ns(self) -> int:
@@ -93,16 +97,21 @@ def sample_and_hold(streams: Sequence[Stream], fps: int, span: tuple[int, int] |
     if span is not None:
         start, end = max(start, int(span[0])), min(end, int(span[1]))
     instants = grid(start, end, fps)
-    cut = len(instants)
-    gap = None
-    picks = {}
+    picks, ages = {}, {}
     for stream in streams:
         index = np.searchsorted(stream.stamps_ns, instants, side="right") - 1  # >= 0: every instant >= start
-        age = instants - stream.stamps_ns[index]
-        stale = np.flatnonzero(age > stream.max_age_ns)
+        picks[stream.name], ages[stream.name] = index, instants - stream.stamps_ns[index]
+    first = 0
+    if span is not None and len(instants):  # a span's stale start is skipped
+        fresh = np.all([ages[s.name] <= s.max_age_ns for s in streams], axis=0)
+        first = int(np.argmax(fresh)) if fresh.any() else 0
+    cut = len(instants)
+    gap = None
+    for stream in streams:
+        age = ages[stream.name]
+        stale = first + np.flatnonzero(age[first:] > stream.max_age_ns)
         if stale.size and stale[0] < cut:
             cut = int(stale[0])
             gap = Gap(stream.name, int(instants[cut]), int(age[cut]), stream.max_age_ns)
-        picks[stream.name] = index
-    values = {s.name: s.values[picks[s.name][:cut]] for s in streams}
-    return Sampled(instants[:cut], values, gap, end)
+    values = {s.name: s.values[picks[s.name][first:cut]] for s in streams}
+    return Sampled(instants[first:cut], values, gap, end, first if cut > first else 0)

@@ -77,21 +77,30 @@ def test_task_overrides_the_markers_and_whole_bag_ignores_them(make_bag, mark):
     assert [(e.task, e.outcome, e.length) for e in whole.episodes] == [("teleoperate the PRISMA hand", "", 75)]
 
 
-def test_an_unfinished_episode_and_one_without_a_fresh_frame(make_bag, mark):
+def test_an_unfinished_episode_a_stale_start_skipped_and_one_without_a_fresh_frame(make_bag, mark):
     markers = (mark("end", 0.05, 3, outcome="success"),  # latched from before the recording: left out
                mark("start", 0.2, 4), mark("start", 0.6, 5))  # 4's end lost; 5 open when the recording stopped
-    recorded = make_bag("unfinished", seconds=1.0, markers=markers, gap=("wrench/thumb", 0.1, 0.45))
+    recorded = make_bag("unfinished", seconds=1.0, markers=markers, gap=("wrench/thumb", 0.1, 0.7))
     said: list[str] = []
     dataset = export_bags([recorded.path], ExportOptions(), progress=said.append)
-    # episode 4 (0.2 .. 0.6 s): the thumb's wrench silent until 0.45 s: its first frame is stale
+    # episode 4 (0.2 .. 0.6 s): the thumb's wrench silent throughout: no fresh frame, left out
     assert said[0].startswith(f"bag {recorded.path} episode 4: no frame has every stream within its max age: "
                               "/prisma/thumb/wrench's newest sample was")
     assert said[0].endswith(": left out")
     (episode,) = dataset.episodes
     assert (episode.outcome, episode.notes["outcome_reason"], episode.notes["marked_episode"]) == (
         "unfinished", "the recording ended inside the episode", 5)
-    last = max(stamp for k in [*HAND_KEYS, "motor_targets"] for stamp, _ in recorded.streams[k])
-    assert episode.length == len(span_grid(recorded, [*HAND_KEYS, "motor_targets"], 0.6, (last - START_NS) / 1e9))
+    # episode 5 starts at the first frame of its span where the thumb's wrench is fresh again
+    keys = [*HAND_KEYS, "motor_targets"]
+    last = max(stamp for k in keys for stamp, _ in recorded.streams[k])
+    instants = span_grid(recorded, keys, 0.6, (last - START_NS) / 1e9)
+    thumb = [stamp for stamp, _ in recorded.streams["wrench/thumb"]]
+    fresh = [t for t in instants if t - max(x for x in thumb if x <= t) <= MAX_AGE_S["wrench"] * NS]
+    skipped = instants.index(fresh[0])
+    assert skipped >= 4 and episode.notes["skipped_start_frames"] == skipped  # 0.6 s .. past 0.7 s
+    assert episode.length == len(instants) - skipped
+    np.testing.assert_array_equal(episode.values["observation.wrench"][0, 0],
+                                  recorded.at("wrench/thumb", fresh[0]).astype(np.float32))
 
 
 def test_a_bag_without_a_start_marker_or_a_fresh_span_is_refused(make_bag, mark):

@@ -68,3 +68,21 @@ def test_streams_must_have_samples_and_matching_values():
         Stream.from_samples("x", [], [], MS)
     with pytest.raises(ValueError, match="2 stamps for 1 values"):
         Stream.from_samples("x", [0, 1], [1.0], MS)
+
+
+def test_a_spans_stale_start_is_skipped_and_a_gap_after_it_still_ends_the_episode():
+    steady = Stream.from_samples("steady", [k * 10 * MS for k in range(20)], np.arange(20.0), 25 * MS)
+    # silent from 10 to 70 ms, then every 10 ms to 120 ms, then silent again
+    late = Stream.from_samples("late", [0, 70 * MS, 80 * MS, 90 * MS, 100 * MS, 110 * MS, 120 * MS],
+                               np.arange(7.0), 25 * MS)
+    sampled = sample_and_hold([steady, late], 50, span=(40 * MS, 190 * MS))
+    # frames at 40 (late 40 ms old: skipped), 60 (60 ms old: skipped), 80, 100, 120, 140 (20 ms: kept),
+    # 160 (40 ms old: ends it)
+    assert sampled.skipped == 2
+    assert sampled.instants_ns.tolist() == [80 * MS, 100 * MS, 120 * MS, 140 * MS]
+    assert sampled.values["late"].tolist() == [2.0, 4.0, 6.0, 6.0]
+    assert sampled.gap is not None and (sampled.gap.stream, sampled.gap.at_ns) == ("late", 160 * MS)
+    # without a span (a whole bag) the rule is as before: 0 and 20 ms fresh, late stale at 40 ms ends it
+    whole = sample_and_hold([steady, late], 50)
+    assert whole.instants_ns.tolist() == [0, 20 * MS] and whole.skipped == 0
+    assert whole.gap is not None and whole.gap.at_ns == 40 * MS
