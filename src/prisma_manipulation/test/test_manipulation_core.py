@@ -9,7 +9,7 @@ import pytest
 
 from prisma_common.goal_refusal import BUSY, INVALID, NOT_READY, Refusal, refusal_code
 from prisma_common.messages import make_header
-from prisma_common.typestore import get_typestore, types
+from prisma_common.typestore import types
 from prisma_hand_sim.pad_model import PadParams
 from prisma_manipulation.controllers import JointSample
 from prisma_manipulation.grasp_goal import GRASP_GOAL
@@ -33,14 +33,11 @@ from prisma_manipulation.ros_conversions import (
     joint_sample_from_msg,
 )
 from prisma_manipulation.teleop_goal import TeleopRequest
+from prisma_testing.cdr import cdr_round_trip
 from prisma_testing.core_inputs import core_at_rest, pressed_pad
 
 MS = 1_000_000
 
-
-def roundtrip(msg):
-    store = get_typestore()
-    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
 
 
 def test_core_validates_goals_with_defaults_and_limits():
@@ -151,7 +148,7 @@ def test_foreign_joint_states_change_no_decision():
         js(header=make_header(ts, 10**12, ""), name=["fingers", "thumb_flexion", "thumb_rotation"],
            position=np.array([5.0]), velocity=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64)),
     ]
-    foreign = [joint_sample_from_msg(roundtrip(m)) for m in foreign_msgs]  # no ValueError: empty samples
+    foreign = [joint_sample_from_msg(cdr_round_trip(m)) for m in foreign_msgs]  # no ValueError: empty samples
     assert [f.positions for f in foreign] == [{"shoulder": 0.1, "elbow": 0.2}, {}, {}, {}]
 
     def run(with_foreign):
@@ -297,7 +294,7 @@ def test_a_move_goal_the_driver_refuses_ends_every_kind_with_the_drivers_refusal
     assert (done.kind, done.success, done.reason, done.detail) == (kind.name, False, reason, "")
     assert not core.busy
     if kind is not GRIPPER_GOAL:  # GripperCommand's result has no text (the node's log and /diagnostics say it)
-        result = roundtrip(kind.result_to_msg(types, done))
+        result = cdr_round_trip(kind.result_to_msg(types, done))
         assert getattr(result, "stop_reason", getattr(result, "reason", None)) == reason
 
 
@@ -318,7 +315,7 @@ def test_a_motor_fault_ends_the_goal_with_the_drivers_words_and_a_bare_one_stays
     core.start(GraspRequest("pinch"), 0)
     overload = "motor_fault: fingers (id 1) hardware error bit 5 overload"
     done = core.on_move_result(overload, 5 * MS)[-1]
-    assert (done.reason, roundtrip(GRASP_GOAL.result_to_msg(types, done)).reason) == (overload, overload)
+    assert (done.reason, cdr_round_trip(GRASP_GOAL.result_to_msg(types, done)).reason) == (overload, overload)
     core.start(GraspRequest("pinch"), 10 * MS)
     assert core.on_move_result("motor_fault", 15 * MS)[-1].reason == "motor_fault"
     core.start(GraspRequest("pinch"), 20 * MS)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from prisma_common.messages import make_header
-from prisma_common.typestore import get_typestore, types
+from prisma_common.typestore import types
 from prisma_manipulation.controllers import JointSample
 from prisma_manipulation.goal_kind import Feedback, Finished
 from prisma_manipulation.manipulation_core import GraspRequest, ManipulationCore, SendMove, StopMotors
@@ -24,16 +24,13 @@ from prisma_manipulation.teleop_goal import (
     teleop_result_to_msg,
     teleop_target_from_msg,
 )
+from prisma_testing.cdr import cdr_round_trip
 
 MS = 1_000_000
 PADS = ("thumb", "index", "middle", "ring", "little")
 VOLTS = np.array([0.8, 1.1, 0.8, 1.0, 1.5, 1.3, 0.8, 1.2, 0.8], dtype=np.float32)
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
 
-
-def roundtrip(msg):
-    store = get_typestore()
-    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
 
 
 def targets_msg(stamp_ns, names, positions):
@@ -127,7 +124,7 @@ def test_the_targets_silent_past_the_timeout_end_it_input_stale_with_the_motors_
     done = actions[-1]
     assert (done.kind, done.success, done.reason, done.detail) == ("teleop", False, "input_stale",
                                                                    "prisma/teleop/motor_targets silent for 153 ms")
-    result = roundtrip(teleop_result_to_msg(types, done))
+    result = cdr_round_trip(teleop_result_to_msg(types, done))
     assert result.reason == "input_stale: prisma/teleop/motor_targets silent for 153 ms"
     assert result.success is False and result.duration == pytest.approx(0.16)
     # a new goal follows again once the targets flow
@@ -158,35 +155,35 @@ def test_stale_sensors_end_it_sensor_stale_and_a_cancel_is_its_success():
             break
     done = actions[-1]
     assert (t_ms, done.reason, done.detail) == (120, "sensor_stale", "taxels/thumb silent for 110 ms")
-    assert roundtrip(teleop_result_to_msg(types, done)).reason == "sensor_stale: taxels/thumb silent for 110 ms"
+    assert cdr_round_trip(teleop_result_to_msg(types, done)).reason == "sensor_stale: taxels/thumb silent for 110 ms"
     core, _ = started()
     scan(core, 10, target={"fingers": 5.0})
     actions = core.cancel(15 * MS)
     assert isinstance(actions[0], StopMotors)
     done = actions[-1]
     assert (done.success, done.reason) == (True, "canceled")
-    result = roundtrip(teleop_result_to_msg(types, done))
+    result = cdr_round_trip(teleop_result_to_msg(types, done))
     assert (result.success, result.reason, list(result.motors), list(result.targets)[0]) == \
         (True, "canceled", list(MOTORS), 5.0)
 
 
 def test_converters():
     names = ["fingers", "wrist", "thumb_rotation", "thumb_flexion"]
-    stamp, target = teleop_target_from_msg(roundtrip(targets_msg(1_700_000_000_123_456_789, names,
-                                                                 [3.0, 1.0, -0.5, math.nan])))
+    stamp, target = teleop_target_from_msg(cdr_round_trip(targets_msg(1_700_000_000_123_456_789, names,
+                                                                      [3.0, 1.0, -0.5, math.nan])))
     assert stamp == 1_700_000_000_123_456_789 and dict(target.positions) == {"fingers": 3.0, "thumb_rotation": -0.5}
     assert dict(teleop_target_from_msg(targets_msg(0, ["fingers", "thumb_flexion"], [1.0]))[1].positions) == {}
     request = types("prisma_msgs/action/Teleoperate_Goal")(max_pad_force=1.5, max_speed_rpm=30.0, input_timeout=0.2)
-    assert teleop_request_from_msg(roundtrip(request)) == TeleopRequest(1.5, 30.0, pytest.approx(0.2))
+    assert teleop_request_from_msg(cdr_round_trip(request)) == TeleopRequest(1.5, 30.0, pytest.approx(0.2))
     status = TeleopStatus(MOTORS, (3.0, math.nan, 0.0), (2.9, 1.0, 0.0), (0.5, 2.0, 0.0, 0.0, 0.0), ("fingers",))
-    fb = roundtrip(teleop_feedback_to_msg(types, Feedback("teleop", "holding", status)))
+    fb = cdr_round_trip(teleop_feedback_to_msg(types, Feedback("teleop", "holding", status)))
     assert (fb.phase, list(fb.force_limited), list(fb.pad_forces)) == ("holding", ["fingers"], [0.5, 2.0, 0, 0, 0])
     assert list(fb.positions) == pytest.approx([2.9, 1.0, 0.0]) and math.isnan(fb.targets[1])
-    refused = roundtrip(teleop_result_to_msg(types, Finished("teleop", False, "busy: a grasp goal is running", 0.0,
-                                                             status)))
+    refused = cdr_round_trip(teleop_result_to_msg(types, Finished("teleop", False, "busy: a grasp goal is running", 0.0,
+                                                                  status)))
     assert (refused.success, refused.reason) == (False, "busy: a grasp goal is running")
     fault = Finished("teleop", False, "motor_fault", 1.0, status, "motor_fault: fingers: overload")
-    assert roundtrip(teleop_result_to_msg(types, fault)).reason == "motor_fault: fingers: overload"
+    assert cdr_round_trip(teleop_result_to_msg(types, fault)).reason == "motor_fault: fingers: overload"
     # a goal refused before any /joint_states: where the hand stands is not known
     idle = TELEOP_GOAL.idle_status(ManipulationCore(ManipulationConfig()).context())
     assert all(math.isnan(v) for v in idle.positions + idle.targets + idle.pad_forces)

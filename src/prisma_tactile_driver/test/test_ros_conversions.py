@@ -4,7 +4,7 @@ import pytest
 
 from prisma_common.diagnostics import DiagnosticStatusData, diagnostics_from_msg, diagnostics_to_msg
 from prisma_common.messages import make_header, ns_from_stamp, stamp_from_ns
-from prisma_common.typestore import get_typestore, types
+from prisma_common.typestore import types
 from prisma_tactile_driver.ros_conversions import (
     hand_taxels_samples,
     hand_taxels_to_msg,
@@ -12,11 +12,7 @@ from prisma_tactile_driver.ros_conversions import (
     taxel_frame_to_msg,
 )
 from prisma_tactile_driver.taxels import TaxelFrame
-
-
-def cdr_round_trip(msg):
-    store = get_typestore()
-    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
+from prisma_testing.cdr import cdr_round_trip
 
 
 def test_stamp_helpers():

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from prisma_common.diagnostics import ERROR, DiagnosticStatusData, diagnostics_from_msg, diagnostics_to_msg
-from prisma_common.typestore import get_typestore, types
+from prisma_common.typestore import types
+from prisma_testing.cdr import cdr_round_trip
 from stag_glove.processing import FrameProcessor
 from stag_glove.ros_conversions import (
     Estimate,
@@ -19,11 +20,6 @@ from stag_glove.ros_conversions import (
 )
 
 
-def round_trip(msg):
-    store = get_typestore()
-    return store.deserialize_cdr(store.serialize_cdr(msg, msg.__msgtype__), msg.__msgtype__)
-
-
 def processed(shorted=False):
     raw = np.random.default_rng(0).integers(450, 700, (32, 32)).astype(np.uint16)
     if shorted:
@@ -33,7 +29,7 @@ def processed(shorted=False):
 
 def test_glove_frame_round_trip():
     frame = processed(shorted=True)
-    msg = round_trip(glove_frame_to_msg(types, frame, "stag_glove"))
+    msg = cdr_round_trip(glove_frame_to_msg(types, frame, "stag_glove"))
     assert msg.header.frame_id == "stag_glove"
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
     back = glove_frame_from_msg(msg)
@@ -52,22 +48,22 @@ def test_glove_frame_with_inconsistent_size_is_rejected():
 
 def test_pressure_image_is_32fc1():
     frame = processed()
-    msg = round_trip(pressure_image_msg(frame, types, "stag_glove"))
+    msg = cdr_round_trip(pressure_image_msg(frame, types, "stag_glove"))
     assert (msg.height, msg.width, msg.encoding, msg.step, msg.is_bigendian) == (32, 32, "32FC1", 128, 0)
     np.testing.assert_array_equal(image_to_pressure(msg), frame.pressure)
 
 
 def test_estimates_round_trip():
     est = Estimate("mug", 0.75, ["ball", "mug"], np.array([0.25, 0.75], np.float32), 8)
-    back = estimate_from_msg(round_trip(estimate_to_msg(types, est, 5, "stag_glove")))
+    back = estimate_from_msg(cdr_round_trip(estimate_to_msg(types, est, 5, "stag_glove")))
     assert (back.label, back.labels, back.frames_used) == ("mug", ["ball", "mug"], 8)
     assert back.confidence == pytest.approx(0.75)
     np.testing.assert_allclose(back.probabilities, [0.25, 0.75])
-    w = weight_from_msg(round_trip(weight_to_msg(types, WeightResult(123.5, 98.25), 5, "g")))
+    w = weight_from_msg(cdr_round_trip(weight_to_msg(types, WeightResult(123.5, 98.25), 5, "g")))
     assert (w.grams, w.baseline_grams) == (123.5, 98.25)
 
 
 def test_diagnostics_round_trip():
     status = DiagnosticStatusData("glove_driver: readout", ERROR, "disconnected", "stag", {"crc_errors": "3"})
-    back = diagnostics_from_msg(round_trip(diagnostics_to_msg(types, 9, [status])))
+    back = diagnostics_from_msg(cdr_round_trip(diagnostics_to_msg(types, 9, [status])))
     assert back == [status]
