@@ -55,6 +55,7 @@ from typing import Any
 
 from graph_bench.control import Control, ros_missing
 from graph_bench.cpu import wait_quiet
+from graph_bench.display import DISPLAY_GRAPHS, run_display
 from graph_bench.glove import run_glove, run_markers
 from graph_bench.hand import max_sustained, relay_entities, run_hand, summarise_hand, sweep
 from graph_bench.hosts import HOSTS_GRAPHS, LAYOUTS, enter_netns, run_hosts, summarise_hosts
@@ -112,6 +113,15 @@ def _markers(control: Control, args: argparse.Namespace, results: dict, hosts: A
     print(json.dumps(results["markers"]["summary"], indent=1), flush=True)
 
 
+def _display(control: Control, args: argparse.Namespace, results: dict, hosts: Any) -> None:
+    results["display"] = {}
+    for graph in args.display_graph.split(","):
+        print(f"the {graph} graph at rest beside the bare relay (stretch)", flush=True)
+        results["display"][graph] = run_display(control, graph, args.out, args.repeat, cpu_s=args.cpu_s,
+                                                quiet=args.quiet)
+        print(json.dumps({graph: results["display"][graph]["summary"]}, indent=1), flush=True)
+
+
 def _entities(control: Control, args: argparse.Namespace, results: dict, hosts: Any) -> None:
     print("relay manipulation with and without the node's idle entities", flush=True)
     results["entities"] = relay_entities(control, args.out, cpu_s=args.cpu_s, quiet=args.quiet)
@@ -138,6 +148,8 @@ PARTS = {
     "sweep": Part(_sweep, "the scan rates of --sweep, graph and relay"),
     "glove": Part(_glove, "the glove graph at 7.3 frames/s and its relay"),
     "markers": Part(_markers, "tactile_markers idle and watched, beside its relay"),
+    "display": Part(_display, "the launched graph at rest in bare relays (--display-graph), its tendon_stretch "
+                              "in relays"),
     "entities": Part(_entities, "the manipulation relay with the node's idle entities"),
     "profile": Part(_profile, "py-spy of each hand node (needs py-spy)"),
 }
@@ -167,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--graph-probe", choices=("hand", "finger"), default="hand",
                         help="what the probe records from the graph: its per-hand topics (what its own nodes "
                              "take) or the 15 per-finger ones (a recorder of the README's list beside it)")
+    parser.add_argument("--display-graph", default="hand",
+                        help="--parts display: comma separated, of " + ", ".join(DISPLAY_GRAPHS)
+                             + " (bimanual: both hands and the glove)")
     parser.add_argument("--markdown", action="store_true",
                         help="only print the tables of an earlier run's --out/results.json (no ROS needed)")
     return parser
@@ -230,6 +245,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"skipped: {missing}", file=sys.stderr)
         return 2
     parts = chosen_parts(parser, args.parts)
+    unknown_graphs = set(args.display_graph.split(",")) - set(DISPLAY_GRAPHS)
+    if "display" in parts and unknown_graphs:
+        parser.error(f"unknown --display-graph {sorted(unknown_graphs)}; choose from {', '.join(DISPLAY_GRAPHS)}")
     args.quiet = (args.quiet_below, args.quiet_wait)
     args.out.mkdir(parents=True, exist_ok=True)
     results: dict = {"machine": {"cpus": os.cpu_count(), "uname": " ".join(os.uname()[2:5]),

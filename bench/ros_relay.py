@@ -18,8 +18,13 @@ building the outgoing message from the incoming one (stamp and frame id copied):
                                                                                  /stag/weight per frame
     markers              tactile_markers   /prisma/hand/contact, /prisma/hand/   /prisma/relay_markers
                                            wrench (the real graph's)             (MarkerArray, rate_hz 30)
+    stretch              tendon_stretch    /joint_states, /prisma/hand/wrench    /prisma/relay_model_joint_states
+                                           (the real graph's)                    (a JointState per /joint_states)
     watch                a display         --topic (MarkerArray)                 -
 
+`stretch` is the bare relay of the display bench (graph_bench/display.py): beside the real graph it
+takes the same two 100 Hz streams tendon_stretch reads and sends one JointState per /joint_states
+message (its stamp, names and positions copied), nothing computed and nothing dropped.
 `markers` runs beside the real hand graph, as tactile_markers does, and sends the same MarkerArray
 (per finger a 9-cell CUBE_LIST, a SPHERE, an ARROW and a TEXT marker) with the newest ContactState's
 frame id and voltages copied in, nothing computed. `watch` subscribes to a MarkerArray topic as RViz
@@ -283,6 +288,23 @@ class Markers(Node):
             self._pub.publish(MarkerArray(markers=markers))
 
 
+class Stretch(Node):
+    """tendon_stretch: the newest hand wrench kept, each /joint_states copied out at once."""
+
+    def __init__(self) -> None:
+        super().__init__("relay_stretch")
+        self._pub = self.create_publisher(JointState, "prisma/relay_model_joint_states", DEPTH)
+        self._wrench: HandWrench | None = None
+        self.create_subscription(HandWrench, "prisma/hand/wrench", self._on_wrench, DEPTH)
+        self.create_subscription(JointState, "joint_states", self._on_joints, DEPTH)
+
+    def _on_wrench(self, msg: HandWrench) -> None:
+        self._wrench = msg
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._pub.publish(JointState(header=msg.header, name=list(msg.name), position=list(msg.position)))
+
+
 class Watch(Node):
     """A display's subscription to a MarkerArray topic; says how many arrived when stopped."""
 
@@ -298,7 +320,7 @@ class Watch(Node):
 def build(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("role", choices=["sensor", "force", "manipulation", "motor", "glove_driver",
-                                         "glove_perception", "markers", "watch"])
+                                         "glove_perception", "markers", "stretch", "watch"])
     parser.add_argument("--rate-hz", type=float, default=None,
                         help="sensor: scan rate; motor: /joint_states rate (default 100); markers: display rate "
                              "(default 30)")
@@ -335,6 +357,7 @@ def main(argv: list[str] | None = None) -> int:
             "glove_driver": lambda: GloveDriver(args.frame_rate_hz, args.poll_rate_hz),
             "glove_perception": GlovePerception,
             "markers": lambda: Markers(args.rate_hz),
+            "stretch": Stretch,
             "watch": lambda: Watch(args.topic),
         }[args.role]()
         # onto the rung the benchmark asks for (PRISMA_RT_PRIORITY, PRISMA_NICE) once built, as a node does

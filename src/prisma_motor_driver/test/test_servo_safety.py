@@ -293,19 +293,22 @@ class StartsThatFail:
         self.start_homing(names, rpm, current_ma)
 
 
-def homing_at_start(emu) -> tuple[DynamixelBus, MotorDriverCore]:
+def homing_at_start(hand, monkeypatch, failing_starts: int) -> tuple[MotorDriverCore, StartsThatFail]:
+    """A driver that homes at start on the power-cycled emulated hand, its bus's first
+    `failing_starts` homing starts refused."""
+    emu, _clock = hand
+    emu.power_cycle()
     bus = DynamixelBus(emu.port_name, 1_000_000, motor_map(), retries=1)
     core = MotorDriverCore(MotorDriverConfig(backend="dynamixel", home_at_start=True), bus=bus)
     assert core.connect(0) is None
-    return bus, core
+    starts = StartsThatFail(bus, failing_starts)
+    monkeypatch.setattr(bus, "start_homing", starts)
+    return core, starts
 
 
 def test_a_homing_at_start_whose_start_the_bus_failed_goes_again_a_bounded_number_of_times(hand, monkeypatch):
     emu, clock = hand
-    emu.power_cycle()
-    bus, core = homing_at_start(emu)
-    starts = StartsThatFail(bus, count=100)
-    monkeypatch.setattr(bus, "start_homing", starts)
+    core, starts = homing_at_start(hand, monkeypatch, failing_starts=100)
     results = [t.homing_result for t in run(core, emu, clock, 0.5) if t.homing_result is not None]
     # every try failed at its start; the tries stop after HOMING_AT_START_TRIES, nothing moved
     assert starts.calls == len(results) == HOMING_AT_START_TRIES
@@ -316,10 +319,7 @@ def test_a_homing_at_start_whose_start_the_bus_failed_goes_again_a_bounded_numbe
 
 def test_a_homing_at_start_whose_first_start_failed_homes_at_the_second(hand, monkeypatch):
     emu, clock = hand
-    emu.power_cycle()
-    bus, core = homing_at_start(emu)
-    starts = StartsThatFail(bus, count=1)
-    monkeypatch.setattr(bus, "start_homing", starts)
+    core, starts = homing_at_start(hand, monkeypatch, failing_starts=1)
     ticks = run(core, emu, clock, 15.0, until=lambda t: t.homing_result is not None and t.homing_result.success)
     assert starts.calls == 2
     assert ticks[-1].homing_result is not None and ticks[-1].homing_result.success

@@ -35,8 +35,9 @@ def stream_publisher(node: Node, msg_type: Any, topic: str) -> Publisher:
 
 
 def stream_subscription(node: Node, msg_type: Any, topic: str, callback: Callable[[Any], None],
-                        **kwargs: Any) -> Subscription:
-    return node.create_subscription(msg_type, topic, callback, DEPTH,
+                        depth: int = DEPTH, **kwargs: Any) -> Subscription:
+    """depth: a display that takes only the newest sample at its own rate keeps 1."""
+    return node.create_subscription(msg_type, topic, callback, depth,
                                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                                     **kwargs)
 

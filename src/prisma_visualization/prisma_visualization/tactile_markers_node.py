@@ -7,7 +7,10 @@ estimated normal force as an arrow (tactile_markers_core.py).
 
 Reads prisma/hand/contact and prisma/hand/wrench (or the per-finger forms until those speak), but
 only while someone subscribes to the markers: with no display open the node holds no subscription,
-so the manipulation node builds no ContactState for it and nothing here runs.
+so the manipulation node builds no ContactState for it and nothing here runs. While watched it takes
+them at the display rate, not the sensors' (display_gate.py): each display tick publishes what the
+last tick took and lets each input's newest message in once more; the samples between are dropped
+unread, and a drawing is at most one display period (33 ms at 30 Hz) older than its input.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ from prisma_node_wiring.node_parameters import accept_live_changes, declare_conf
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput
 
+from .display_gate import DISPLAY_DEPTH, DisplayGate
 from .node_config import TactileMarkersConfig
 from .ros_conversions import tactile_markers_to_msg
 from .tactile_markers_core import TactileMarkers
@@ -40,6 +44,7 @@ class TactileMarkersNode(Node):
         self.markers = TactileMarkers(self.config)
         accept_live_changes(self, TactileMarkersConfig, self._reconfigure)
         self._inputs: list[FingerAndHandInput] = []
+        self._gate = DisplayGate()  # the inputs run once per display tick
         self._display_timer = None
         self._publisher = self.create_publisher(
             MarkerArray, "prisma/tactile_markers", 10,
@@ -62,9 +67,9 @@ class TactileMarkersNode(Node):
             fingers = self.config.fingers
             self._inputs = [
                 FingerAndHandInput(self, ContactState, HandContact, "contact", fingers, hand_contact_samples,
-                                   self._on_contact),
+                                   self._on_contact, depth=DISPLAY_DEPTH, callback_group=self._gate),
                 FingerAndHandInput(self, WrenchStamped, HandWrench, "wrench", fingers, hand_wrench_samples,
-                                   self._on_wrench)]
+                                   self._on_wrench, depth=DISPLAY_DEPTH, callback_group=self._gate)]
             self._display_timer = self.create_timer(1.0 / self.config.rate_hz, self._on_display)
         elif not watched and self._inputs:
             for stream in self._inputs:
@@ -83,6 +88,7 @@ class TactileMarkersNode(Node):
         drawings = self.markers.take_drawings()
         if drawings:
             self._publisher.publish(tactile_markers_to_msg(self.types, drawings, self.config))
+        self._gate.open()
 
 
 def main(args=None) -> None:

@@ -6,11 +6,15 @@ robot_state_publisher (tendon_stretch_core.py says how).
 Reads joint_states (the motor angles, unchanged for everyone else), prisma/hand/wrench (or the
 per-finger wrenches until that speaks: the force estimator's Fz in each pad frame) and
 robot_description (robot_state_publisher's, latched: the couplings are read from it). Publishes
-prisma/model_joint_states, one message per joint_states message with its stamp: the motors and
-every coupled joint. hand.launch.py remaps robot_state_publisher's joint_states to it, so one
-publisher sets every joint it draws and a mimic joint is never computed from the motors by one
-message and given by the next (robot_state_publisher takes a joint named in a message over its
-mimic rule). Until the description arrives nothing is published.
+prisma/model_joint_states at the display's rate, once per publish_period (0.04 s: robot_state_publisher
+draws at most 20 Hz): at each tick the newest joint_states message and the newest wrench are taken
+(display_gate.py) and one full joint state goes out with that joint_states message's stamp, the motors
+and every coupled joint. The samples between two ticks are dropped unread (DDS keeps the newest of
+each); a wrench taken after the joint state at the same tick counts from the next one.
+hand.launch.py remaps robot_state_publisher's joint_states to it, so one publisher sets every joint it
+draws and a mimic joint is never computed from the motors by one message and given by the next
+(robot_state_publisher takes a joint named in a message over its mimic rule).
+Until the description arrives nothing is published.
 """
 from __future__ import annotations
 
@@ -31,6 +35,7 @@ from prisma_node_wiring.node_parameters import accept_live_changes, declare_conf
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
 
+from .display_gate import DISPLAY_DEPTH, DisplayGate
 from .node_config import TendonStretchConfig
 from .tendon_stretch_core import TendonStretch, forces_at
 
@@ -42,17 +47,22 @@ class TendonStretchNode(Node):
         super().__init__("tendon_stretch", **kwargs)
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = declare_config(self, TendonStretchConfig)
-        self._last_ns = -(1 << 62)  # the stamp last published
         accept_live_changes(self, TendonStretchConfig, self._reconfigure)
         self.stretch: TendonStretch | None = None
         self._forces: dict[str, tuple[int, float]] = {}
         self._publisher = stream_publisher(self, JointState, "prisma/model_joint_states")
         self._description_sub = self.create_subscription(String, "robot_description", self._on_description, LATCHED)
-        self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints)
+        # the inputs run once per display tick (the timer opens the gate), the wrenches created first:
+        # at a tick where both are ready the executor takes them in this order
+        self._gate = DisplayGate()
         self._wrenches = FingerAndHandInput(self, WrenchStamped, HandWrench, "wrench", FINGERS, hand_wrench_samples,
-                                            self._on_wrench)
-        self.get_logger().info("waiting for robot_description; prisma/model_joint_states from joint_states and "
-                               f"the pads' wrenches (older than {self.config.force_timeout:g} s: none)")
+                                            self._on_wrench, depth=DISPLAY_DEPTH, callback_group=self._gate)
+        self._joint_sub = stream_subscription(self, JointState, "joint_states", self._on_joints,
+                                              depth=DISPLAY_DEPTH, callback_group=self._gate)
+        self._display_timer = self.create_timer(self.config.publish_period, self._gate.open)
+        self.get_logger().info(f"waiting for robot_description; prisma/model_joint_states every "
+                               f"{self.config.publish_period * 1e3:.0f} ms from the newest joint_states and "
+                               f"pads' wrenches (older than {self.config.force_timeout:g} s: none)")
 
     def _reconfigure(self, config: TendonStretchConfig) -> None:
         self.config = config
@@ -74,9 +84,6 @@ class TendonStretchNode(Node):
         if self.stretch is None or len(msg.name) != len(msg.position):
             return
         stamp_ns = ns_from_stamp(msg.header.stamp)
-        if 0 <= stamp_ns - self._last_ns < self.config.publish_period * 1e9:
-            return
-        self._last_ns = stamp_ns
         forces = forces_at(self._forces, stamp_ns, int(self.config.force_timeout * 1e9))
         positions = self.stretch.joint_positions(dict(zip(msg.name, msg.position)), forces)
         out = JointState(header=msg.header)

@@ -44,6 +44,14 @@ def poll_until(backend, count, now_ns, timeout_s=5.0):
     return got
 
 
+def poll_until_disconnected(backend, now_ns, timeout_s=5.0):
+    """Poll until the backend notices its device gone (a read fails), at most `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    while backend.connected and time.monotonic() < deadline:
+        backend.poll(now_ns)
+        time.sleep(0.002)
+
+
 def frame(seed):
     return np.random.default_rng(seed).integers(0, 1024, (32, 32)).astype(np.uint16)
 
@@ -108,10 +116,7 @@ def test_unplugged_board_reconnects_and_frames_resume(tmp_path):
         assert len(poll_until(backend, 1, 0)) == 1
         first.unplug()
         link.unlink()
-        deadline = time.monotonic() + 5
-        while backend.connected and time.monotonic() < deadline:
-            backend.poll(NS)
-            time.sleep(0.002)
+        poll_until_disconnected(backend, NS)
         assert not backend.connected and backend.stats.disconnects == 1
         assert "read failed" in backend.last_error
         second = BoardEmulator()
@@ -153,10 +158,7 @@ def test_open_and_read_failures_are_said_once_with_the_port_and_os_reason(tmp_pa
         assert backend.connected and backend.take_errors() == []
         board.unplug()
         link.unlink()
-        deadline = time.monotonic() + 5
-        while backend.connected and time.monotonic() < deadline:
-            backend.poll(NS)
-            time.sleep(0.002)
+        poll_until_disconnected(backend, NS)
         [lost] = backend.take_errors()
         assert lost.startswith(f"read failed on {link}: ")
         backend.poll(2 * NS)
