@@ -29,7 +29,7 @@ import pytest  # noqa: E402
 
 from prisma_testing.launch_case import failure_note, forget_launched_output  # noqa: E402
 from prisma_testing.left_behind import mark_this_run, started_by_this_run, stop_left_behind  # noqa: E402
-from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON, process_domain_id  # noqa: E402
+from prisma_testing.ros_harness import ROS_AVAILABLE, process_domain_id, require_ros  # noqa: E402
 
 mark_this_run()  # before any test starts a process: they inherit it (left_behind.py)
 
@@ -56,10 +56,7 @@ _LAUNCH_TEST = re.compile(r"^def generate_test_description\(", re.M)
 @pytest.fixture
 def ros():
     """Fresh rclpy context per test; the nodes made with `ros.node` are spun by `ros.executor`."""
-    if not ROS_AVAILABLE:
-        if os.environ.get("PRISMA_REQUIRE_ROS") == "1":
-            pytest.fail(f"PRISMA_REQUIRE_ROS=1 but {ROS_IMPORT_ERROR}")
-        pytest.skip(f"{ROS_SKIP_REASON} [{ROS_IMPORT_ERROR}]")
+    require_ros()
     from prisma_testing.ros_harness import RosHarness
 
     harness = RosHarness()

@@ -32,7 +32,7 @@ import pytest
 from prisma_common import share_data
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
 from prisma_testing.repo_paths import BRINGUP, ROOT
-from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, ROS_SKIP_REASON
+from prisma_testing.ros_harness import require_ros
 from stag_glove import paths as glove_paths
 
 SRC = ROOT / "src"
@@ -456,10 +456,7 @@ def test_missing_shipped_file_names_every_place_looked(installed):
 
 @pytest.fixture
 def ament():
-    if not ROS_AVAILABLE:
-        if os.environ.get("PRISMA_REQUIRE_ROS") == "1":
-            pytest.fail(f"PRISMA_REQUIRE_ROS=1 but {ROS_IMPORT_ERROR}")
-        pytest.skip(f"{ROS_SKIP_REASON} [{ROS_IMPORT_ERROR}]")
+    require_ros()  # skips, or fails under PRISMA_REQUIRE_ROS=1
     from ament_index_python import packages
 
     return packages
