@@ -1,8 +1,8 @@
 """A busy computer to run the graph beside: one CPU hog per core and one memory-bandwidth hog, all at
 the default priority, as a recorder, rqt, RViz and a browser load a robot's computer.
 
-    python3 -m prisma_testing.load_harness                 # until ctrl-C
-    python3 -m prisma_testing.load_harness --seconds 120   # for two minutes
+    PYTHONPATH=test/support python3 -m prisma_testing.load_harness                 # until ctrl-C
+    PYTHONPATH=test/support python3 -m prisma_testing.load_harness --seconds 120   # for two minutes
 
 In tests: `with machine_load(): ...` starts the hogs (separate processes, so they compete with the
 nodes for the cores and the memory bus, not for this process's GIL) and stops them on exit.
