@@ -54,6 +54,7 @@ SCRIPTS = {
     "stag-glove-correlation": "stag_glove.cli:correlation_main",
     "prisma-teleop-stag-session": "prisma_teleop.cli:stag_session_main",
     "prisma-dataset": "prisma_dataset.cli:main",
+    "prisma-policy": "prisma_policy.cli:main",
 }
 HEAVY = {"torch", "matplotlib", "scipy", "h5py", "rosbags", "sklearn"}
 # the scripts that write nothing (they talk to a running emulator, a running hand)
@@ -237,6 +238,10 @@ CASES = [
     C("prisma-sim", ["--scenarios", "horizontal", "--bundle", "{data}/empty_dir"],
       ("empty_dir", "model.pt is missing")),
     C("prisma-sim", ["--force-tolerance", "0"], ("--force-tolerance", "'0'")),
+    C("prisma-sim", ["--episodes", "3"], ("--episodes 3", "needs --dataset")),
+    C("prisma-sim", ["--dataset", "thesis", "--episodes", "2"], ("--dataset", "thesis", "not a LeRobot dataset",
+                                                                  "thesis.tex"), foreign_dir("thesis")),
+    C("prisma-sim", ["--dataset", "ds", "--episodes", "0"], ("--episodes", "'0'")),
     C("prisma-sim", ["--scenarios", "horizontal", "--bundle", "{data}/broken_bundle"],
       ("broken_bundle", "not a loadable TorchScript file"), loads_torch=True),
     # prisma-train-force: everything is checked before training
@@ -352,6 +357,14 @@ CASES = [
       ("--action", "'guess'")),
     C("prisma-dataset", ["show", "{data}/empty_dir"], ("empty_dir", "not a LeRobot dataset (no meta/info.json)")),
     C("prisma-dataset", ["show", "no_such_dataset"], ("no_such_dataset", "no such directory")),
+    # prisma-policy
+    C("prisma-policy", ["train", "{data}/empty_dir", "--out", "policy.pt"],
+      ("empty_dir", "not a LeRobot dataset (no meta/info.json)")),
+    C("prisma-policy", ["train", "no_such_dataset", "--out", "policy.pt"], ("no_such_dataset", "no such directory")),
+    C("prisma-policy", ["train", "{data}/empty_dir", "--out", "policy.txt"], ("--out", "policy.txt", ".pt")),
+    C("prisma-policy", ["train", "{data}/empty_dir", "--out", "p.pt", "--steps", "0"], ("--steps", "'0'")),
+    C("prisma-policy", ["eval", "{data}/notes.txt"], ("notes.txt", "not a prisma-policy model"), loads_torch=True),
+    C("prisma-policy", ["eval", "no_such_model.pt"], ("no_such_model.pt",)),
 ]
 
 
@@ -391,6 +404,9 @@ def _unwritable_cases() -> list[Case]:
         ("stag-glove-correlation", ["--png", "{out}.png"], "--png"),
         ("prisma-teleop-stag-session", ["{out}.h5"], "out"),
         ("prisma-dataset", ["export", "{data}/thumb_only_bag", "--whole-bag", "--out", "{out}"], "--out"),
+        ("prisma-sim", ["--dataset", "{out}"], "--dataset"),
+        ("prisma-policy", ["train", "{data}/empty_dir", "--out", "{out}.pt"], "--out"),
+        ("prisma-policy", ["eval", "{data}/notes.txt", "--plot", "{out}.png"], "--plot"),
     ]:
         cases += unwritable(script, args, option)
     return cases

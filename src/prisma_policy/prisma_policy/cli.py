@@ -32,9 +32,6 @@ DEFAULT_PLOT = Path("prisma_policy_eval.png")
 
 
 def parser() -> ArgumentParser:
-    from .bc_policy import TrainConfig
-
-    defaults = TrainConfig()
     top = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     commands = top.add_subparsers(dest="command", required=True, metavar="{train,eval}")
     train = commands.add_parser("train", help="learn a policy from a dataset",
@@ -45,11 +42,10 @@ def parser() -> ArgumentParser:
                                                                          "export, prisma-sim --dataset)")
     train.add_argument("--out", type=output_file(".pt"), required=True, metavar="MODEL",
                        help="the model file to write (.pt)")
-    train.add_argument("--steps", type=positive_int, default=defaults.steps,
-                       help=f"training steps (default {defaults.steps})")
-    train.add_argument("--hidden", type=positive_int, default=defaults.hidden,
-                       help=f"units per hidden layer (default {defaults.hidden})")
-    train.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default 0)")
+    # defaults: bc_policy.TrainConfig's (not imported here: --help stays light)
+    train.add_argument("--steps", type=positive_int, default=None, help="training steps (default 3000)")
+    train.add_argument("--hidden", type=positive_int, default=None, help="units per hidden layer (default 128)")
+    train.add_argument("--seed", type=non_negative_int, default=None, help="seed (default 0)")
     evaluate = commands.add_parser("eval", help="try a policy in the sim beside the scripted Grasp",
                                    description="Run the policy in the closed-loop sim through the Teleoperate goal "
                                                "on balls it was not shown, and the scripted Grasp on the same balls.")
@@ -84,7 +80,8 @@ def train_command(args: argparse.Namespace) -> int:
     print(f"dataset {root}: {data.episodes} episodes, {len(data.inputs)} frames at {data.fps} fps "
           f"(closing and holding; {data.idle_frames} more left out: the operator at rest or letting go); "
           f"{data.inputs.shape[1]} inputs -> {data.actions.shape[1]} motor targets", flush=True)
-    config = TrainConfig(hidden=args.hidden, steps=args.steps, seed=args.seed)
+    given = {"hidden": args.hidden, "steps": args.steps, "seed": args.seed}
+    config = TrainConfig(**{name: value for name, value in given.items() if value is not None})
     policy = train(data, config, progress=lambda step, loss: print(f"  step {step}/{config.steps}: loss {loss:.4f}",
                                                                    flush=True))
     save(policy, args.out)
