@@ -120,7 +120,7 @@ def data(tmp_path_factory) -> Path:
             counts = np.full(9, 1000 + k, dtype=np.uint16)
             frame = TaxelFrame("thumb", 10_000_000 * (k + 1), counts, (counts * 3.3 / 4096).astype(np.float32))
             bag.write("/prisma/thumb/taxels", taxel_frame_to_msg(types, frame, "thumb_pad"))
-    # the README's action-topics bag as rosbag2 records it (feedback without a message definition)
+    # docs/recording.md's action-topics bag as rosbag2 records it (feedback without a message definition)
     from prisma_testing.recorded_bags import action_goals_bag
 
     action_goals_bag(root / "hand_goals")

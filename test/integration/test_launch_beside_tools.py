@@ -3,7 +3,7 @@ each followed by opening the hand and re-placing the ball (the sim world's ~/rep
 SUCCEEDED `force_reached`: no goal is stopped by a stream starved of CPU (sensor_stale) and none is
 retried.
 - `hand.launch.py sim:=true`, rqt_plot (the executable, plotting the thumb threshold against taxel
-  3, as the README's rqt section starts it) and `ros2 bag record` of the README's topic list; then
+  3, as docs/visualization.md's rqt section starts it) and `ros2 bag record` of docs/recording.md's topic list; then
   the bag holds every topic of the list.
 - `hand.launch.py sim:=true rviz:=true`: RViz with the shipped configuration (software rendering on
   a virtual display), the tactile markers drawn for it at the display rate.
@@ -39,7 +39,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from prisma_common.hand import FINGERS  # noqa: E402
 
-# the README's `ros2 bag record` topic list
+# docs/recording.md's `ros2 bag record` topic list
 BAG_TOPICS = ["/joint_states", "/diagnostics"] + [f"/prisma/{f}/{kind}" for f in FINGERS
                                                   for kind in ("taxels", "wrench", "contact")]
 PLOTTED = ["/prisma/thumb/contact/threshold", "/prisma/thumb/contact/voltages[3]"]

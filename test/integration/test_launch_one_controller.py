@@ -1,5 +1,5 @@
 """One controller per hand, between processes: a second `ros2 run prisma_manipulation manipulation`
-beside a running one in the same namespace (the README's replay nodes left running, then the hand
+beside a running one in the same namespace (docs/recording.md's replay nodes left running, then the hand
 launched again) exits 1 with one fatal line naming the node already there and how to stop it, and
 leaves the first serving alone; in another namespace (another hand) it starts.
 

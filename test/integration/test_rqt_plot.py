@@ -7,8 +7,8 @@ rqt_plot needs PyQt5: `PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh` installs
 apt's python3-pyqt5 comes with rqt_plot). Without it this module skips, except under
 PRISMA_ROS_GUI=1 (what CI sets), where a missing PyQt5 is an error.
 
-The README's screenshot (docs/img/rqt_plot_thumb_threshold.png) is the real rqt_plot on an X
-server while the graph runs a horizontal manipulation; the procedure is in the README's "Taxel
+docs/visualization.md's screenshot (docs/img/rqt_plot_thumb_threshold.png) is the real rqt_plot on
+an X server while the graph runs a horizontal manipulation; the procedure is in that page's "Taxel
 thresholds in rqt" section.
 """
 from __future__ import annotations

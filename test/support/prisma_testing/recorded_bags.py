@@ -1,6 +1,6 @@
 """Bags as rosbag2 records them where they differ from what the project's BagWriter writes.
 
-`action_goals_bag`: the README's action-topics bag (`ros2 bag record --include-hidden-topics
+`action_goals_bag`: docs/recording.md's action-topics bag (`ros2 bag record --include-hidden-topics
 /prisma/<action>/_action/feedback /prisma/<action>/_action/status`). rosbag2 (Jazzy) finds no message
 definition for action feedback types (`*_FeedbackMessage`) and stores their MCAP schema with encoding
 'unknown' and no text, which rosbags cannot open. Written here with BagWriter, then the schemas'
