@@ -19,6 +19,17 @@ def thumb_xy(trace, i):
     return trace.array("contact_xy")[i, THUMB]
 
 
+def run_to_first_loss(name, edge):
+    """Scenario `name` run whole: it, its trace, the thumb pad's voltages and the first sample at which
+    the pad lost `edge` (computed from the recorded taxels, apart from the controller)."""
+    sc = build(name)
+    tr = sc.run()
+    v = tr.finger_voltages("thumb")
+    i = first_lost_index(v, DEFAULT_K, edge)
+    assert i is not None, f"{name}: the thumb pad never lost its {edge} side"
+    return sc, tr, v, i
+
+
 def left_safe_count(voltages_row, k=DEFAULT_K):
     return int((voltages_row[[2, 5, 8]] >= k * voltages_row.mean()).sum())
 
@@ -60,12 +71,8 @@ def test_horizontal_then_returns_to_the_start_angle(horizontal):
 
 
 def test_vertical_stops_on_the_top_row_then_on_the_bottom_row():
-    sc = build("vertical")
-    tr = sc.run()
+    sc, tr, v, i_top = run_to_first_loss("vertical", "top")
     c = sc.controller
-    v = tr.finger_voltages("thumb")
-    i_top = first_lost_index(v, DEFAULT_K, "top")
-    assert i_top is not None
     down_stop, down_reason = c.phase_stops["down"]
     assert down_reason == "edge_lost"
     assert 0 <= down_stop - tr.stamps_ns[i_top] <= tr.period_ns
@@ -87,12 +94,8 @@ def test_vertical_stops_on_the_top_row_then_on_the_bottom_row():
 
 
 def test_disturbance_losing_the_left_side_is_restored_by_thumb_rotation():
-    sc = build("disturbance")
-    tr = sc.run()
+    sc, tr, v, i_lost = run_to_first_loss("disturbance", "left")
     c = sc.controller
-    v = tr.finger_voltages("thumb")
-    i_lost = first_lost_index(v, DEFAULT_K, "left")
-    assert i_lost is not None
     # cause: the push (from 0.5 s) slid the contact toward the right side, no motor moved
     assert tr.stamps_ns[i_lost] > 0.5e9
     assert thumb_xy(tr, i_lost)[0] < -1.0
