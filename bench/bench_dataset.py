@@ -8,6 +8,9 @@ dataset_export: frames per second of the whole export, `export_bags` (read, deco
 dataset_writer_vs_reading: the time to read the same bag alone (`read_bag` of the same topics,
   deserialised) over the time `write_dataset` takes for its frames. Needed 1: the writer costs less
   than the reading.
+dataset_minutes_per_gib: minutes of session one GiB of dataset holds (every file of the written
+  dataset, meta/ included; the session's length is its frames over the fps). Needed 60: an hour of
+  demonstrations fits in a GiB. The notes give the size per minute in MiB.
 """
 from __future__ import annotations
 
@@ -57,7 +60,10 @@ def _figures() -> dict[str, float]:
     export_s = _best(lambda: dataset.append(export_bags([bag], options)))
     write_s = _best(lambda: write_dataset(out / "ds", dataset[-1]))
     frames = dataset[-1].total_frames
-    return {"frames": frames, "read_s": read_s, "export_s": export_s, "write_s": write_s}
+    size_bytes = sum(f.stat().st_size for f in (out / "ds").rglob("*") if f.is_file())
+    minutes = frames / dataset[-1].fps / 60.0
+    return {"frames": frames, "read_s": read_s, "export_s": export_s, "write_s": write_s,
+            "size_bytes": size_bytes, "minutes": minutes}
 
 
 def _export_rate() -> float:
@@ -72,6 +78,14 @@ def _writer_vs_reading() -> float:
     return f["read_s"] / f["write_s"]
 
 
+def _minutes_per_gib() -> float:
+    f = _figures()
+    SIZE.notes.update(dataset_bytes=f["size_bytes"], session_s=round(f["minutes"] * 60.0, 2),
+                      mib_per_minute=round(f["size_bytes"] / 2**20 / f["minutes"], 2))
+    return f["minutes"] / (f["size_bytes"] / 2**30)
+
+
 EXPORT = Benchmark("dataset_export", _export_rate, "frames/s", 50.0)
 WRITER = Benchmark("dataset_writer_vs_reading", _writer_vs_reading, "x", 1.0)
-BENCHMARKS = [EXPORT, WRITER]
+SIZE = Benchmark("dataset_minutes_per_gib", _minutes_per_gib, "min/GiB", 60.0)
+BENCHMARKS = [EXPORT, WRITER, SIZE]
