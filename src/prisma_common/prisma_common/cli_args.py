@@ -126,13 +126,19 @@ def _path(text: str) -> Path:
     return Path(text).expanduser()
 
 
+def _existing(text: str, what: str) -> Path:
+    """The path `text` names, which must exist (`what` it should be, for the error)."""
+    path = _path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such {what}; check the path")
+    return path
+
+
 @_looked_at
 def existing_file(text: str) -> Path:
-    path = _path(text)
+    path = _existing(text, "file")
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory; give a file")
-    if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file; check the path")
     if not os.access(path, os.R_OK):
         raise argparse.ArgumentTypeError(f"{text}: not readable (permission denied)")
     return path
@@ -140,9 +146,7 @@ def existing_file(text: str) -> Path:
 
 @_looked_at
 def existing_dir(text: str) -> Path:
-    path = _path(text)
-    if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such directory; check the path")
+    path = _existing(text, "directory")
     if not path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a file; give a directory")
     return path
@@ -150,10 +154,7 @@ def existing_dir(text: str) -> Path:
 
 @_looked_at
 def existing_path(text: str) -> Path:
-    path = _path(text)
-    if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file or directory; check the path")
-    return path
+    return _existing(text, "file or directory")
 
 
 def check_bundle_dir(path: Path) -> None:

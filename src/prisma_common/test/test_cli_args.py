@@ -7,7 +7,16 @@ import argparse
 import pytest
 
 from prisma_common.atomic import OutputError, atomic_output
-from prisma_common.cli_args import ArgumentParser, check_bundle_out, command, output_dir, output_file
+from prisma_common.cli_args import (
+    ArgumentParser,
+    check_bundle_out,
+    command,
+    existing_dir,
+    existing_file,
+    existing_path,
+    output_dir,
+    output_file,
+)
 
 
 def test_a_creatable_output_passes_and_the_check_leaves_nothing(tmp_path):
@@ -45,3 +54,21 @@ def test_output_error_during_the_run_is_one_line_and_exit_2(tmp_path, capsys):
     assert err.startswith("prisma-demo: error: cannot create ") and "(File name too long)" in err
     assert list(tmp_path.iterdir()) == []
     assert issubclass(OutputError, OSError)
+
+
+def test_an_input_path_must_exist_and_be_of_its_kind(tmp_path):
+    notes, folder, missing = tmp_path / "notes.txt", tmp_path / "runs", tmp_path / "nowhere"
+    notes.write_text("x")
+    folder.mkdir()
+    assert (existing_file(str(notes)), existing_dir(str(folder))) == (notes, folder)
+    assert (existing_path(str(notes)), existing_path(str(folder))) == (notes, folder)
+    refusals = [(existing_file, missing, "nowhere: no such file; check the path"),
+                (existing_file, folder, "runs is a directory; give a file"),
+                (existing_dir, missing, "nowhere: no such directory; check the path"),
+                (existing_dir, notes, "notes.txt is a file; give a directory"),
+                (existing_path, missing, "nowhere: no such file or directory; check the path"),
+                (existing_path, "", "an empty path; give a file or directory name")]
+    for check, path, message in refusals:
+        with pytest.raises(argparse.ArgumentTypeError) as err:
+            check(str(path))
+        assert str(err.value).endswith(message), (check.__name__, str(err.value))
