@@ -41,10 +41,6 @@ NICE_RANGE = (-20, 19)
 # test support's (test/support/prisma_testing/priorities.py).
 CONTROL_PATH_RT_PRIORITY = 20
 CONTROL_PATH_NICE = -5
-# ros_harness.py (edited apart under issue 42) still imports these two from here: delete them once it
-# imports them from prisma_testing.priorities, which defines them.
-TEST_DDS_NICE = CONTROL_PATH_NICE
-FAULT_CLI_RT_PRIORITY = 10
 
 
 def control_path_env() -> dict[str, str]:

@@ -32,7 +32,9 @@ from typing import Any, ClassVar
 import pytest
 
 from prisma_common.goal_refusal import NOT_READY, refusal_code
-from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, TEST_DDS_NICE, try_rt_priority
+from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, try_rt_priority
+
+from .priorities import TEST_DDS_NICE
 
 ROS_SKIP_REASON = (
     "needs ROS 2 and the built workspace: source ../shared/ros2/setup.sh (or /opt/ros/jazzy), "
@@ -195,7 +197,7 @@ class RosHarness:
         self._collector: Any = None  # the collector process, started by the first collect
         self._collections: list = []
         # DDS starts its threads with the first node of the process: the probe, made now with this
-        # thread on their rung (they inherit it; scheduling.TEST_DDS_NICE), then this thread back
+        # thread on their rung (they inherit it; priorities.TEST_DDS_NICE), then this thread back
         with _this_thread_at_nice(TEST_DDS_NICE):
             _ = self.probe
 
@@ -921,7 +923,9 @@ def _fault_cli_priority() -> None:
     # the fault CLI acts when the test says, not when a busy machine gets round to starting it (the
     # ladder in prisma_common/scheduling.py): a default-priority start took 4-15 s on a loaded 2-core
     # machine, longer than the slow goal a fault is meant to interrupt
-    from prisma_common.scheduling import FAULT_CLI_RT_PRIORITY, try_rt_priority
+    from prisma_common.scheduling import try_rt_priority
+
+    from .priorities import FAULT_CLI_RT_PRIORITY
 
     try_rt_priority(FAULT_CLI_RT_PRIORITY)
 
