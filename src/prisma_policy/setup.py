@@ -21,6 +21,7 @@ setup(
     entry_points={
         "console_scripts": [
             "prisma-policy = prisma_policy.cli:main",
+            "policy = prisma_policy.policy_node:main",
         ],
     },
 )

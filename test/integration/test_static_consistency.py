@@ -714,7 +714,7 @@ def test_node_core_config_backend_and_converter_modules_are_named_alike_in_every
     `backend.py` and each implementation in `<kind>_backend.py`."""
     problems = []
     nodes = [path for path in sorted((ROOT / "src").glob("*/*/*_node.py")) if path.parent.name != "test"]
-    assert len(nodes) == 10
+    assert len(nodes) == 11
     for node in nodes:
         folder, name = node.parent, node.name.removesuffix("_node.py")
         for expected in (f"{name}_core.py", "node_config.py", "ros_conversions.py"):
