@@ -1,0 +1,120 @@
+"""launch_testing: the policy node (prisma_policy/policy_node.py) drives `hand.launch.py hardware:=sim
+sim_object:=pinch_ball` in an operator's place (issue 41). The model is data/policy_pinch_ball.pt,
+committed because making it here took 36 s on the shared 2-core machine (26 s for the six
+demonstrations, 10 s of training) on top of the launch; it was made with
+
+    prisma-sim --dataset demos --episodes 6 --seed 0
+    prisma-policy train demos --out policy_pinch_ball.pt --hidden 32 --steps 1500
+
+The tests run in order, on one launch:
+1. started by the test once the hand's streams keep up, the node sends the Teleoperate goal and
+   publishes prisma/teleop/motor_targets; the pads close on the ball (thumb and index estimated Fz at
+   least 0.5 N, sim_trials.CLOSED_N) and no pad goes above the touch limit (2 N) by more than 0.15 N;
+   the targets are stamped after the node started, one per tick of the model's 50 fps (median
+   spacing, by stamp); stopped with Ctrl-C the node exits 0 without a traceback;
+2. a model_path that is no model: exit 1, one line naming the file, no traceback.
+After the launch is stopped every node exits 0 without a traceback.
+
+Skips without ROS 2 (fails under PRISMA_REQUIRE_ROS=1).
+"""
+from __future__ import annotations
+
+import time
+import unittest
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prisma_testing.launch_case import (
+    GraphTestCase,
+    assert_clean_shutdown,
+    graph_under_test,
+    include_launch,
+    pad_force_peaks,
+)
+from prisma_testing.ros_harness import NodeProcess, require_ros, stamp_ns
+
+require_ros()
+
+import launch_testing  # noqa: E402
+import launch_testing.actions  # noqa: E402
+from prisma_msgs.msg import HandWrench  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+MODEL = Path(__file__).parent / "data" / "policy_pinch_ball.pt"
+TOUCH_LIMIT_N = 2.0  # config/manipulation.yaml teleop_max_pad_force
+OVERSHOOT_N = 0.15
+CLOSED_N = 0.5  # prisma_policy.sim_trials.CLOSED_N
+RUN_S = 8.0
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    return graph_under_test(include_launch("hand.launch.py", hardware="sim", sim_object="pinch_ball"))
+
+
+def policy_command(model: Path | str) -> list[str]:
+    return ["ros2", "run", "prisma_policy", "policy", "--ros-args", "-p", f"model_path:={model}"]
+
+
+class TestPolicyNode(GraphTestCase):
+    @classmethod
+    def subscribe(cls, ros) -> None:
+        cls.joints = ros.collect(JointState, "/joint_states")
+        cls.wrenches = ros.collect(HandWrench, "/prisma/hand/wrench")
+        cls.targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
+
+    def test_1_the_policy_closes_on_the_ball_within_the_touch_limit(self):
+        ros = self.ros
+        ros.wait_until_keeping_up(self.joints, self.wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
+        started_ns = time.time_ns()
+        arrivals: list[tuple[int, int]] = []  # (stamp, arrival) of each target this test received
+        seen = 0
+        with NodeProcess(policy_command(MODEL)) as policy:
+            self.assertTrue(policy.wait_for_output("sending the Teleoperate goal", 60.0), policy.output)
+            deadline = time.monotonic() + RUN_S
+            while time.monotonic() < deadline:
+                ros.spin_once()
+                for msg in list(self.targets)[seen:]:
+                    arrivals.append((stamp_ns(msg), time.time_ns()))
+                seen = len(self.targets)
+            result = policy.interrupt()
+        print(result.output)
+        if self.targets:
+            names = list(self.targets[0].name)
+            highest = {n: round(max(m.position[names.index(n)] for m in self.targets), 3) for n in names}
+            print(f"{len(arrivals)} targets; highest {highest}; last {dict(zip(names, self.targets[-1].position))}")
+        moved = [m for m in self.joints if stamp_ns(m) >= started_ns and len(m.position) == len(m.name)]
+        if moved:
+            highest = [round(max(m.position[i] for m in moved), 3) for i in range(len(moved[-1].name))]
+            print(f"{len(moved)} joint_states; highest {highest} of {list(moved[-1].name)}; "
+                  f"last {list(moved[-1].position)}")
+        self.assertEqual(result.returncode, 0, result.output)
+        self.assertNotIn("Traceback", result.output)
+        self.assertGreater(len(arrivals), 0.5 * RUN_S * 50, "the policy at 50 fps published too few targets")
+        peaks = pad_force_peaks(self.wrenches, started_ns)
+        print(f"pad Fz peaks under the policy: { {f: round(v, 3) for f, v in peaks.items()} }")
+        for finger, peak in peaks.items():
+            self.assertLessEqual(peak, TOUCH_LIMIT_N + OVERSHOOT_N, finger)
+        for finger in ("thumb", "index"):
+            self.assertGreaterEqual(peaks[finger], CLOSED_N, finger)
+        # stamped fresh, one per tick of the model's 50 fps (by stamp: this test's own receipt lags on a
+        # loaded machine, 0.65 s seen, which says nothing about the node)
+        stamps = sorted(stamp for stamp, _ in arrivals)
+        self.assertGreaterEqual(stamps[0], started_ns)
+        spacing_s = float(np.median(np.diff(stamps))) / 1e9
+        self.assertAlmostEqual(spacing_s, 1 / 50, delta=0.005)
+
+    def test_2_a_file_that_is_no_model_is_one_line(self):
+        with NodeProcess(policy_command(Path(__file__))) as policy:
+            result = policy.wait(60.0)
+        self.assertEqual(result.returncode, 1, result.output)
+        self.assertNotIn("Traceback", result.output)
+        self.assertIn(f"{Path(__file__)} is not a prisma-policy model", result.output)
+
+
+@launch_testing.post_shutdown_test()
+class TestPolicyNodeShutdown(unittest.TestCase):
+    def test_every_node_exits_0_without_a_traceback(self, proc_info, proc_output):
+        assert_clean_shutdown(proc_info, proc_output)
