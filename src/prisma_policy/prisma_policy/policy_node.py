@@ -1,7 +1,8 @@
 """policy: the behaviour-cloning policy drives the hand through the manipulation node, in an
 operator's place (policy_core.py decides, this node carries it out).
 
-    ros2 run prisma_policy policy --ros-args --params-file config/policy.yaml -p model_path:=model.pt
+    ros2 run prisma_policy policy --ros-args --params-file config/policy.yaml \
+        -p model_path:=test/integration/data/policy_pinch_ball.pt
 
 Subscribes what the policy observes, the topics a dataset export reads (prisma_dataset.recorded_topics):
 prisma/hand/taxels and prisma/hand/wrench (or the per-finger prisma/<finger>/taxels and /wrench until
