@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prisma_policy.sim_trials import CLOSED_N, TOUCH_LIMIT_N
+from prisma_policy.sim_trials import TOUCH_TOLERANCE_N as OVERSHOOT_N
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
@@ -43,9 +45,6 @@ from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 MODEL = Path(__file__).parent / "data" / "policy_pinch_ball.pt"
-TOUCH_LIMIT_N = 2.0  # config/manipulation.yaml teleop_max_pad_force
-OVERSHOOT_N = 0.15
-CLOSED_N = 0.5  # prisma_policy.sim_trials.CLOSED_N
 RUN_S = 8.0
 
 
