@@ -57,9 +57,8 @@ class ReplayNode(Node):
         super().__init__("dataset_replay", namespace=namespace)
         self.core = core
         self.types = robot_types(get_message, get_action)
-        defaults = TeleopConfig()  # the teleop node's goal fields: 0 = the manipulation node's parameters
-        self.goal = teleoperate_goal_to_msg(self.types, TeleopGoal(defaults.max_pad_force, defaults.max_speed_rpm,
-                                                                   defaults.input_timeout))
+        # the teleop node's goal fields: 0 = the manipulation node's parameters
+        self.goal = teleoperate_goal_to_msg(self.types, TeleopGoal.of(TeleopConfig()))
         self.client = ActionClient(self, Teleoperate, TELEOPERATE_ACTION)
         self.targets_topic = self.resolve_topic_name(TARGETS_TOPIC)
         self.motors = core.episode.motors

@@ -20,6 +20,4 @@ __all__ = ["hand_taxels_samples", "hand_wrench_samples", "joint_sample_from_msg"
 def policy_goal_to_msg(types: Callable[[str], Any]) -> Any:
     """The Teleoperate goal with the teleop node's defaults (0 = the manipulation node's touch limit,
     speed and input timeout), so the policy is held to the same limits as an operator."""
-    defaults = TeleopConfig()
-    return teleoperate_goal_to_msg(types, TeleopGoal(defaults.max_pad_force, defaults.max_speed_rpm,
-                                                     defaults.input_timeout))
+    return teleoperate_goal_to_msg(types, TeleopGoal.of(TeleopConfig()))

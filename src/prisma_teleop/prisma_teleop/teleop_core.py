@@ -68,6 +68,12 @@ class TeleopGoal:
     max_speed_rpm: float = 0.0
     input_timeout: float = 0.0
 
+    @classmethod
+    def of(cls, config: TeleopConfig) -> TeleopGoal:
+        """The goal the teleop node sends with `config`'s fields; `TeleopGoal.of(TeleopConfig())` is its
+        default goal, which whatever drives the hand in an operator's place sends too."""
+        return cls(config.max_pad_force, config.max_speed_rpm, config.input_timeout)
+
 
 Command = TeleopGoal | GraspCommand | OpenCommand
 
@@ -310,8 +316,7 @@ class HandPoseTeleop(_Engaging):
                    and self._since_end >= RESUME_SAMPLES)
         if self.keeper.state == GoalKeeper.IDLE and not flowing:
             return None
-        c = self.config
-        return TeleopGoal(c.max_pad_force, c.max_speed_rpm, c.input_timeout)
+        return TeleopGoal.of(self.config)
 
     def on_goal_ended(self, reason: str, success: bool, now_ns: int) -> list:
         command, for_good = self.keeper.ended(reason, success, now_ns)
