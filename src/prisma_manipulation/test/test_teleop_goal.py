@@ -167,6 +167,28 @@ def test_stale_sensors_end_it_sensor_stale_and_a_cancel_is_its_success():
         (True, "canceled", list(MOTORS), 5.0)
 
 
+def test_the_drivers_ends_of_a_move_that_are_no_reason_to_end_the_goal_leave_it_following():
+    """A MoveMotors goal the motor driver ended without refusing it or a fault: a timeout is sent again
+    at once; preempted or canceled (by another client) again by the lease's refresh within
+    MOVE_REFRESH_S; at a joint limit the motors stand at their stops (a command pushing on into them
+    moves nothing), and the next command that moves a motor goes out at once. The goal follows its
+    targets on, never stopped without its end."""
+    closing = {"fingers": 40.0, "thumb_flexion": 0.0, "thumb_rotation": 0.0}
+    core, _ = started()
+    assert [a.velocities_rpm for a in moves(scan(core, 10, target={"fingers": 5.0}))] == [closing]
+    assert [a.velocities_rpm for a in moves(core.on_move_result("timeout", 12 * MS))] == [closing]
+    for ended in ("preempted", "canceled"):
+        assert core.on_move_result(ended, 15 * MS) == [] and core.busy
+    sent = {t_ms: moves(scan(core, t_ms, target={"fingers": 5.0})) for t_ms in range(20, 130, 10)}
+    assert [(t_ms, a.velocities_rpm) for t_ms, actions in sent.items() for a in actions] == [(120, closing)]
+    # the fingers reach their stop (9 rad) before the target's clamp (8.98 rad): the driver ends the move
+    scan(core, 130, fingers=8.9, target={"fingers": 12.0})
+    assert core.on_move_result("joint_limit", 135 * MS) == [] and core.busy
+    assert moves(scan(core, 140, fingers=9.0, target={"fingers": 12.0})) == []  # at the target: stands
+    opening = moves(scan(core, 150, fingers=9.0, target={"fingers": 4.0}))
+    assert [a.velocities_rpm for a in opening] == [{**closing, "fingers": -40.0}] and core.busy
+
+
 def test_converters():
     names = ["fingers", "wrist", "thumb_rotation", "thumb_flexion"]
     stamp, target = teleop_target_from_msg(cdr_round_trip(targets_msg(1_700_000_000_123_456_789, names,
