@@ -92,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities are 1-99 (0: none)")
     from prisma_testing.goal_soak import node_pids, run_soak
     from prisma_testing.load_harness import machine_load
-    from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, RosHarness, ros2_launch, stop_process
+    from prisma_testing.node_process import ros2_launch, stop_process
+    from prisma_testing.ros_harness import ROS_AVAILABLE, ROS_IMPORT_ERROR, RosHarness
 
     if not ROS_AVAILABLE:
         print(f"skipped: {ROS_IMPORT_ERROR}", file=sys.stderr)

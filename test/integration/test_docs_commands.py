@@ -33,8 +33,8 @@ from pathlib import Path
 import pytest
 
 from prisma_testing.launch_files import declared_arguments
+from prisma_testing.node_process import NodeProcess
 from prisma_testing.repo_paths import BRINGUP, LAUNCH, ROOT
-from prisma_testing.ros_harness import NodeProcess
 
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 NODE_MODULES = sorted(p for p in (ROOT / "src").glob("*/*/*_node.py"))

@@ -21,8 +21,9 @@ import time
 import numpy as np
 import pytest
 
+from prisma_testing.goals import refusal_for_now
 from prisma_testing.repo_paths import CONFIG
-from prisma_testing.ros_harness import refusal_for_now, require_ros, stamp_ns
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 

@@ -3,7 +3,8 @@
 a goal again for (not_ready)."""
 from __future__ import annotations
 
-from prisma_testing.ros_harness import goal_outcome, goal_status_name, goal_status_names, refusal_for_now, require_ros
+from prisma_testing.goals import goal_outcome, goal_status_name, goal_status_names, refusal_for_now
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -21,7 +21,8 @@ import tempfile
 import pytest
 
 from prisma_testing.core_dumps import allow_core_dumps, backtraces
-from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stop_process
+from prisma_testing.node_process import NodeProcess, ros2_launch, run_process, stop_process
+from prisma_testing.ros_harness import require_ros
 from prisma_testing.virtual_display import require_rviz, virtual_display
 
 require_ros()

@@ -33,7 +33,8 @@ from prisma_testing.launch_case import (
     include_launch,
     pad_force_peaks,
 )
-from prisma_testing.ros_harness import NodeProcess, console_script, require_ros, run_process
+from prisma_testing.node_process import NodeProcess, console_script, run_process
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
@@ -122,7 +123,7 @@ class TestDatasetReplay(GraphTestCase):
             self.assertGreaterEqual(peaks[finger], TOUCH_LIMIT_N - 0.1, finger)
 
     def test_2_another_publisher_of_the_targets_is_refused(self):
-        publisher = self.ros.publisher(JointState, "/prisma/teleop/motor_targets")
+        publisher = self.ros.probe.create_publisher(JointState, "/prisma/teleop/motor_targets", 10)
         try:
             result = self.run_replay("--episode", "0", "--no-plots", timeout_sec=60.0)
         finally:

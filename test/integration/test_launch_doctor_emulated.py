@@ -22,16 +22,10 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import diagnostic_values, hand_fault, wait_until_homed
 from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
-from prisma_testing.ros_harness import (
-    NodeProcess,
-    console_script,
-    diagnostic_values,
-    hand_fault,
-    require_ros,
-    run_process,
-    wait_until_homed,
-)
+from prisma_testing.node_process import NodeProcess, console_script, run_process
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

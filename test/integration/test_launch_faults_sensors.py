@@ -27,14 +27,8 @@ import numpy as np
 import pytest
 
 from prisma_testing.launch_case import GraphTestCase, graph_under_test, installed_config
-from prisma_testing.ros_harness import (
-    SIM_STOPPED_RAD_S,
-    NodeProcess,
-    closing_at_10_rpm,
-    require_ros,
-    stamp_ns,
-    stopped,
-)
+from prisma_testing.node_process import NodeProcess
+from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, closing_at_10_rpm, require_ros, stamp_ns, stopped
 
 require_ros()
 

@@ -29,16 +29,9 @@ import unittest
 import numpy as np
 import pytest
 
+from prisma_testing.goals import goal_outcome, gripper_goal
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
-from prisma_testing.ros_harness import (
-    closing_at_10_rpm,
-    goal_outcome,
-    gripper_goal,
-    require_ros,
-    stamp_ns,
-    stamped_after,
-    stopped,
-)
+from prisma_testing.ros_harness import closing_at_10_rpm, require_ros, stamp_ns, stamped_after, stopped
 
 require_ros()
 

@@ -40,17 +40,10 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import diagnostic_values, hand_fault, wait_until_homed
+from prisma_testing.goals import goal_outcome, gripper_goal
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, emulated_hand_launch
-from prisma_testing.ros_harness import (
-    diagnostic_values,
-    goal_outcome,
-    gripper_goal,
-    hand_fault,
-    require_ros,
-    stamp_ns,
-    stopped,
-    wait_until_homed,
-)
+from prisma_testing.ros_harness import require_ros, stamp_ns, stopped
 
 require_ros()
 

@@ -25,14 +25,9 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import diagnostic_values, hand_fault, run_hand_fault, wait_until_homed
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, emulated_hand_launch
-from prisma_testing.ros_harness import (
-    diagnostic_values,
-    hand_fault,
-    require_ros,
-    run_hand_fault,
-    wait_until_homed,
-)
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -20,8 +20,9 @@ import unittest
 
 import pytest
 
+from prisma_testing.goals import gripper_goal
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
-from prisma_testing.ros_harness import gripper_goal, joint, require_ros, stamp_ns, stopped
+from prisma_testing.ros_harness import joint, require_ros, stamp_ns, stopped
 
 require_ros()
 

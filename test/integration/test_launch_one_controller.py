@@ -11,8 +11,9 @@ from __future__ import annotations
 import signal
 import time
 
+from prisma_testing.node_process import NodeProcess
 from prisma_testing.repo_paths import BRINGUP
-from prisma_testing.ros_harness import NodeProcess, require_ros
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -30,8 +30,10 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import wait_until_homed
 from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
-from prisma_testing.ros_harness import NodeProcess, require_ros, wait_until_homed
+from prisma_testing.node_process import NodeProcess
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -37,15 +37,10 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import wait_until_homed
+from prisma_testing.goals import goal_outcome, gripper_goal
 from prisma_testing.launch_case import GraphTestCase, emulated_hand_launch
-from prisma_testing.ros_harness import (
-    goal_outcome,
-    gripper_goal,
-    require_ros,
-    stamped_after,
-    stopped,
-    wait_until_homed,
-)
+from prisma_testing.ros_harness import require_ros, stamped_after, stopped
 
 require_ros()
 
@@ -229,7 +224,7 @@ class TestServoSafety(GraphTestCase):
                                                            targets=[0.0, 0.0, 0.0])), timeout_sec=30.0)
 
     def latest_motor_diag(self, motor: str) -> dict | None:
-        from prisma_testing.ros_harness import diagnostic_values
+        from prisma_testing.emulated_launch import diagnostic_values
 
         return diagnostic_values(self.diagnostics, f"motor_driver: {motor}")
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from prisma_testing.emulated_launch import wait_until_homed
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
@@ -27,7 +28,7 @@ from prisma_testing.launch_case import (
     pad_force_peaks,
 )
 from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
-from prisma_testing.ros_harness import require_ros, wait_until_homed
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -26,6 +26,7 @@ import unittest
 
 import pytest
 
+from prisma_testing.goals import goal_outcome
 from prisma_testing.launch_case import (
     GraphTestCase,
     MotorPositions,
@@ -34,16 +35,8 @@ from prisma_testing.launch_case import (
     include_launch,
     pad_force_peaks,
 )
-from prisma_testing.ros_harness import (
-    SIM_STOPPED_RAD_S,
-    STOPPED_RAD_S,
-    NodeProcess,
-    goal_outcome,
-    joint,
-    require_ros,
-    stamp_ns,
-    stopped,
-)
+from prisma_testing.node_process import NodeProcess
+from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
 
 require_ros()
 

@@ -47,7 +47,8 @@ import time
 
 import pytest
 
-from prisma_testing.ros_harness import NodeProcess, process_deaths, require_ros, stop_process
+from prisma_testing.node_process import NodeProcess, process_deaths, stop_process
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -14,8 +14,9 @@ import os
 import subprocess
 import time
 
+from prisma_testing.node_process import process_deaths
 from prisma_testing.priorities import TEST_COLLECTOR_NICE, TEST_DDS_NICE
-from prisma_testing.ros_harness import RosHarness, process_deaths, require_ros
+from prisma_testing.ros_harness import RosHarness, require_ros
 
 require_ros()
 

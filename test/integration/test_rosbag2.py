@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from prisma_testing.node_process import NodeProcess, ros2_launch, run_process, stop_process
 from prisma_testing.repo_paths import ROOT
-from prisma_testing.ros_harness import NodeProcess, require_ros, ros2_launch, run_process, stamp_ns, stop_process
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
@@ -347,7 +348,7 @@ def test_calibration_launch_records_a_bag_that_trains_a_bundle(ros, tmp_path):
                              "reference_topic:=/ft_sensor/wrench", f"bag:={bag}")
         reference = emulator_reference(seconds)
 
-        publisher = ros.publisher(WrenchStamped, "/ft_sensor/wrench", 100)
+        publisher = ros.probe.create_publisher(WrenchStamped, "/ft_sensor/wrench", 100)
         sent: list[int] = []
         pressed: list[float] = []  # reference Fz
         taxels: list[int] = []

@@ -21,7 +21,8 @@ import time
 
 import pytest
 
-from prisma_testing.ros_harness import require_ros, ros2_launch, stop_process
+from prisma_testing.node_process import ros2_launch, stop_process
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -12,7 +12,8 @@ import json
 
 from prisma_testing.goal_soak import node_pids, run_soak
 from prisma_testing.load_harness import machine_load
-from prisma_testing.ros_harness import require_ros, ros2_launch, stop_process
+from prisma_testing.node_process import ros2_launch, stop_process
+from prisma_testing.ros_harness import require_ros
 
 require_ros()
 

@@ -16,7 +16,7 @@ from prisma_testing.emulator_rig import (
     EMULATOR_ENV,
     run_cli,
 )
-from prisma_testing.ros_harness import console_script
+from prisma_testing.node_process import console_script
 
 
 # ---- console scripts --------------------------------------------------------------------------

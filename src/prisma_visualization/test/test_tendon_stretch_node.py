@@ -65,8 +65,8 @@ def test_the_gate_lets_each_of_its_entities_run_once_per_open():
 
 def test_one_joint_state_per_display_tick_from_the_newest_inputs(ros, node_cls):
     node = ros.node(node_cls, params_files=[PARAMS], params={"publish_period": 0.1})
-    description = ros.publisher(String, "/robot_description",
-                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    description = ros.probe.create_publisher(String, "/robot_description",
+                                             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     description.publish(String(data=xacro.process_file(str(URDF_XACRO)).toxml()))
     assert ros.spin_until(lambda: node.stretch is not None, 10.0)
     model = ros.collect(JointState, "/prisma/model_joint_states")

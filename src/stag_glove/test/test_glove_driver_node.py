@@ -10,14 +10,9 @@ import os
 import numpy as np
 import pytest
 
+from prisma_testing.node_process import external_shutdown_command, run_process, start_and_interrupt
 from prisma_testing.repo_paths import CONFIG, node_parameters
-from prisma_testing.ros_harness import (
-    external_shutdown_command,
-    require_ros,
-    run_process,
-    stamp_ns,
-    start_and_interrupt,
-)
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 

@@ -1,4 +1,6 @@
-"""Helpers shared by every test and by bench/: the ROS harness (ros_harness), the test processes'
+"""Helpers shared by every test and by bench/: the ROS harness (ros_harness; its streams, sim clock and
+hand goals in streams, sim_clock and goals), commands in their own process (node_process), a launch
+test's case and emulated hand (launch_case, emulated_launch), the test processes'
 priorities (priorities), the repository's paths (repo_paths), the topic table (topic_table), the machine
 load (load_harness), the goal soak (goal_soak), the two-host rig (two_hosts, host_probe), a test's
 collector process (collector), the JSON-line helper process both drive (json_line_process), the

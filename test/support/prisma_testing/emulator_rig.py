@@ -22,7 +22,7 @@ from prisma_tactile_driver.i2c_socket import SocketSMBus
 from prisma_tactile_driver.protocol import ALL_FINGERS_MASK, frame_size
 from prisma_tactile_driver.serial_backend import SerialHubBackend
 
-from .ros_harness import console_script
+from .node_process import console_script
 
 TICK_S = 0.01  # the emulator's 100 Hz scan period
 RAD_PER_TICK = 2 * math.pi / ct.TICKS_PER_REV

@@ -86,7 +86,7 @@ def run_soak(ros: Any, pids: dict[str, int], seconds: float, namespace: str = ""
     from prisma_msgs.action import Grasp, Manipulate
     from std_srvs.srv import Trigger
 
-    from prisma_testing.ros_harness import goal_outcome
+    from prisma_testing.goals import goal_outcome
 
     clients = {"grasp": ros.action_client(Grasp, f"{namespace}/prisma/grasp", wait_sec=90.0),
                "manipulate": ros.action_client(Manipulate, f"{namespace}/prisma/manipulate", wait_sec=90.0),

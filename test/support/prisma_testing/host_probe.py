@@ -119,7 +119,7 @@ class _Probe:
     def goals(self, topic: str, since_ns: int = 0) -> dict:
         """The goals an action server's status topic (collected) listed as accepted after since_ns:
         [[accepted_ns, last status]], by acceptance."""
-        from prisma_testing.ros_harness import goal_status_name
+        from prisma_testing.goals import goal_status_name
 
         goals: dict[bytes, list] = {}
         for msg in self.collected[topic]:
@@ -151,7 +151,7 @@ class _Probe:
     def result(self, id: int, timeout_s: float = 60.0) -> dict:
         from rosidl_runtime_py.convert import message_to_ordereddict
 
-        from prisma_testing.ros_harness import goal_status_name
+        from prisma_testing.goals import goal_status_name
 
         future = self.pending[id]
         if not self.ros.spin_until(future, timeout_s):

@@ -14,7 +14,7 @@ test fails.
 
 Kept output: `graph_under_test` registers a handler for every process's stdout and stderr (RViz's
 included) of the launch; `ros2 launch` and other commands a plain pytest test starts are NodeProcesses
-(ros_harness), which keep their own. When a test fails, the root conftest.py writes all of it whole
+(node_process), which keep their own. When a test fails, the root conftest.py writes all of it whole
 to `launch_log_path(<test id>)` and names the file in the failure message.
 """
 from __future__ import annotations
@@ -30,8 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_testing.node_process import NodeProcess
 from prisma_testing.repo_paths import ROOT, node_parameters
-from prisma_testing.ros_harness import NodeProcess, RosHarness, joint, stamp_ns
+from prisma_testing.ros_harness import RosHarness, joint, stamp_ns
 
 LOG_DIR_VARIABLE = "PRISMA_LAUNCH_LOG_DIR"
 # rclpy's field checks (the root conftest.py turns them on for this process) cost the idle sim graph a
@@ -108,7 +109,7 @@ def graph_under_test(*actions: Any):
 def emulated_hand_launch(emulator_dir: Path, **arguments: str):
     """generate_graph_under_test's LaunchDescription for `hand.launch.py hardware:=emulated home:=true`
     with its devices in `emulator_dir` (created here): the servos come up as real ones do, without
-    their turn count, and are homed at start (`ros_harness.wait_until_homed`)."""
+    their turn count, and are homed at start (`emulated_launch.wait_until_homed`)."""
     emulator_dir.mkdir(exist_ok=True)
     return graph_under_test(include_launch("hand.launch.py", hardware="emulated", home="true",
                                            emulator_dir=str(emulator_dir), **arguments))
