@@ -116,7 +116,7 @@ def _markers(control: Control, args: argparse.Namespace, results: dict, hosts: A
 def _display(control: Control, args: argparse.Namespace, results: dict, hosts: Any) -> None:
     results["display"] = {}
     for graph in args.display_graph.split(","):
-        print(f"the {graph} graph at rest beside the bare relay (stretch)", flush=True)
+        print(f"the {graph} graph at rest beside the bare relay (markers, watched) and the stretch relay", flush=True)
         results["display"][graph] = run_display(control, graph, args.out, args.repeat, cpu_s=args.cpu_s,
                                                 quiet=args.quiet)
         print(json.dumps({graph: results["display"][graph]["summary"]}, indent=1), flush=True)

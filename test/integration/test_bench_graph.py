@@ -86,21 +86,24 @@ def test_parts_run_in_table_order_and_hosts_runs_alone(bench):
     assert isinstance(parser.parse_args(["--parts", "hand"]), argparse.Namespace)
 
 
-def test_the_display_bench_counts_the_graph_and_each_tendon_stretch_in_relays_of_the_same_window(bench):
+def test_the_display_bench_counts_the_graph_in_bare_relays_and_each_tendon_stretch_in_its_relay(bench):
     graph_bench, ros_graph = bench
 
-    def window(relay: float, nodes: dict[str, float]) -> dict:
-        processes = {name: {"cpu_pct": pct} for name, pct in {**nodes, "relay (stretch)": relay, "launch": 3.0}.items()}
+    def window(relay: float, stretch_relay: float, nodes: dict[str, float]) -> dict:
+        relays = {"relay (markers, watched)": relay, "relay (stretch)": stretch_relay}
+        processes = {name: {"cpu_pct": pct} for name, pct in {**nodes, **relays, "launch": 3.0}.items()}
         return {"processes": processes, "loadavg_1min": [9.5, 9.9], "others_pct": 40.0}
 
     nodes = ["left/tendon_stretch", "right/tendon_stretch", "left/manipulation"]
-    windows = [window(10.0, {"left/tendon_stretch": 5.0, "right/tendon_stretch": 6.0, "left/manipulation": 29.0}),
-               window(20.0, {"left/tendon_stretch": 5.0, "right/tendon_stretch": 5.0, "left/manipulation": 30.0})]
+    windows = [window(10.0, 5.0, {"left/tendon_stretch": 5.0, "right/tendon_stretch": 6.0, "left/manipulation": 29.0}),
+               window(20.0, 8.0, {"left/tendon_stretch": 5.0, "right/tendon_stretch": 5.0, "left/manipulation": 30.0})]
     summary = graph_bench.display.summarise_display(windows, nodes)
-    # each window's ratio against its own relay (40 / 10 and 40 / 20), not the medians' ratio (40 / 15)
+    # each window's ratio against its own bare relay (40 / 10 and 40 / 20), not the medians' ratio (40 / 15)
     assert summary["graph_in_relays"] == {"median": 3.0, "min": 2.0, "max": 4.0, "runs": 2}
-    assert summary["tendon_stretch_in_relays"]["right/tendon_stretch"] == {"median": 0.425, "min": 0.25,
-                                                                          "max": 0.6, "runs": 2}
+    assert summary["graph_in_stretch_relays"] == {"median": 6.5, "min": 5.0, "max": 8.0, "runs": 2}
+    # tendon_stretch over the stretch relay of its window: 6 / 5 and 5 / 8
+    assert summary["tendon_stretch_in_relays"]["right/tendon_stretch"] == {"median": 0.912, "min": 0.625,
+                                                                          "max": 1.2, "runs": 2}
     assert summary["launch_process_pct"]["median"] == 3.0  # beside the graph, not in it
     assert set(summary["tendon_stretch_in_relays"]) == {"left/tendon_stretch", "right/tendon_stretch"}
     # both hands' tendon_stretch and the glove are in the bimanual graph's nodes
