@@ -1,26 +1,4 @@
-from setuptools import find_packages, setup
+# The package is declared in setup.cfg; colcon's ament_python build still runs this file.
+from setuptools import setup
 
-package_name = "prisma_sim"
-
-setup(
-    name=package_name,
-    version="0.2.0",
-    packages=find_packages(exclude=["test"]),
-    data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
-        ("share/" + package_name, ["package.xml"]),
-    ],
-    install_requires=["setuptools"],
-    extras_require={"test": ["pytest"]},  # colcon test runs pytest (setuptools >= 72 ignores tests_require)
-    zip_safe=True,
-    maintainer="PRISMA developers",
-    maintainer_email="dev@prisma-hand.org",
-    description="prisma-sim: the off-robot closed-loop sessions (hand scenarios, glove, teleoperation) on the "
-                "nodes' own cores and converters, recorded as bags, plots and summaries.",
-    license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "prisma-sim = prisma_sim.sim_cli:main",
-        ],
-    },
-)
+setup()

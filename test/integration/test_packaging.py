@@ -3,9 +3,9 @@
 - every package.xml dependency is a workspace package, a ROS package released for Jazzy or a
   rosdep key with an Ubuntu 24.04 entry (lists below, checked against ros/rosdistro), and every
   third-party module a package imports is declared by its key;
-- pyproject.toml's [project.scripts] and the setup.py console scripts are one list, and setup.cfg
+- pyproject.toml's [project.scripts] and the setup.cfg console scripts are one list, and setup.cfg
   installs them where `ros2 run` looks (lib/<package>/);
-- prisma_bringup's setup.py installs all of its launch/ and config/ under share/prisma_bringup;
+- prisma_bringup's setup.cfg installs all of its launch/ and config/ under share/prisma_bringup;
 - the wheel (`pip install .`) carries the model bundles, the glove layout and the message
   definitions under share/, where share_data finds them, and LICENSE; share_data's lookup order;
 - the top-level launch/ and config/ links are walked once (ruff, colcon);
@@ -18,7 +18,6 @@ import ast
 import configparser
 import os
 import re
-import runpy
 import shutil
 import subprocess
 import sys
@@ -28,6 +27,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
+from setuptools.config.setupcfg import read_configuration
 
 from prisma_common import share_data
 from prisma_force_estimator.bundle import DEFAULT_BUNDLE, resolve_bundle_path
@@ -36,8 +36,9 @@ from prisma_testing.ros_harness import require_ros
 from stag_glove import paths as glove_paths
 
 SRC = ROOT / "src"
+INTEGRATION = ROOT / "test" / "integration"
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file())
-PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.py").is_file()]
+PYTHON_PACKAGES = [p for p in PACKAGES if (SRC / p / "setup.cfg").is_file()]
 
 # ros/rosdistro jazzy/distribution.yaml (commit 59a60b4): packages released for Jazzy that a
 # package.xml here names. apt: ros-jazzy-<name with - for _>.
@@ -141,15 +142,27 @@ TEST_MODULES = {"pytest": "python3-pytest", "hypothesis": "python3-hypothesis", 
 TEST_PIP_ONLY = {"mcap", "mcap_ros2"}  # pyproject.toml's test extra (mcap-ros2-support); no rosdep key
 
 
+def setup_options(folder: Path) -> dict:
+    """[options] of folder/setup.cfg (where each package declares itself; its setup.py is `setup()`), as
+    setuptools reads them: data_files globs expanded relative to the folder."""
+    return read_configuration(folder / "setup.cfg")["options"]
+
+
+@pytest.mark.parametrize("folder", [*(SRC / p for p in PYTHON_PACKAGES), INTEGRATION], ids=lambda p: p.name)
+def test_setup_py_is_a_bare_setup_call(folder):
+    """colcon's ament_python build runs setup.py; all it declares is in setup.cfg, once (a keyword here
+    would override it there)."""
+    calls = [node for node in ast.walk(ast.parse((folder / "setup.py").read_text())) if isinstance(node, ast.Call)]
+    assert [(ast.unparse(c.func), c.args, c.keywords) for c in calls] == [("setup", [], [])]
+
+
 def check_test_imports_declared(package: str) -> None:
-    """`colcon test` runs a package's pytest tests when its setup.py names pytest as a test extra
+    """`colcon test` runs a package's pytest tests when its setup.cfg names pytest as a test extra
     (tests_require is gone from setuptools 72 on, so colcon would not see it there); what
     src/<package>/test/ imports (workspace packages, ROS packages, third-party modules) is declared
     in package.xml (as test_depend, or already as a run dependency)."""
-    setup = ast.parse((SRC / package / "setup.py").read_text())
-    extras = [ast.literal_eval(k.value) for k in ast.walk(setup)
-              if isinstance(k, ast.keyword) and k.arg == "extras_require"]
-    assert extras == [{"test": ["pytest"]}], f"src/{package}/setup.py: extras_require={{'test': ['pytest']}}"
+    extras = setup_options(SRC / package).get("extras_require")
+    assert extras == {"test": ["pytest"]}, f"src/{package}/setup.cfg: [options.extras_require] test = pytest"
     if not (SRC / package / "test").is_dir():
         return
     roots = imported_roots(package, "test") - {package}
@@ -173,8 +186,6 @@ def undeclared_test_imports(roots: set[str], declared: set[str], xml_text: str) 
     return missing
 
 
-INTEGRATION = ROOT / "test" / "integration"
-
 
 def test_integration_tests_are_a_package_colcon_test_runs():
     """test/integration/ is the test-only package prisma_integration_tests, so that `colcon test`
@@ -183,10 +194,7 @@ def test_integration_tests_are_a_package_colcon_test_runs():
     root = ET.parse(INTEGRATION / "package.xml").getroot()
     assert root.findtext("name") == "prisma_integration_tests"
     assert (INTEGRATION / "resource" / "prisma_integration_tests").is_file()
-    setup = ast.parse((INTEGRATION / "setup.py").read_text())
-    extras = [ast.literal_eval(k.value) for k in ast.walk(setup)
-              if isinstance(k, ast.keyword) and k.arg == "extras_require"]
-    assert extras == [{"test": ["pytest"]}]
+    assert setup_options(INTEGRATION).get("extras_require") == {"test": ["pytest"]}
     declared = {e.text.strip() for e in root.iter("test_depend") if e.text}
     missing = undeclared_test_imports(roots_imported_by(INTEGRATION.glob("test_*.py")), declared,
                                       (INTEGRATION / "package.xml").read_text())
@@ -219,13 +227,9 @@ def test_the_robot_setup_in_the_docs_matches_the_declared_keys():
 # console scripts
 
 def setup_console_scripts(package: str) -> dict[str, str]:
-    """name -> 'module:function' from src/<package>/setup.py, read with ast (not run)."""
-    tree = ast.parse((SRC / package / "setup.py").read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.keyword) and node.arg == "entry_points":
-            entries = ast.literal_eval(node.value)["console_scripts"]
-            return {name.strip(): target.strip() for name, target in (e.split("=", 1) for e in entries)}
-    return {}
+    """name -> 'module:function' from src/<package>/setup.cfg."""
+    entries = setup_options(SRC / package).get("entry_points", {}).get("console_scripts", [])
+    return {name.strip(): target.strip() for name, target in (e.split("=", 1) for e in entries)}
 
 
 def pyproject_scripts() -> dict[str, str]:
@@ -237,14 +241,14 @@ def pyproject_scripts() -> dict[str, str]:
 ROS2_RUN_ALIASES = {"doctor": "prisma-doctor"}  # ros2 run prisma_bringup doctor
 
 
-def test_pyproject_scripts_are_the_setup_py_scripts_less_the_nodes():
+def test_pyproject_scripts_are_the_setup_cfg_scripts_less_the_nodes():
     union: dict[str, str] = {}
     for package in PYTHON_PACKAGES:
         for name, target in setup_console_scripts(package).items():
-            assert name not in union, f"console script {name} is in two setup.py files"
+            assert name not in union, f"console script {name} is in two setup.cfg files"
             union[name] = target
-            # ros2 run <package> <name>: the script must be in the setup.py of its module's package
-            assert target.split(".")[0] == package, f"{name} -> {target} is in src/{package}/setup.py"
+            # ros2 run <package> <name>: the script must be in the setup.cfg of its module's package
+            assert target.split(".")[0] == package, f"{name} -> {target} is in src/{package}/setup.cfg"
     nodes = {name for name, target in union.items() if target.split(":")[0].endswith("_node")}
     # `ros2 run <package> <short name>` beside a tool's own name: the same entry point, kept off PATH
     for alias, tool in ROS2_RUN_ALIASES.items():
@@ -273,21 +277,17 @@ def repo_files(*folders: str) -> set[str]:
 
 
 def bringup_data_files(monkeypatch, cwd: Path) -> dict[str, Path]:
-    """share path -> source file of prisma_bringup's setup.py data_files, run from `cwd`."""
-    import setuptools
-
-    captured: dict = {}
-    monkeypatch.setattr(setuptools, "setup", lambda **kw: captured.update(kw))
+    """share path -> source file of prisma_bringup's setup.cfg data_files, read from `cwd`."""
     monkeypatch.chdir(cwd)
-    runpy.run_path(str(SRC / "prisma_bringup" / "setup.py"))
-    return {os.path.join(dest, os.path.basename(src)): (cwd / src).resolve()
-            for dest, sources in captured["data_files"] for src in sources}
+    return {os.path.join(dest, os.path.basename(src)): (BRINGUP / src).resolve()
+            for dest, sources in setup_options(BRINGUP)["data_files"] for src in sources}
 
 
 @pytest.mark.parametrize("where", ["package directory", "elsewhere"])
 def test_bringup_installs_all_of_launch_and_config(monkeypatch, tmp_path, where):
-    # colcon runs setup.py in the package directory, and through a symlink in build/ with
-    # --symlink-install: the sources must be found from any working directory.
+    # setup.cfg's globs are relative to its folder (colcon runs setup.py there, or in build/ among
+    # links to each file with --symlink-install), whatever the working directory: a new launch or
+    # config file is installed; a new folder needs its line in setup.cfg.
     cwd = SRC / "prisma_bringup" if where == "package directory" else tmp_path
     installed = bringup_data_files(monkeypatch, cwd)
     expected = {f"share/prisma_bringup/{rel}": BRINGUP / rel for rel in repo_files("launch", "config")}

@@ -1,16 +1,16 @@
 """Release metadata of every package (each package.xml under src/ and test/integration, found, not
 listed): the Apache-2.0 LICENSE at the root and named by every package, one version number across
-package.xml, setup.py and pyproject.toml, and a CHANGELOG.rst per package in the format
+package.xml, setup.cfg and pyproject.toml, and a CHANGELOG.rst per package in the format
 `catkin_generate_changelog` writes (REP 132), its newest section that version."""
 from __future__ import annotations
 
-import ast
 import hashlib
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from setuptools.config.setupcfg import read_configuration
 
 from prisma_testing.repo_paths import ROOT
 
@@ -24,14 +24,12 @@ def package_name(folder: Path) -> str:
     return ET.parse(folder / "package.xml").getroot().findtext("name")
 
 
-def setup_keyword(folder: Path, keyword: str) -> str | None:
-    """A literal keyword argument of setup() in folder/setup.py (None without a setup.py)."""
-    if not (folder / "setup.py").is_file():
+def setup_metadata(folder: Path, key: str) -> str | None:
+    """[metadata] key of folder/setup.cfg, where a Python package declares itself (None for a package
+    with none: prisma_msgs, an ament_cmake package)."""
+    if not (folder / "setup.cfg").is_file():
         return None
-    tree = ast.parse((folder / "setup.py").read_text())
-    values = [ast.literal_eval(k.value) for k in ast.walk(tree) if isinstance(k, ast.keyword) and k.arg == keyword]
-    assert len(values) == 1, f"{folder.relative_to(ROOT)}/setup.py: setup({keyword}=...) once, as a literal"
-    return values[0]
+    return read_configuration(folder / "setup.cfg")["metadata"].get(key)
 
 
 def pyproject() -> dict:
@@ -56,7 +54,7 @@ def test_license_at_the_root_is_the_apache_2_0_text():
 def test_every_package_names_the_license(folder):
     licenses = [e.text for e in ET.parse(folder / "package.xml").getroot().iter("license")]
     assert licenses == ["Apache-2.0"]
-    assert setup_keyword(folder, "license") in ("Apache-2.0", None)
+    assert setup_metadata(folder, "license") in ("Apache-2.0", None)
 
 
 def test_pyproject_names_the_license():
@@ -69,15 +67,15 @@ def versions() -> dict[str, str]:
     for folder in PACKAGES:
         where = folder.relative_to(ROOT)
         found[f"{where}/package.xml"] = ET.parse(folder / "package.xml").getroot().findtext("version")
-        setup_version = setup_keyword(folder, "version")
+        setup_version = setup_metadata(folder, "version")
         if setup_version is not None:
-            found[f"{where}/setup.py"] = setup_version
+            found[f"{where}/setup.cfg"] = setup_version
     return found
 
 
 def test_one_version_number_everywhere():
     found = versions()
-    assert len(found) >= 2 * len(PACKAGES)  # every package.xml, the setup.py files and pyproject.toml
+    assert len(found) >= 2 * len(PACKAGES)  # every package.xml, the setup.cfg files and pyproject.toml
     assert len(set(found.values())) == 1, found
     assert re.fullmatch(r"\d+\.\d+\.\d+", found["pyproject.toml"])
 

@@ -1,6 +1,6 @@
-"""Static cross-check of launch files, setup.py entry points, config YAML, nodes and the topic table.
+"""Static cross-check of launch files, setup.cfg entry points, config YAML, nodes and the topic table.
 
-Data-driven: adding a node (console script in src/<pkg>/setup.py), a launch file, a config file or
+Data-driven: adding a node (console script in src/<pkg>/setup.cfg), a launch file, a config file or
 a topic-table row needs no change here.
 
 1. every executable a launch file starts is a console script of the package the launch file names
@@ -36,6 +36,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from setuptools.config.setupcfg import read_configuration
 
 from prisma_testing.launch_files import (
     CONTROL_PATH_NODE,
@@ -50,7 +51,7 @@ from prisma_testing.ros_harness import ROS_AVAILABLE, require_ros
 from prisma_testing.topic_table import SHARED_TOPICS, TableRow, topic_table
 
 # ------------------------------------------------------------------------------------------------
-# Sources: setup.py, launch files, config files, topic table
+# Sources: setup.cfg, launch files, config files, topic table
 
 
 @dataclass(frozen=True)
@@ -61,60 +62,22 @@ class ConsoleScript:
     function: str
 
 
-class _Evaluator(ast.NodeVisitor):
-    """Evaluates the literal parts of a setup.py: constants, names bound to them, f-strings, +."""
-
-    def __init__(self, names: dict) -> None:
-        self.names = names
-
-    def value(self, node):
-        if isinstance(node, ast.Constant):
-            return node.value
-        if isinstance(node, ast.Name):
-            return self.names[node.id]
-        if isinstance(node, ast.JoinedStr):
-            return "".join(str(self.value(v.value if isinstance(v, ast.FormattedValue) else v)) for v in node.values)
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
-            return self.value(node.left) + self.value(node.right)
-        if isinstance(node, (ast.List, ast.Tuple)):
-            return [self.value(v) for v in node.elts]
-        if isinstance(node, ast.Dict):
-            return {self.value(k): self.value(v) for k, v in zip(node.keys, node.values)}
-        raise ValueError(f"not a literal: {ast.dump(node)[:80]}")
-
-
-def console_scripts(setup_py: Path) -> list[ConsoleScript]:
-    tree = ast.parse(setup_py.read_text(), filename=str(setup_py))
-    names: dict = {}
-    evaluator = _Evaluator(names)
-    for statement in tree.body:
-        if (isinstance(statement, ast.Assign) and len(statement.targets) == 1
-                and isinstance(statement.targets[0], ast.Name)):
-            try:
-                names[statement.targets[0].id] = evaluator.value(statement.value)
-            except (ValueError, KeyError):
-                pass
-    package = setup_py.parent.name
+def console_scripts(setup_cfg: Path) -> list[ConsoleScript]:
+    """The console scripts a package's setup.cfg declares, as setuptools reads them."""
+    config = read_configuration(setup_cfg)
+    entries = config["options"].get("entry_points", {}).get("console_scripts", [])
     scripts = []
-    for call in ast.walk(tree):
-        if not (isinstance(call, ast.Call) and getattr(call.func, "id", getattr(call.func, "attr", None)) == "setup"):
-            continue
-        for keyword in call.keywords:
-            if keyword.arg == "name":
-                package = evaluator.value(keyword.value)
-            if keyword.arg == "entry_points":
-                entries = evaluator.value(keyword.value).get("console_scripts", [])
-                for entry in entries:
-                    executable, _, target = (part.strip() for part in entry.partition("="))
-                    module, _, function = target.partition(":")
-                    scripts.append(ConsoleScript(package, executable, module.strip(), function.strip()))
-    return [ConsoleScript(package, s.executable, s.module, s.function) for s in scripts]
+    for entry in entries:
+        executable, _, target = (part.strip() for part in entry.partition("="))
+        module, _, function = target.partition(":")
+        scripts.append(ConsoleScript(config["metadata"]["name"], executable, module.strip(), function.strip()))
+    return scripts
 
 
 def all_console_scripts() -> dict[tuple[str, str], ConsoleScript]:
     scripts = {}
-    for setup_py in sorted(ROOT.glob("src/*/setup.py")):
-        for script in console_scripts(setup_py):
+    for setup_cfg in sorted(ROOT.glob("src/*/setup.cfg")):
+        for script in console_scripts(setup_cfg):
             scripts[(script.package, script.executable)] = script
     return scripts
 
@@ -367,9 +330,9 @@ def test_launched_executable_is_a_console_script(entry: LaunchedNode):
     module_file = package_dir / entry.package / f"{entry.executable}_node.py"
     assert not module_file.exists(), (
         f"{entry.launch_file}:{entry.line}: {module_file.relative_to(ROOT)} exists but "
-        f"'{entry.executable}' is not a console script in src/{entry.package}/setup.py")
+        f"'{entry.executable}' is not a console script in src/{entry.package}/setup.cfg")
     pytest.fail(f"{entry.launch_file}:{entry.line}: {entry.package}/{entry.executable} is neither a console script of "
-                f"src/{entry.package}/setup.py nor a module {module_file.relative_to(ROOT)}: a typo in executable=?")
+                f"src/{entry.package}/setup.cfg nor a module {module_file.relative_to(ROOT)}: a typo in executable=?")
 
 
 @pytest.mark.parametrize("entry", [e for e in all_launched_nodes() if e.parameter_files], ids=_launch_id)
@@ -586,16 +549,14 @@ def test_topic_table_parses():
 # ------------------------------------------------------------------------------------------------
 # The checks themselves, on synthetic sources (so a green run above means something)
 
-_SETUP = """
-from setuptools import setup
-package_name = "demo_pkg"
-setup(
-    name=package_name,
-    entry_points={"console_scripts": [
-        f"talker = {package_name}.talker_node:main",
-        "cli = " + package_name + ".cli:main",
-    ]},
-)
+_SETUP_CFG = """
+[metadata]
+name = demo_pkg
+
+[options.entry_points]
+console_scripts =
+    talker = demo_pkg.talker_node:main
+    cli = demo_pkg.cli:main
 """
 
 _LAUNCH = """
@@ -652,8 +613,8 @@ def main(args=None):
 
 def test_checks_parse_setup_and_launch_sources(tmp_path):
     (tmp_path / "demo_pkg").mkdir()
-    (tmp_path / "demo_pkg" / "setup.py").write_text(_SETUP)
-    scripts = console_scripts(tmp_path / "demo_pkg" / "setup.py")
+    (tmp_path / "demo_pkg" / "setup.cfg").write_text(_SETUP_CFG)
+    scripts = console_scripts(tmp_path / "demo_pkg" / "setup.cfg")
     assert scripts == [ConsoleScript("demo_pkg", "talker", "demo_pkg.talker_node", "main"),
                        ConsoleScript("demo_pkg", "cli", "demo_pkg.cli", "main")]
     (tmp_path / "demo.launch.py").write_text(_LAUNCH)
