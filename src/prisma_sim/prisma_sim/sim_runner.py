@@ -157,6 +157,19 @@ def force_errors(scenario, trace) -> dict[str, dict]:
     return checks
 
 
+def _finish(summary: dict, options: SimOptions, root: Path, name: str, draw: Callable[[Path], None],
+            started: float) -> dict:
+    """A session's summary completed: its plot `<name>.png` drawn by `draw` into a staged path (with
+    options.plots) and the session's wall time since `started` (time.perf_counter)."""
+    if options.plots:
+        path = root / f"{name}.png"
+        with atomic_output(path) as staged:
+            draw(staged)
+        summary["plot"] = _rel(path, root)
+    summary["wall_s"] = time.perf_counter() - started
+    return summary
+
+
 def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str], None],
              root: Path | None = None) -> dict:
     """One hand scenario into `root` (default options.out): its bag, plot and summary."""
@@ -198,13 +211,7 @@ def run_hand(name: str, options: SimOptions, estimator, progress: Callable[[str]
         "topics": dict(sorted(recording.counts.items())),
         "goals": _goal_rows(recording),
     })
-    if options.plots:
-        path = root / f"{name}.png"
-        with atomic_output(path) as staged:
-            plot(scenario, trace, staged)
-        summary["plot"] = _rel(path, root)
-    summary["wall_s"] = time.perf_counter() - started
-    return summary
+    return _finish(summary, options, root, name, lambda staged: plot(scenario, trace, staged), started)
 
 
 def run_glove(options: SimOptions, progress: Callable[[str], None], root: Path | None = None) -> dict:
@@ -218,13 +225,7 @@ def run_glove(options: SimOptions, progress: Callable[[str], None], root: Path |
                                       progress=lambda line: progress(f"[{GLOVE}] {line}"))
     summary = summarise(recording)
     summary.update({"bag": _rel(bag, root), "topics": dict(sorted(recording.counts.items()))})
-    if options.plots:
-        path = root / f"{GLOVE}.png"
-        with atomic_output(path) as staged:
-            plot(recording, staged)
-        summary["plot"] = _rel(path, root)
-    summary["wall_s"] = time.perf_counter() - started
-    return summary
+    return _finish(summary, options, root, GLOVE, lambda staged: plot(recording, staged), started)
 
 
 def run_teleop(options: SimOptions, estimator, progress: Callable[[str], None], root: Path | None = None) -> dict:
@@ -241,13 +242,7 @@ def run_teleop(options: SimOptions, estimator, progress: Callable[[str], None], 
                     "force_tolerance_n": options.force_tolerance_n,
                     "force_within_tolerance": summary["force_error_n"] <= options.force_tolerance_n,
                     "goals": _goal_rows(recording)})
-    if options.plots:
-        path = root / f"{TELEOP}.png"
-        with atomic_output(path) as staged:
-            plot(trace, summary, staged)
-        summary["plot"] = _rel(path, root)
-    summary["wall_s"] = time.perf_counter() - started
-    return summary
+    return _finish(summary, options, root, TELEOP, lambda staged: plot(trace, summary, staged), started)
 
 
 def run(options: SimOptions, progress: Callable[[str], None] = print, estimator=None) -> list[dict]:
