@@ -7,7 +7,15 @@ from dataclasses import dataclass
 
 import pytest
 
-from prisma_common.parameters import ParameterError, ParameterSpec, Params, parameter
+from prisma_common.parameters import (
+    ParameterError,
+    ParameterSpec,
+    Params,
+    backoff_initial_parameter,
+    backoff_max_parameter,
+    check_reconnect_backoff,
+    parameter,
+)
 
 
 @dataclass
@@ -87,3 +95,24 @@ def test_a_field_without_a_spec_or_bounds_on_a_string_is_refused():
         parameter("x", "a name", bounds=(0, 1))
     with pytest.raises(ValueError, match="the low end must be below the high end"):
         parameter(1.0, "a rate", bounds=(2.0, 1.0))
+
+
+@dataclass
+class ReopeningConfig(Params):
+    reconnect_backoff_initial: float = backoff_initial_parameter(0.5, "bus")
+    reconnect_backoff_max: float = backoff_max_parameter(8.0)
+
+    def check_rules(self) -> None:
+        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
+
+
+def test_the_reconnect_backoff_pair_every_reopening_driver_declares():
+    specs = ReopeningConfig.parameter_specs()
+    assert specs["reconnect_backoff_initial"] == ParameterSpec(
+        "wait before reopening a lost bus, doubled after each failure", "s", (0.0, 60.0), open_low=True)
+    assert specs["reconnect_backoff_max"].rules == "at least reconnect_backoff_initial"
+    assert ReopeningConfig.from_parameters({"reconnect_backoff_max": 0.5}).reconnect_backoff_max == 0.5
+    with pytest.raises(ParameterError) as info:
+        ReopeningConfig.from_parameters({"reconnect_backoff_max": 0.25})
+    assert str(info.value) == ("invalid parameter 'reconnect_backoff_max' = 0.25: "
+                               "must be >= reconnect_backoff_initial (0.5)")

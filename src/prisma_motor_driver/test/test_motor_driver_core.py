@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import pytest
 
+from prisma_common.parameters import ParameterError
 from prisma_motor_driver.backend import BusError, MotorState
 from prisma_motor_driver.motor_driver_core import ERROR, OK, MotorDriverCore, StartOutcome
 from prisma_motor_driver.motor_goals import MoveGoal, MoveResult
@@ -59,6 +60,11 @@ def test_driver_reconnects_with_exponential_backoff_and_reports_it():
     diag = core.diagnostics()
     assert diag[0].level == ERROR and "disconnected" in diag[0].message and diag[0].values["reconnects"] == "1"
     assert str(core.validate(MoveGoal(["fingers"], "velocity", [1.0]))).startswith("not_ready: motor bus not connected")
+
+
+def test_a_backoff_that_could_not_double_is_refused_at_start():
+    with pytest.raises(ParameterError, match="'reconnect_backoff_max' = 0.25: must be >= reconnect_backoff_initial"):
+        MotorDriverConfig.from_parameters({"reconnect_backoff_initial": 0.5, "reconnect_backoff_max": 0.25})
 
 
 def test_validation_at_arrival_refuses_a_goal_whose_timeout_ended_on_the_way():

@@ -14,7 +14,15 @@ from typing import Any
 
 from prisma_common.control_socket import CONTROL_SOCKET_NAME
 from prisma_common.hand import FINGERS
-from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
+from prisma_common.parameters import (
+    ParameterError,
+    Params,
+    backoff_initial_parameter,
+    backoff_max_parameter,
+    check_fingers,
+    check_reconnect_backoff,
+    parameter,
+)
 from prisma_common.unix_socket import MAX_PATH_BYTES
 from prisma_hand_sim.contact_source import ContactSource, ScriptedContactSource
 from prisma_hand_sim.sim_objects import OBJECTS
@@ -49,11 +57,8 @@ class TactileDriverConfig(Params):
     serial_poll_hz: float = parameter(500.0, "the driver reads the hub's bytes as they come; it looks again this "
                                              "often when none come, and reopens a lost port at most this often",
                                       unit="Hz", bounds=(0.0, 10_000.0), open_low=True)
-    reconnect_backoff_initial: float = parameter(0.05, "wait before reopening a lost port, doubled after each "
-                                                       "failure", unit="s", bounds=(0.0, 60.0), open_low=True)
-    reconnect_backoff_max: float = parameter(2.0, "longest wait between reopening attempts", unit="s",
-                                             bounds=(0.0, 600.0), open_low=True,
-                                             rules="at least reconnect_backoff_initial")
+    reconnect_backoff_initial: float = backoff_initial_parameter(0.05, "port")
+    reconnect_backoff_max: float = backoff_max_parameter(2.0)
     # direct I2C
     i2c_bus: int = parameter(1, "I2C bus number: /dev/i2c-<i2c_bus> (backend i2c)", bounds=(0, 255))
     i2c_socket: str = parameter("", "absolute path of prisma-hand-emulator's I2C bus socket; '' = "
@@ -83,9 +88,7 @@ class TactileDriverConfig(Params):
         except (KeyError, IndexError, ValueError) as exc:
             raise ParameterError("frame_id_format", self.frame_id_format,
                                  f"a str.format pattern whose only field is {{finger}} ({exc})") from None
-        if self.reconnect_backoff_max < self.reconnect_backoff_initial:
-            raise ParameterError("reconnect_backoff_max", self.reconnect_backoff_max,
-                                 f"must be >= reconnect_backoff_initial ({self.reconnect_backoff_initial})")
+        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
         if self.i2c_socket:
             _check_socket_path("i2c_socket", self.i2c_socket, "the absolute path of the emulator's Unix socket (the "
                                "node may start in any directory), or empty for /dev/i2c-<i2c_bus>")
