@@ -11,7 +11,9 @@ The tests run in order, on one launch:
    publishes prisma/teleop/motor_targets; the pads close on the ball (thumb and index estimated Fz at
    least 0.5 N, sim_trials.CLOSED_N) and no pad goes above the touch limit (2 N) by more than 0.15 N;
    the targets are stamped after the node started, one per tick of the model's 50 fps (median
-   spacing, by stamp); stopped with Ctrl-C the node exits 0 without a traceback;
+   spacing, by stamp); judged over the 8 s from the goal on what the graph sent in them, which this
+   process takes late on a loaded machine (it waits for each stream up to their end); stopped with
+   Ctrl-C the node exits 0 without a traceback;
 2. a model_path that is no model: exit 1, one line naming the file, no traceback.
 After the launch is stopped every node exits 0 without a traceback.
 
@@ -64,47 +66,51 @@ class TestPolicyNode(GraphTestCase):
         cls.wrenches = ros.collect(HandWrench, "/prisma/hand/wrench")
         cls.targets = ros.collect(JointState, "/prisma/teleop/motor_targets")
 
-    @unittest.skip("open: in 3 of 9 runs (CI included) the sim motors stayed at 0 rad for the whole 8 s while the "
-                   "Teleoperate goal ran and the policy published targets up to 8.7 rad; nothing moved and nothing "
-                   "was refused in the logs. Until the cause is found this case would fail CI by chance "
-                   "(prisma_policy CHANGELOG, issue 41 note)")
     def test_1_the_policy_closes_on_the_ball_within_the_touch_limit(self):
         ros = self.ros
         ros.wait_until_keeping_up(self.joints, self.wrenches, lag_sec=0.05, checks=10, timeout_sec=90.0)
         started_ns = time.time_ns()
-        arrivals: list[tuple[int, int]] = []  # (stamp, arrival) of each target this test received
-        seen = 0
         with NodeProcess(policy_command(MODEL)) as policy:
-            self.assertTrue(policy.wait_for_output("sending the Teleoperate goal", 60.0), policy.output)
-            deadline = time.monotonic() + RUN_S
-            while time.monotonic() < deadline:
-                ros.spin_once()
-                for msg in list(self.targets)[seen:]:
-                    arrivals.append((stamp_ns(msg), time.time_ns()))
-                seen = len(self.targets)
+            # spun while the node starts (seconds on a loaded machine: torch's import), so that what the
+            # graph sends meanwhile is taken now, not left queued for the run's window
+            sending = ros.spin_until(lambda: "sending the Teleoperate goal" in policy.output, 60.0)
+            self.assertTrue(sending, policy.output)
+            goal_ns = time.time_ns()  # the run judged: RUN_S from the goal on
+            end_ns = goal_ns + int(RUN_S * 1e9)
+            ros.spin_for(RUN_S)
+            # This process takes fewer messages a second than the graph sends it (collector.py says why):
+            # on a loaded machine the window's last seconds reach it after the window. Judged on what it
+            # had taken by then, 3 of 9 runs saw the motors at 0 rad and the pads at 0.01 N while the
+            # manipulation node's Teleoperate feedback had them at 6.4 rad and 1.6 N. So each stream is
+            # taken up to the window's end first (the targets as long as the policy publishes).
+            behind_s = (end_ns - stamp_ns(self.joints[-1])) / 1e9
+            for received in (self.joints, self.wrenches):
+                ros.message_stamped(received, end_ns, timeout_sec=30.0)
+            ros.spin_until(lambda: bool(self.targets) and stamp_ns(self.targets[-1]) >= end_ns, timeout_sec=5.0)
             result = policy.interrupt()
         print(result.output)
-        if self.targets:
-            names = list(self.targets[0].name)
-            highest = {n: round(max(m.position[names.index(n)] for m in self.targets), 3) for n in names}
-            print(f"{len(arrivals)} targets; highest {highest}; last {dict(zip(names, self.targets[-1].position))}")
-        moved = [m for m in self.joints if stamp_ns(m) >= started_ns and len(m.position) == len(m.name)]
-        if moved:
-            highest = [round(max(m.position[i] for m in moved), 3) for i in range(len(moved[-1].name))]
-            print(f"{len(moved)} joint_states; highest {highest} of {list(moved[-1].name)}; "
-                  f"last {list(moved[-1].position)}")
+        targets = [m for m in self.targets if stamp_ns(m) <= end_ns]
+        wrenches = [m for m in self.wrenches if stamp_ns(m) <= end_ns]
+        names = list(targets[0].name)
+        highest = {n: round(max(m.position[names.index(n)] for m in targets), 3) for n in names}
+        print(f"{len(targets)} targets; highest {highest}; last {dict(zip(names, targets[-1].position))}")
+        moved = [m for m in self.joints if goal_ns <= stamp_ns(m) <= end_ns and len(m.position) == len(m.name)]
+        highest_joints = [round(max(m.position[i] for m in moved), 3) for i in range(len(moved[-1].name))]
+        print(f"{len(moved)} joint_states; highest {highest_joints} of {list(moved[-1].name)}; "
+              f"last {list(moved[-1].position)}; taken by the window's end: up to {behind_s:.2f} s before it")
         self.assertEqual(result.returncode, 0, result.output)
         self.assertNotIn("Traceback", result.output)
-        self.assertGreater(len(arrivals), 0.5 * RUN_S * 50, "the policy at 50 fps published too few targets")
-        peaks = pad_force_peaks(self.wrenches, started_ns)
+        in_window = [m for m in targets if stamp_ns(m) >= goal_ns]
+        self.assertGreater(len(in_window), 0.5 * RUN_S * 50, "the policy at 50 fps published too few targets")
+        peaks = pad_force_peaks(wrenches, started_ns)
         print(f"pad Fz peaks under the policy: { {f: round(v, 3) for f, v in peaks.items()} }")
         for finger, peak in peaks.items():
             self.assertLessEqual(peak, TOUCH_LIMIT_N + OVERSHOOT_N, finger)
         for finger in ("thumb", "index"):
             self.assertGreaterEqual(peaks[finger], CLOSED_N, finger)
         # stamped fresh, one per tick of the model's 50 fps (by stamp: this test's own receipt lags on a
-        # loaded machine, 0.65 s seen, which says nothing about the node)
-        stamps = sorted(stamp for stamp, _ in arrivals)
+        # loaded machine, which says nothing about the node)
+        stamps = sorted(stamp_ns(m) for m in targets)
         self.assertGreaterEqual(stamps[0], started_ns)
         spacing_s = float(np.median(np.diff(stamps))) / 1e9
         self.assertAlmostEqual(spacing_s, 1 / 50, delta=0.005)
