@@ -35,19 +35,11 @@ from __future__ import annotations
 
 import argparse
 
-from prisma_common.cli_args import ArgumentParser, UserError, command, positive_float
+from prisma_common.cli_args import ArgumentParser, UserError, command, positive_float, ros_namespace
 
 from .doctor_checks import run_checks
 from .doctor_facts import SAMPLE_SECONDS
 from .doctor_result import exit_status
-
-
-def _namespace(text: str) -> str:
-    ns = text.strip("/")
-    if ns and not all(part.replace("_", "a").isalnum() and not part[0].isdigit() for part in ns.split("/")):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a ROS namespace (letters, digits, _ and /; "
-                                         "no part starting with a digit), e.g. left")
-    return ns
 
 
 @command("prisma-doctor")
@@ -55,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="prisma-doctor", description=__doc__.splitlines()[0],
                             formatter_class=argparse.RawDescriptionHelpFormatter,
                             epilog="\n".join(__doc__.splitlines()[2:]))
-    parser.add_argument("--namespace", type=_namespace, default="",
+    parser.add_argument("--namespace", type=ros_namespace, default="",
                         help="the hand's namespace, as namespace:= of hand.launch.py (default: none)")
     parser.add_argument("--timeout", type=positive_float, default=6.0,
                         help="seconds to find the nodes and collect their parameters, /diagnostics and taxels "

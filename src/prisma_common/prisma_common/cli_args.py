@@ -105,6 +105,16 @@ def unit_interval(text: str) -> float:
     return value
 
 
+def ros_namespace(text: str) -> str:
+    """A hand's ROS namespace (`--namespace left`, `/left/`), without its leading and trailing '/';
+    '' for none."""
+    ns = text.strip("/")
+    if ns and not all(part.replace("_", "a").isalnum() and not part[0].isdigit() for part in ns.split("/")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a ROS namespace (letters, digits, _ and /; "
+                                         "no part starting with a digit), e.g. left")
+    return ns
+
+
 # ----------------------------------------------------------------------------------------- paths
 def _looked_at(check: Callable[[str], Path]) -> Callable[[str], Path]:
     """A path check that says, as its own error, why a path cannot even be looked at (a name too

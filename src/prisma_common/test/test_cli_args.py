@@ -16,6 +16,7 @@ from prisma_common.cli_args import (
     existing_path,
     output_dir,
     output_file,
+    ros_namespace,
 )
 
 
@@ -72,3 +73,11 @@ def test_an_input_path_must_exist_and_be_of_its_kind(tmp_path):
         with pytest.raises(argparse.ArgumentTypeError) as err:
             check(str(path))
         assert str(err.value).endswith(message), (check.__name__, str(err.value))
+
+
+def test_a_namespace_is_given_with_or_without_slashes_and_checked():
+    assert [ros_namespace(text) for text in ("left", "/left/", "/", "", "hands/left_2")] == [
+        "left", "left", "", "", "hands/left_2"]
+    for bad in ("9 bad", "left/2nd", "le-ft"):
+        with pytest.raises(argparse.ArgumentTypeError, match=f"'{bad}' is not a ROS namespace"):
+            ros_namespace(bad)

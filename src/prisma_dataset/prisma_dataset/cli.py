@@ -30,6 +30,7 @@ from prisma_common.cli_args import (
     output_dir,
     positive_float,
     positive_int,
+    ros_namespace,
 )
 
 PROG = "prisma-dataset"
@@ -62,7 +63,7 @@ def parser() -> ArgumentParser:
     export.add_argument("--task", type=_task, default=None,
                         help="every episode's task text (default: the markers' task; with --whole-bag "
                              "'teleoperate the PRISMA hand')")
-    export.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+    export.add_argument("--namespace", type=ros_namespace, default="", metavar="NS",
                         help="the hand's namespace the bags were recorded in (default: none)")
     export.add_argument("--action", choices=("targets", "positions"), default="targets",
                         help="targets: /prisma/teleop/motor_targets (default); positions: the next frame's "
@@ -77,21 +78,13 @@ def parser() -> ArgumentParser:
     show.add_argument("--no-plots", action="store_true", help="print the summary only")
     listing = commands.add_parser("topics", help="the topics a recording for export needs, one a line",
                                   description="Print the topics an export reads (record.launch.py records them).")
-    listing.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+    listing.add_argument("--namespace", type=ros_namespace, default="", metavar="NS",
                          help="the hand's namespace (default: none)")
     show.add_argument("--touch-limit", type=positive_float, default=None, metavar="N",
                       help="the touch limit drawn with the forces (default: the manipulation node's "
                            "teleop_max_pad_force, 2 N)")
     _replay_parser(commands)
     return top
-
-
-def _namespace(text: str) -> str:
-    ns = text.strip("/")
-    if ns and not all(part.replace("_", "a").isalnum() and not part[0].isdigit() for part in ns.split("/")):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a ROS namespace (letters, digits, _ and /; "
-                                         "no part starting with a digit), e.g. left")
-    return ns
 
 
 def _replay_parser(commands) -> None:
@@ -102,7 +95,7 @@ def _replay_parser(commands) -> None:
                     "recording; exit 1 when a tolerance is missed (docs/dataset_replay.md).")
     replay.add_argument("dataset", type=existing_dir, metavar="DIR", help="a LeRobot v3.0 dataset directory")
     replay.add_argument("--episode", type=non_negative_int, required=True, metavar="N", help="the episode to play")
-    replay.add_argument("--namespace", type=_namespace, default="", metavar="NS",
+    replay.add_argument("--namespace", type=ros_namespace, default="", metavar="NS",
                         help="the hand's namespace, as namespace:= of hand.launch.py (default: none)")
     replay.add_argument("--speed", type=positive_float, default=1.0, metavar="F",
                         help="pace against the recording's (default 1; 0.5 = half as fast; 0.05 .. 4)")
