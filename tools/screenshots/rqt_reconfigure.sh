@@ -26,39 +26,17 @@ fi
 [ -f config/manipulation.yaml ] || { echo "rqt_reconfigure.sh: run it from the repository root" >&2; exit 1; }
 
 width=1000 height=1180 crop_height=872
-export ROS_DOMAIN_ID=$((101 + $$ % 130))  # this script's graph only
-export RCUTILS_COLORIZED_OUTPUT=0
-work=$(mktemp -d)
-groups=()  # process groups started here: `ros2 run` leaves its node running when only it is stopped
-cleanup() {
-  for pgid in "${groups[@]}"; do kill -INT -- "-$pgid" 2>/dev/null || true; done
-  sleep 1
-  for pgid in "${groups[@]}"; do kill -KILL -- "-$pgid" 2>/dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
+screenshot_session rqt_reconfigure.sh "$width" "$height"
 
-# a display of its own: Xvfb picks a free number and writes it once it accepts clients
-setsid Xvfb -displayfd 1 -screen 0 "${width}x${height}x24" -nolisten tcp >"$work/display" 2>/dev/null &
-groups+=($!)
-for _ in $(seq 100); do [ -s "$work/display" ] && break; sleep 0.1; done
-[ -s "$work/display" ] || { echo "rqt_reconfigure.sh: Xvfb did not start" >&2; exit 1; }
-export DISPLAY=":$(head -n1 "$work/display")"
-
-setsid ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml \
-  >"$work/manipulation.log" 2>&1 &
-groups+=($!)
+run_group ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml \
+  >"$work/manipulation.log" 2>&1
 # rqt_reconfigure selects the nodes named on its command line once it discovers them
-setsid ros2 run rqt_reconfigure rqt_reconfigure /manipulation >"$work/rqt.log" 2>&1 &
-groups+=($!)
+run_group ros2 run rqt_reconfigure rqt_reconfigure /manipulation >"$work/rqt.log" 2>&1
 
 window=$(timeout 60 xdotool search --sync --onlyvisible --name "rqt_reconfigure") \
   || { echo "rqt_reconfigure.sh: no rqt_reconfigure window within 60 s" >&2; cat "$work/rqt.log" >&2; exit 1; }
 xdotool windowmove "$window" 0 0 windowsize "$window" "$width" "$height"
 sleep 8  # discovery, the node's selection and its parameter editors
-mkdir -p "$(dirname "$out")"
-tmp="$out.partial-$$.png"
 # the parameter pane; below it rqt's empty message pane
-xwd -root -silent | convert xwd:- -crop "${width}x${crop_height}+0+0" +repage -colors 64 "$tmp"
-mv "$tmp" "$out"
-echo "rqt_reconfigure.sh: wrote $out"
+capture "$out" "${width}x${crop_height}+0+0" 64

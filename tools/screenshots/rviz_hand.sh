@@ -28,28 +28,11 @@ config="$(ros2 pkg prefix prisma_bringup 2>/dev/null)/share/prisma_bringup/confi
 [ -f "$config" ] || { echo "rviz_hand.sh: no $config: colcon build, source install/setup.bash" >&2; exit 1; }
 
 width=1280 height=800
-export ROS_DOMAIN_ID=$((101 + $$ % 130))  # this script's graph only
-export RCUTILS_COLORIZED_OUTPUT=0 LIBGL_ALWAYS_SOFTWARE=1
-work=$(mktemp -d)
-groups=()  # process groups started here
-cleanup() {
-  for pgid in "${groups[@]}"; do kill -INT -- "-$pgid" 2>/dev/null || true; done
-  sleep 5
-  for pgid in "${groups[@]}"; do kill -KILL -- "-$pgid" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  ros2 daemon stop >/dev/null 2>&1 || true
-  rm -rf "$work"
-}
-trap cleanup EXIT
+export LIBGL_ALWAYS_SOFTWARE=1
+source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
+screenshot_session rviz_hand.sh "$width" "$height" 5  # 5 s for the launch and rviz2 to stop
 
-setsid Xvfb -displayfd 1 -screen 0 "${width}x${height}x24" -nolisten tcp >"$work/display" 2>/dev/null &
-groups+=($!)
-for _ in $(seq 100); do [ -s "$work/display" ] && break; sleep 0.1; done
-[ -s "$work/display" ] || { echo "rviz_hand.sh: Xvfb did not start" >&2; exit 1; }
-export DISPLAY=":$(head -n1 "$work/display")"
-
-setsid ros2 launch prisma_bringup hand.launch.py sim:=true >"$work/hand.log" 2>&1 &
-groups+=($!)
+run_group ros2 launch prisma_bringup hand.launch.py sim:=true >"$work/hand.log" 2>&1
 echo "rviz_hand.sh: hand.launch.py started; pinch Grasp..."
 for attempt in 1 2 3; do
   if timeout 90 ros2 action send_goal /prisma/grasp prisma_msgs/action/Grasp "{grasp: pinch}" \
@@ -60,16 +43,11 @@ for attempt in 1 2 3; do
   sleep 3
 done
 
-setsid rviz2 -d "$config" >"$work/rviz.log" 2>&1 &
-groups+=($!)
+run_group rviz2 -d "$config" >"$work/rviz.log" 2>&1
 echo "rviz_hand.sh: rviz2 started; waiting for it to draw..."
 sleep 20  # start, description, TF and the first MarkerArrays under software rendering
 if grep -E "\[(ERROR|WARN)\]|No transform|dropping message" "$work/rviz.log" >&2; then
   echo "rviz_hand.sh: rviz2 reported the problems above" >&2
   exit 1
 fi
-mkdir -p "$(dirname "$out")"
-tmp="$out.partial-$$.png"
-xwd -root -silent | convert xwd:- -crop "${width}x$((height - 24))+0+0" +repage -colors 128 "$tmp"
-mv "$tmp" "$out"
-echo "rviz_hand.sh: wrote $out"
+capture "$out" "${width}x$((height - 24))+0+0" 128
