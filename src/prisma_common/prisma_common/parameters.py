@@ -119,21 +119,21 @@ def parameter(default: Any, description: str, *, unit: str = "", bounds: tuple[f
     return field(default=default, metadata=metadata)
 
 
-def backoff_initial_parameter(default: float, lost: str) -> Any:
+def backoff_initial(default: float, lost: str) -> Any:
     """The `reconnect_backoff_initial` field of a driver that reopens a lost port or bus (`lost`):
     the first wait, doubled after each failed reopen up to `reconnect_backoff_max`."""
     return parameter(default, f"wait before reopening a lost {lost}, doubled after each failure", unit="s",
                      bounds=(0.0, 60.0), open_low=True)
 
 
-def backoff_max_parameter(default: float) -> Any:
+def backoff_max(default: float) -> Any:
     """The `reconnect_backoff_max` field beside `reconnect_backoff_initial`; its rule is
-    `check_reconnect_backoff`."""
+    `check_backoff`."""
     return parameter(default, "longest wait between reopening attempts", unit="s", bounds=(0.0, 600.0),
                      open_low=True, rules="at least reconnect_backoff_initial")
 
 
-def check_reconnect_backoff(initial: float, maximum: float) -> None:
+def check_backoff(initial: float, maximum: float) -> None:
     """The backoff doubles from `initial` up to `maximum`: ParameterError when it could not start."""
     if maximum < initial:
         raise ParameterError("reconnect_backoff_max", maximum, f"must be >= reconnect_backoff_initial ({initial})")

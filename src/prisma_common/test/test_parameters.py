@@ -11,9 +11,9 @@ from prisma_common.parameters import (
     ParameterError,
     ParameterSpec,
     Params,
-    backoff_initial_parameter,
-    backoff_max_parameter,
-    check_reconnect_backoff,
+    backoff_initial,
+    backoff_max,
+    check_backoff,
     parameter,
 )
 
@@ -99,11 +99,11 @@ def test_a_field_without_a_spec_or_bounds_on_a_string_is_refused():
 
 @dataclass
 class ReopeningConfig(Params):
-    reconnect_backoff_initial: float = backoff_initial_parameter(0.5, "bus")
-    reconnect_backoff_max: float = backoff_max_parameter(8.0)
+    reconnect_backoff_initial: float = backoff_initial(0.5, "bus")
+    reconnect_backoff_max: float = backoff_max(8.0)
 
     def check_rules(self) -> None:
-        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
+        check_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
 
 
 def test_the_reconnect_backoff_pair_every_reopening_driver_declares():

@@ -11,14 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from prisma_common.hand import MOTOR_NAMES
-from prisma_common.parameters import (
-    ParameterError,
-    Params,
-    backoff_initial_parameter,
-    backoff_max_parameter,
-    check_reconnect_backoff,
-    parameter,
-)
+from prisma_common.parameters import ParameterError, Params, backoff_initial, backoff_max, check_backoff, parameter
 
 from .backend import (
     CURRENT_LIMIT_MAX_MA,
@@ -86,13 +79,13 @@ class MotorDriverConfig(Params):
                                           unit="rad", bounds=(0.0, 1.0), open_low=True, live=True)
     diagnostics_period: float = parameter(1.0, "time between /diagnostics messages", unit="s",
                                           bounds=(0.0, 60.0), open_low=True)
-    reconnect_backoff_initial: float = backoff_initial_parameter(0.5, "bus")
-    reconnect_backoff_max: float = backoff_max_parameter(8.0)
+    reconnect_backoff_initial: float = backoff_initial(0.5, "bus")
+    reconnect_backoff_max: float = backoff_max(8.0)
     sim_initial_positions: list = parameter([0.0, 0.0, 0.0], "start positions of the simulated motors (backend sim)",
                                             unit="rad", rules=PER_MOTOR)
 
     def check_rules(self) -> None:
-        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
+        check_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
         for name in self.motor_names:
             if name not in MOTOR_NAMES:
                 raise ParameterError("motor_names", self.motor_names, f"{name!r} is not one of {list(MOTOR_NAMES)}")

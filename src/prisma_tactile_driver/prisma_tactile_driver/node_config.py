@@ -17,10 +17,10 @@ from prisma_common.hand import FINGERS
 from prisma_common.parameters import (
     ParameterError,
     Params,
-    backoff_initial_parameter,
-    backoff_max_parameter,
+    backoff_initial,
+    backoff_max,
+    check_backoff,
     check_fingers,
-    check_reconnect_backoff,
     parameter,
 )
 from prisma_common.unix_socket import MAX_PATH_BYTES
@@ -57,8 +57,8 @@ class TactileDriverConfig(Params):
     serial_poll_hz: float = parameter(500.0, "the driver reads the hub's bytes as they come; it looks again this "
                                              "often when none come, and reopens a lost port at most this often",
                                       unit="Hz", bounds=(0.0, 10_000.0), open_low=True)
-    reconnect_backoff_initial: float = backoff_initial_parameter(0.05, "port")
-    reconnect_backoff_max: float = backoff_max_parameter(2.0)
+    reconnect_backoff_initial: float = backoff_initial(0.05, "port")
+    reconnect_backoff_max: float = backoff_max(2.0)
     # direct I2C
     i2c_bus: int = parameter(1, "I2C bus number: /dev/i2c-<i2c_bus> (backend i2c)", bounds=(0, 255))
     i2c_socket: str = parameter("", "absolute path of prisma-hand-emulator's I2C bus socket; '' = "
@@ -88,7 +88,7 @@ class TactileDriverConfig(Params):
         except (KeyError, IndexError, ValueError) as exc:
             raise ParameterError("frame_id_format", self.frame_id_format,
                                  f"a str.format pattern whose only field is {{finger}} ({exc})") from None
-        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
+        check_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
         if self.i2c_socket:
             _check_socket_path("i2c_socket", self.i2c_socket, "the absolute path of the emulator's Unix socket (the "
                                "node may start in any directory), or empty for /dev/i2c-<i2c_bus>")

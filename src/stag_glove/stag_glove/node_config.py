@@ -11,14 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from prisma_common.parameters import (
-    ParameterError,
-    Params,
-    backoff_initial_parameter,
-    backoff_max_parameter,
-    check_reconnect_backoff,
-    parameter,
-)
+from prisma_common.parameters import ParameterError, Params, backoff_initial, backoff_max, check_backoff, parameter
 
 from .backend import BACKENDS, GloveBackend
 from .processing import ADC_MAX, NormalisationConfig
@@ -43,8 +36,8 @@ class GloveDriverConfig(Params):
     baudrate: int = parameter(250000, "serial baud rate of the readout board", unit="baud", bounds=(1, 4_000_000))
     poll_rate_hz: float = parameter(50.0, "how often the port is drained / the sim and replay are stepped",
                                     unit="Hz", bounds=(0.0, 1000.0), open_low=True)
-    reconnect_backoff_initial: float = backoff_initial_parameter(0.5, "port")
-    reconnect_backoff_max: float = backoff_max_parameter(8.0)
+    reconnect_backoff_initial: float = backoff_initial(0.5, "port")
+    reconnect_backoff_max: float = backoff_max(8.0)
     rows: int = parameter(32, "readout rows", bounds=(1, 256))
     cols: int = parameter(32, "readout columns", bounds=(1, 256),
                           rules="rows x cols a multiple of 4 (10-bit packing)")
@@ -81,7 +74,7 @@ class GloveDriverConfig(Params):
             raise ParameterError("port", self.port, "the serial backend needs a port")
         if self.backend == "replay" and not self.replay_file:
             raise ParameterError("replay_file", self.replay_file, "the replay backend needs a dataset file")
-        check_reconnect_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
+        check_backoff(self.reconnect_backoff_initial, self.reconnect_backoff_max)
         if (self.rows * self.cols) % 4:
             raise ParameterError("cols", self.cols, "rows*cols must be a multiple of 4 (10-bit packing)")
         if not self.normalisation_high > self.normalisation_low:
