@@ -50,7 +50,7 @@ def pytest_pycollect_makemodule(module_path, parent):
     return pytest.Module.from_parent(parent, path=module_path)
 
 
-_LAUNCH_TEST = re.compile(r"^def generate_test_description\(", re.M)
+_LAUNCH_TEST = re.compile(r"^(def generate_test_description\(|generate_test_description = )", re.M)
 
 
 @pytest.fixture

@@ -12,15 +12,12 @@ from __future__ import annotations
 
 import unittest
 
-import pytest
-
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test, output_of
 from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from prisma_msgs.msg import ContactState, GloveFrame, ObjectEstimate, TaxelArray, WeightEstimate  # noqa: E402
@@ -37,9 +34,7 @@ TOPICS = ({f"/prisma/{f}/taxels": TaxelArray for f in FINGERS}
 DRIVERS = {"tactile_driver", "force_estimator", "motor_driver", "manipulation", "glove_driver"}
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("all.launch.py"))
+generate_test_description = launch_test("all.launch.py")
 
 
 class TestAll(GraphTestCase):

@@ -24,14 +24,13 @@ import time
 import unittest
 from pathlib import Path
 
-import pytest
-
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
-    graph_under_test,
-    include_launch,
+    assert_touch_limited,
+    launch_test,
     pad_force_peaks,
+    touch_limit_n,
 )
 from prisma_testing.node_process import NodeProcess, console_script, run_process
 from prisma_testing.ros_harness import require_ros
@@ -39,21 +38,16 @@ from prisma_testing.ros_harness import require_ros
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from prisma_common.hand import FINGERS  # noqa: E402
 
-TOUCH_LIMIT_N = 2.0  # config/manipulation.yaml teleop_max_pad_force
-OVERSHOOT_N = 0.15
 FORCE_TOLERANCE_N = 0.2
 PAD_ROW = re.compile(r"^\s+(\w+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)\s+\S+$", re.M)
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", hardware="sim", sim_object="pinch_ball"))
+generate_test_description = launch_test("hand.launch.py", hardware="sim", sim_object="pinch_ball")
 
 
 def replay_command(dataset: Path, *args: str) -> list[str]:
@@ -107,20 +101,17 @@ class TestDatasetReplay(GraphTestCase):
         self.assertIn("verdict: the replay matches the recording", result.output)
         rows = {m[1]: [float(v) for v in m.groups()[1:]] for m in PAD_ROW.finditer(result.output)}
         self.assertEqual(sorted(rows), sorted(FINGERS), result.output)
-        for finger, (max_diff, _mean_diff, _recorded_peak, replayed_peak) in rows.items():
+        for finger, (max_diff, _mean_diff, _recorded_peak, _replayed_peak) in rows.items():
             self.assertLessEqual(max_diff, FORCE_TOLERANCE_N, finger)
-            self.assertLessEqual(replayed_peak, TOUCH_LIMIT_N + OVERSHOOT_N, finger)
-        for finger in ("thumb", "index"):  # the recording pinched the ball at the limit; so does the replay
-            self.assertGreaterEqual(rows[finger][2], TOUCH_LIMIT_N - 0.1, finger)
-            self.assertGreaterEqual(rows[finger][3], TOUCH_LIMIT_N - 0.1, finger)
+        # the recording pinched the ball at the limit; so does the replay
+        for finger in ("thumb", "index"):
+            self.assertGreaterEqual(rows[finger][2], touch_limit_n() - 0.1, finger)
+        assert_touch_limited({finger: row[3] for finger, row in rows.items()})
         self.assertTrue((self.work / "plots" / "replay_episode_000.png").is_file())
         # this test's own view of the pads over the replay, not the replay's report
         peaks = pad_force_peaks(self.wrenches, started_ns)
         print(f"pad Fz peaks seen by the test: { {f: round(v, 3) for f, v in peaks.items()} }")
-        for finger, peak in peaks.items():
-            self.assertLessEqual(peak, TOUCH_LIMIT_N + OVERSHOOT_N, finger)
-        for finger in ("thumb", "index"):
-            self.assertGreaterEqual(peaks[finger], TOUCH_LIMIT_N - 0.1, finger)
+        assert_touch_limited(peaks)
 
     def test_2_another_publisher_of_the_targets_is_refused(self):
         publisher = self.ros.probe.create_publisher(JointState, "/prisma/teleop/motor_targets", 10)

@@ -29,7 +29,7 @@ from prisma_testing.ros_harness import require_ros
 
 require_ros()
 
-import launch_testing.actions  # noqa: E402
+import launch_testing  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import HomeMotors  # noqa: E402
 from prisma_msgs.msg import TaxelArray  # noqa: E402

@@ -13,9 +13,7 @@ import os
 import signal
 import time
 
-import pytest
-
-from prisma_testing.launch_case import GraphTestCase, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, launch_test
 from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, closing_at_10_rpm, require_ros, stamp_ns, stopped
 
 require_ros()
@@ -28,9 +26,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 KILL_STOP_LIMIT_S = 0.5
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 class TestControllerLost(GraphTestCase):

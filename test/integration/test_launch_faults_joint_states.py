@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import time
 
-import pytest
-
-from prisma_testing.launch_case import GraphTestCase, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, launch_test
 from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
@@ -30,9 +28,7 @@ FOREIGN_HZ = 50.0
 ARM_JOINTS = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 def foreign_messages() -> list[JointState]:

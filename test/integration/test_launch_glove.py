@@ -16,15 +16,12 @@ import math
 import time
 import unittest
 
-import pytest
-
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test
 from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from prisma_msgs.msg import GloveFrame, ObjectEstimate, WeightEstimate  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
@@ -34,9 +31,7 @@ ARRIVAL_HZ = (6.5, 8.0)
 WINDOW_S = 4.0
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("glove.launch.py"))
+generate_test_description = launch_test("glove.launch.py")
 
 
 class TestGloveSim(GraphTestCase):

@@ -27,16 +27,14 @@ import time
 import unittest
 
 import numpy as np
-import pytest
 
 from prisma_testing.goals import goal_outcome, gripper_goal
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch, output_of
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test, output_of
 from prisma_testing.ros_harness import closing_at_10_rpm, require_ros, stamp_ns, stamped_after, stopped
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from launch.events.process import ProcessExited  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402
@@ -62,9 +60,7 @@ HORIZONTAL = Manipulate.Goal(motion="horizontal")
 SLOW_GRASP = Grasp.Goal(grasp="pinch", finger_force=3.0, thumb_force=3.0, speed_rpm=2.0)
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 class TestHandActions(GraphTestCase):

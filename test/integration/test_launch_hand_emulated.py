@@ -47,7 +47,7 @@ from prisma_testing.ros_harness import require_ros, stamp_ns, stopped
 
 require_ros()
 
-import launch_testing.actions  # noqa: E402
+import launch_testing  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.action import Grasp, Manipulate  # noqa: E402

@@ -21,16 +21,14 @@ import time
 import unittest
 
 import numpy as np
-import pytest
 
 from prisma_testing.goals import gripper_goal
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test
 from prisma_testing.ros_harness import joint, require_ros, stamp_ns, stamped_after
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from prisma_msgs.msg import HandWrench  # noqa: E402
@@ -43,9 +41,7 @@ from prisma_force_estimator.ros_conversions import hand_wrench_samples  # noqa: 
 BIAS_SAMPLES = 100  # config/force_estimator.yaml
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 class TestHandGripper(GraphTestCase):

@@ -18,16 +18,13 @@ from __future__ import annotations
 import time
 import unittest
 
-import pytest
-
 from prisma_testing.goals import gripper_goal
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test
 from prisma_testing.ros_harness import joint, require_ros, stamp_ns, stopped
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand  # noqa: E402
 from prisma_msgs.action import Manipulate  # noqa: E402
@@ -36,9 +33,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 CANCEL_STOP_S = 0.5
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true", sim_object="none"))
+generate_test_description = launch_test("hand.launch.py", sim="true", sim_object="none")
 
 
 class TestEmptyHandGripper(GraphTestCase):

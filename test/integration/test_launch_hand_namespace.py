@@ -41,7 +41,6 @@ from prisma_testing.ros_harness import require_ros
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402

@@ -26,7 +26,6 @@ require_ros()
 require_rviz()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402

@@ -22,15 +22,12 @@ import collections
 import time
 import unittest
 
-import pytest
-
 from prisma_testing.host_probe import HostProbe
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
-    graph_under_test,
-    include_launch,
     installed_parameters,
+    launch_test,
     output_of,
 )
 from prisma_testing.ros_harness import require_ros, stamp_ns
@@ -38,7 +35,6 @@ from prisma_testing.ros_harness import require_ros, stamp_ns
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from rclpy.action import get_action_server_names_and_types_by_node  # noqa: E402
 
@@ -84,9 +80,7 @@ GOAL_STATUSES = {"manipulation": {"manipulation: goals"}}
 TORQUE_OFF = "torque off: fingers, thumb_flexion, thumb_rotation"
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 def hand_rows():

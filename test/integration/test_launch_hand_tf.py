@@ -20,15 +20,13 @@ from __future__ import annotations
 import unittest
 
 import numpy as np
-import pytest
 
-from prisma_testing.launch_case import assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import assert_clean_shutdown, launch_test
 from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from prisma_msgs.action import Grasp  # noqa: E402
 from rclpy.time import Time  # noqa: E402
@@ -42,12 +40,9 @@ from prisma_hand_sim.sim_objects import OBJECTS  # noqa: E402
 from prisma_testing.tf_case import TfTestCase  # noqa: E402
 from prisma_testing.urdf_kinematics import link_poses  # noqa: E402
 
-
-@pytest.mark.launch_test
-def generate_test_description():
-    # one hand: the pinch's samples are compared one by one, and two hands' graphs on a 2-core machine
-    # left this process seconds behind them (the official CI's failures of the two-hand version)
-    return graph_under_test(include_launch("hand.launch.py", sim="true"))
+# one hand: the pinch's samples are compared one by one, and two hands' graphs on a 2-core machine
+# left this process seconds behind them (the official CI's failures of the two-hand version)
+generate_test_description = launch_test("hand.launch.py", sim="true")
 
 
 def stamp_ns_of(stamp) -> int:

@@ -26,23 +26,21 @@ import unittest
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from prisma_policy.sim_trials import CLOSED_N, TOUCH_LIMIT_N
-from prisma_policy.sim_trials import TOUCH_TOLERANCE_N as OVERSHOOT_N
+from prisma_policy.sim_trials import CLOSED_N
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
-    graph_under_test,
-    include_launch,
+    assert_touch_limited,
+    launch_test,
     pad_force_peaks,
 )
-from prisma_testing.ros_harness import NodeProcess, require_ros, stamp_ns
+from prisma_testing.node_process import NodeProcess
+from prisma_testing.ros_harness import require_ros, stamp_ns
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
@@ -50,9 +48,7 @@ MODEL = Path(__file__).parent / "data" / "policy_pinch_ball.pt"
 RUN_S = 8.0
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("hand.launch.py", hardware="sim", sim_object="pinch_ball"))
+generate_test_description = launch_test("hand.launch.py", hardware="sim", sim_object="pinch_ball")
 
 
 def policy_command(model: Path | str) -> list[str]:
@@ -104,10 +100,7 @@ class TestPolicyNode(GraphTestCase):
         self.assertGreater(len(in_window), 0.5 * RUN_S * 50, "the policy at 50 fps published too few targets")
         peaks = pad_force_peaks(wrenches, started_ns)
         print(f"pad Fz peaks under the policy: { {f: round(v, 3) for f, v in peaks.items()} }")
-        for finger, peak in peaks.items():
-            self.assertLessEqual(peak, TOUCH_LIMIT_N + OVERSHOOT_N, finger)
-        for finger in ("thumb", "index"):
-            self.assertGreaterEqual(peaks[finger], CLOSED_N, finger)
+        assert_touch_limited(peaks, reached_n=CLOSED_N)
         # stamped fresh, one per tick of the model's 50 fps (by stamp: this test's own receipt lags on a
         # loaded machine, which says nothing about the node)
         stamps = sorted(stamp_ns(m) for m in targets)

@@ -38,7 +38,6 @@ from prisma_testing.ros_harness import require_ros
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.msg import EpisodeMarker  # noqa: E402
 from prisma_msgs.srv import MarkEpisode  # noqa: E402

@@ -23,6 +23,7 @@ from prisma_testing.emulated_launch import wait_until_homed
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
+    assert_touch_limited,
     graph_under_test,
     include_launch,
     pad_force_peaks,
@@ -33,7 +34,6 @@ from prisma_testing.ros_harness import require_ros
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from prisma_msgs.msg import HandWrench  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
@@ -42,8 +42,6 @@ from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 
 # the same path in both imports of this module (launch_testing imports it twice)
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_teleop_emulated_{os.getpid()}"
-MAX_PAD_FORCE = 2.0  # config/manipulation.yaml teleop_max_pad_force
-OVERSHOOT_N = 0.15
 
 
 @pytest.mark.launch_test
@@ -74,10 +72,7 @@ class TestTeleopEmulated(WearingTheGlove, GraphTestCase):
         peaks = pad_force_peaks(self.wrenches, closing_ns)
         print(f"emulated: the hand stopped at { {m: round(v, 3) for m, v in held.items()} }, peak Fz "
               f"{ {f: round(v, 3) for f, v in peaks.items()} }")
-        for f, peak in peaks.items():
-            self.assertLessEqual(peak, MAX_PAD_FORCE + OVERSHOOT_N, f)
-        for f in ("thumb", "index"):
-            self.assertGreaterEqual(peaks[f], MAX_PAD_FORCE - 0.1, f)
+        assert_touch_limited(peaks)
         self.assertTrue(3.0 < held["fingers"] < 8.5, held)  # on the ball, short of the operator's fist
         glove.move(OPEN, 1.5)
         opened = self.wait_until_at(dict.fromkeys(MOTOR_NAMES, 0.0), 0.05, timeout_sec=15.0)

@@ -31,7 +31,6 @@ from prisma_testing.ros_harness import joint, require_ros, stamp_ns
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402

@@ -18,16 +18,13 @@ from __future__ import annotations
 import time
 import unittest
 
-import pytest
-
-from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, graph_under_test, include_launch
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test
 from prisma_testing.operator_glove import FIST, OperatorGlove, WearingTheGlove
 from prisma_testing.ros_harness import joint, require_ros, stamp_ns
 
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
@@ -40,9 +37,7 @@ MAX_MOVE_RAD = 0.02
 REFUSED = "/glove/joint_states stamped"
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    return graph_under_test(include_launch("teleop.launch.py", glove="none", engage="true"))
+generate_test_description = launch_test("teleop.launch.py", glove="none", engage="true")
 
 
 class TestTeleopStamps(WearingTheGlove, GraphTestCase):

@@ -23,7 +23,6 @@ from prisma_testing.ros_harness import require_ros
 require_ros()
 
 import launch_testing  # noqa: E402
-import launch_testing.actions  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from rclpy.time import Time  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402

@@ -1,16 +1,13 @@
 """What the launch tests share: the launch description a test starts, the test class on one
-RosHarness, the post-shutdown checks, and every launched process's full output kept in a file when a
-test fails.
+RosHarness, the checks of what a graph did (the touch limit) and after it stopped, and every launched
+process's full output kept in a file when a test fails.
 
-    @pytest.mark.launch_test
-    def generate_graph_under_test():
-        return graph_under_test(include_launch("hand.launch.py", sim="true"))
+    generate_test_description = launch_test("hand.launch.py", sim="true")
 
     class TestHand(GraphTestCase):
         @classmethod
         def subscribe(cls, ros):
-            cls.joints = ros.collect(JointState, "/joint_states")
-            cls.grasp = ros.action_client(Grasp, "/prisma/grasp", wait_sec=60.0)
+            cls.joints = ...  # ros.collect(...), ros.action_client(...): what every test of the class uses
 
 Kept output: `graph_under_test` registers a handler for every process's stdout and stderr (RViz's
 included) of the launch; `ros2 launch` and other commands a plain pytest test starts are NodeProcesses
@@ -25,7 +22,7 @@ import re
 import tempfile
 import time
 import unittest
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +103,18 @@ def graph_under_test(*actions: Any):
         launch_testing.actions.ReadyToTest()])
 
 
+def launch_test(launch_file: str, package: str = "prisma_bringup", **arguments: str) -> Callable[[], Any]:
+    """A launch test file's entry point, `generate_test_description = launch_test("hand.launch.py",
+    sim="true")`: the installed launch file with these arguments under graph_under_test (a file whose
+    launch needs more, a folder made first, writes its own generate_test_description)."""
+    import pytest
+
+    @pytest.mark.launch_test
+    def generate_test_description():
+        return graph_under_test(include_launch(launch_file, package, **arguments))
+    return generate_test_description
+
+
 def emulated_hand_launch(emulator_dir: Path, **arguments: str):
     """generate_graph_under_test's LaunchDescription for `hand.launch.py hardware:=emulated home:=true`
     with its devices in `emulator_dir` (created here): the servos come up as real ones do, without
@@ -180,6 +189,27 @@ def pad_force_peaks(hand_wrenches: Sequence, since_ns: int, fingers: Sequence[st
         raise AssertionError(f"no wrench of {', '.join(missing)} stamped at or after {since_ns} ns "
                              f"in {len(hand_wrenches)} HandWrench messages")
     return {f: peaks[f] for f in fingers}
+
+
+def touch_limit_n() -> float:
+    """teleop_max_pad_force of the installed config/manipulation.yaml: the launched manipulation node's
+    touch limit, where a teleoperated close stops each pad (N)."""
+    return float(installed_parameters("manipulation")["teleop_max_pad_force"])
+
+
+def assert_touch_limited(peaks: dict[str, float], reached_n: float | None = None,
+                         fingers: Sequence[str] = ("thumb", "index")) -> None:
+    """A close on the pinch ball stopped by the touch limit: no pad's peak estimated Fz (`pad_force_peaks`)
+    more than prisma-sim's force tolerance above `touch_limit_n`, and `fingers` (the two the ball sits
+    between) at `reached_n` or more (default: within 0.1 N of the limit)."""
+    from prisma_sim.sim_runner import FORCE_TOLERANCE_N
+
+    limit = touch_limit_n()
+    reached = limit - 0.1 if reached_n is None else reached_n
+    over = {f: round(p, 3) for f, p in peaks.items() if p > limit + FORCE_TOLERANCE_N}
+    short = {f: round(peaks[f], 3) for f in fingers if peaks[f] < reached}
+    assert not over and not short, (f"pads above {limit} + {FORCE_TOLERANCE_N} N: {over}; {', '.join(fingers)} "
+                                    f"below {reached:.3f} N: {short}")
 
 
 def process_outputs(proc_output: Any) -> dict[str, str]:

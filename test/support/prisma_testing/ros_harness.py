@@ -28,7 +28,6 @@ import pytest
 from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, try_rt_priority
 
 from .goals import HandGoals
-from .node_process import NodeProcess as NodeProcess  # test_launch_policy's import, until it names node_process
 from .priorities import TEST_DDS_NICE
 from .sim_clock import SimClock
 from .streams import Streams
