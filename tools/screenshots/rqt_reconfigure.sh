@@ -12,21 +12,12 @@
 set -euo pipefail
 
 out="${1:-docs/img/rqt_reconfigure_k.png}"
-missing=()
-for tool in Xvfb xdotool xwd convert ros2; do
-  command -v "$tool" >/dev/null || missing+=("$tool")
-done
-python3 -c "import PyQt5" 2>/dev/null || missing+=("PyQt5")
-python3 -c "import rqt_reconfigure" 2>/dev/null || missing+=("rqt_reconfigure")
-if [ "${#missing[@]}" -gt 0 ]; then
-  echo "rqt_reconfigure.sh: missing ${missing[*]} (apt-get install -y xvfb xdotool x11-apps imagemagick;" \
-       "PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh; source install/setup.bash)" >&2
-  exit 1
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
+require rqt_reconfigure.sh "apt-get install -y xvfb xdotool x11-apps imagemagick; PRISMA_ROS_GUI=1 source \
+../shared/ros2/setup.sh; source install/setup.bash" Xvfb xdotool xwd convert ros2 python:PyQt5 python:rqt_reconfigure
 [ -f config/manipulation.yaml ] || { echo "rqt_reconfigure.sh: run it from the repository root" >&2; exit 1; }
 
 width=1000 height=1180 crop_height=872
-source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
 screenshot_session rqt_reconfigure.sh "$width" "$height"
 
 run_group ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml \

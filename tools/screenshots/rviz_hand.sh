@@ -15,21 +15,14 @@
 set -euo pipefail
 
 out="${1:-docs/img/rviz_hand_pinch.png}"
-missing=()
-for tool in Xvfb xwd convert ros2 rviz2; do
-  command -v "$tool" >/dev/null || missing+=("$tool")
-done
-if [ "${#missing[@]}" -gt 0 ]; then
-  echo "rviz_hand.sh: missing ${missing[*]} (apt-get install -y xvfb x11-apps imagemagick;" \
-       "PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh; source install/setup.bash)" >&2
-  exit 1
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
+require rviz_hand.sh "apt-get install -y xvfb x11-apps imagemagick; PRISMA_ROS_GUI=1 source ../shared/ros2/setup.sh;\
+ source install/setup.bash" Xvfb xwd convert ros2 rviz2
 config="$(ros2 pkg prefix prisma_bringup 2>/dev/null)/share/prisma_bringup/config/hand.rviz"
 [ -f "$config" ] || { echo "rviz_hand.sh: no $config: colcon build, source install/setup.bash" >&2; exit 1; }
 
 width=1280 height=800
 export LIBGL_ALWAYS_SOFTWARE=1
-source "$(dirname "${BASH_SOURCE[0]}")/session.sh"
 screenshot_session rviz_hand.sh "$width" "$height" 5  # 5 s for the launch and rviz2 to stop
 
 run_group ros2 launch prisma_bringup hand.launch.py sim:=true >"$work/hand.log" 2>&1

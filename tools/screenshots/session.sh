@@ -1,5 +1,6 @@
 # Sourced by the screenshot scripts (bash): what each takes its picture in, set up once here.
 #
+#     require NAME HINT ITEM...                         # exit naming each ITEM missing (python:MODULE)
 #     screenshot_session NAME WIDTH HEIGHT [GRACE_S]   # a work folder, a ROS domain, a display of its own
 #     run_group COMMAND...                              # start COMMAND in a process group stopped at exit
 #     capture OUT CROP COLORS                           # the display into OUT.png, whole or not at all
@@ -7,6 +8,22 @@
 # At exit every group started here gets SIGINT, GRACE_S seconds (default 1) to shut down, then
 # SIGKILL (`ros2 run` leaves its node running when only it is stopped); the ROS daemon of the
 # domain is stopped and the work folder removed.
+
+require() {
+  local name=$1 hint=$2 item
+  local missing=()
+  shift 2
+  for item in "$@"; do
+    case $item in
+      python:*) python3 -c "import ${item#python:}" 2>/dev/null || missing+=("${item#python:}") ;;
+      *) command -v "$item" >/dev/null || missing+=("$item") ;;
+    esac
+  done
+  if [ "${#missing[@]}" -gt 0 ]; then
+    echo "$name: missing ${missing[*]} ($hint)" >&2
+    exit 1
+  fi
+}
 
 screenshot_session() {
   session_name=$1
