@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import pytest
 
@@ -48,16 +50,40 @@ def context():
     rclpy.try_shutdown(context=context)
 
 
+@contextmanager
+def probe_node(executor, context) -> Iterator:
+    """A node of `context` that `executor` spins; the node and the executor destroyed after."""
+    node = rclpy.create_node("executor_probe", context=context)
+    executor.add_node(node)
+    try:
+        yield node
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown()
+
+
+def spin_until(executor, done: Callable[[], bool], timeout_s: float = 5.0, step_s: float = 0.5) -> None:
+    """spin_once until `done()` or `timeout_s` has passed; the test's assert says which."""
+    deadline = time.monotonic() + timeout_s
+    while not done() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=step_s)
+
+
+def timer_calls(executor, node, times: int = 3) -> list[int]:
+    """A 10 ms timer on `node`, spun until it ran `times` times: one entry per run."""
+    calls: list[int] = []
+    node.create_timer(0.01, lambda: calls.append(1))
+    spin_until(executor, lambda: len(calls) >= times)
+    return calls
+
+
 @pytest.fixture
 def spun(context):
     """A SingleWaitExecutor spinning one node of `context`; both destroyed after the test."""
     executor = SingleWaitExecutor(context=context)
-    node = rclpy.create_node("executor_probe", context=context)
-    executor.add_node(node)
-    yield executor, node
-    executor.remove_node(node)
-    node.destroy_node()
-    executor.shutdown()
+    with probe_node(executor, context) as node:
+        yield executor, node
 
 
 class CountedWaitSets:
@@ -88,12 +114,10 @@ def waits_per_message(executor, context, monkeypatch, messages: int = 10) -> flo
     last was received."""
     counted = CountedWaitSets(rclpy_implementation.WaitSet)
     monkeypatch.setattr(rclpy_implementation, "WaitSet", counted)
-    node = rclpy.create_node("executor_probe", context=context)
-    try:
+    with probe_node(executor, context) as node:
         received: list = []
         node.create_subscription(Int32, "executor_probe", received.append, 10)
         publisher = node.create_publisher(Int32, "executor_probe", 10)
-        executor.add_node(node)
         deadline = time.monotonic() + 10.0
         while not received and time.monotonic() < deadline:  # until discovery matched the two
             publisher.publish(Int32(data=0))
@@ -116,10 +140,6 @@ def waits_per_message(executor, context, monkeypatch, messages: int = 10) -> flo
         sender.join()
         assert [m.data for m in received] == list(range(1, messages + 1))
         return counted.built / messages
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
 
 
 @fast_only
@@ -159,9 +179,7 @@ def test_a_coroutine_callback_resumes_when_the_future_it_awaits_is_set(spun):
     executor.spin_once(timeout_sec=0.1)
     assert not task.done()
     threading.Timer(0.1, lambda: future.set_result(42)).start()
-    deadline = time.monotonic() + 5.0
-    while not task.done() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
+    spin_until(executor, task.done, step_s=0.1)
     assert done == [42]
 
 
@@ -190,9 +208,7 @@ def test_a_plain_callbacks_exception_reaches_spin_once_and_the_timer_runs_again(
     node.create_timer(0.01, fails)
     with pytest.raises(ValueError, match="bad sample 7"):
         executor.spin_once(timeout_sec=5.0)
-    deadline = time.monotonic() + 5.0
-    while len(calls) < 3 and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.5)
+    spin_until(executor, lambda: len(calls) >= 3)
     assert len(calls) >= 3  # not left out of the wait set by the failed call
     assert tasks.made == 0  # no Task for a plain callback
 
@@ -202,19 +218,9 @@ def test_rclpy_executor_makes_a_task_per_callback(context, monkeypatch):
     tasks = CountedTasks()
     monkeypatch.setattr(rclpy.executors, "Task", tasks)
     executor = SingleThreadedExecutor(context=context)
-    node = rclpy.create_node("executor_probe", context=context)
-    try:
-        calls: list[int] = []
-        node.create_timer(0.01, lambda: calls.append(1))
-        executor.add_node(node)
-        deadline = time.monotonic() + 5.0
-        while len(calls) < 3 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.5)
+    with probe_node(executor, context) as node:
+        calls = timer_calls(executor, node)
         assert len(calls) >= 3 and tasks.made >= len(calls)
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
 
 
 @fast_only
@@ -233,18 +239,14 @@ def test_an_async_callback_and_a_busy_callback_group_run_as_in_rclpy(spun):
     received: list = []
     node.create_subscription(Int32, "executor_probe", received.append, 10, callback_group=group)
     publisher = node.create_publisher(Int32, "executor_probe", 10)
-    deadline = time.monotonic() + 5.0
-    while "async started" not in log and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
+    spin_until(executor, lambda: "async started" in log, step_s=0.1)
     holder.cancel()
     publisher.publish(Int32(data=5))
     for _ in range(20):  # the group is held: the subscription's turn is refused, the message kept
         executor.spin_once(timeout_sec=0.01)
     assert received == []
     gate.set_result(None)
-    deadline = time.monotonic() + 5.0
-    while not received and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
+    spin_until(executor, lambda: bool(received), step_s=0.1)
     assert log == ["async started", "async ended"]
     assert [m.data for m in received] == [5]
 
@@ -262,22 +264,11 @@ def test_an_unknown_rclpy_version_gets_the_stock_executor_and_says_so(context, f
     self_tests: list[int] = []
     monkeypatch.setattr(executor_module, "fast_executor_self_test", lambda context=None: self_tests.append(1))
     executor = new_executor(context)
-    node = rclpy.create_node("executor_probe", context=context)
-    try:
+    with probe_node(executor, context) as node:
         assert type(executor) is SingleThreadedExecutor
         assert self_tests == []  # an unproven rclpy is not tried
-        calls: list[int] = []
-        node.create_timer(0.01, lambda: calls.append(1))
-        executor.add_node(node)
-        deadline = time.monotonic() + 5.0
-        while len(calls) < 3 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.5)
-        assert len(calls) >= 3  # and it spins the node
+        assert len(timer_calls(executor, node)) >= 3  # and it spins the node
         assert type(new_executor(context)) is SingleThreadedExecutor  # the choice kept for the process
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown()
     logged = [line for line in capfd.readouterr().err.splitlines() if "[prisma_executor]" in line]
     assert len(logged) == 1, logged  # once per process, not per executor
     assert logged[0].endswith("executor: stock, rclpy's SingleThreadedExecutor: PRISMA_EXECUTOR=auto: "
