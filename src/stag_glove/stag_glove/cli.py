@@ -28,7 +28,6 @@ from .cli_common import (
     DATASET_SUFFIXES,
     add_bundle_out,
     add_data_args,
-    add_train_args,
     check_outputs,
     command_line,
     folds_arg,
@@ -38,6 +37,7 @@ from .cli_common import (
     splits_check,
     synthetic_dataset,
     train_config,
+    training_parser,
     weights_check,
     write_bundle,
     write_json,
@@ -64,10 +64,8 @@ def make_dataset_main(argv: list[str] | None = None) -> int:
 # -------------------------------------------------------------------------------- classifier
 @command("stag-train-classifier")
 def train_classifier_main(argv: list[str] | None = None) -> int:
-    parser = ArgumentParser(prog="stag-train-classifier", description="Object classifier: accuracy vs "
-                            "number of input frames N (random vs cluster selection) on held-out sessions.")
-    add_data_args(parser)
-    add_train_args(parser, epochs=12, lr_step=8)
+    parser = training_parser("stag-train-classifier", "Object classifier: accuracy vs number of input frames N "
+                             "(random vs cluster selection) on held-out sessions.", epochs=12, lr_step=8)
     parser.add_argument("--frames", type=frames_arg, default=list(range(1, 9)), help="N values, e.g. 1-8 or 1,2,4")
     parser.add_argument("--seeds", type=non_negative_int, nargs="+", default=[0, 1])
     parser.add_argument("--selection", nargs="+", default=["random", "cluster"], choices=("random", "cluster"))
@@ -126,8 +124,8 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
         ev = results.confusions[key]
         write_bundle(args.bundle_out, "object", results.models[key], {
             "width": args.width, "n_frames": args.bundle_frames, "labels": ds.objects,
-            "selection": args.bundle_selection, "normalisation": {"low": 500, "high": 650},
-            "trained_on": source, "command": command, "held_out_top1": ev.top1, "held_out_top3": ev.top3})
+            "selection": args.bundle_selection, "trained_on": source, "command": command,
+            "held_out_top1": ev.top1, "held_out_top3": ev.top3})
     print(f"done in {elapsed:.0f} s")
     return 0
 
@@ -135,10 +133,8 @@ def train_classifier_main(argv: list[str] | None = None) -> int:
 # -------------------------------------------------------------------------------- weight
 @command("stag-train-weight")
 def train_weight_main(argv: list[str] | None = None) -> int:
-    parser = ArgumentParser(prog="stag-train-weight", description="Weight regression in log space, "
-                            "leave-one-object-out, against the linear baseline a*sum(frame)+b.")
-    add_data_args(parser)
-    add_train_args(parser, epochs=15, lr_step=10)
+    parser = training_parser("stag-train-weight", "Weight regression in log space, leave-one-object-out, "
+                             "against the linear baseline a*sum(frame)+b.", epochs=15, lr_step=10)
     parser.add_argument("--folds", type=folds_arg, default=None,
                         help="'all' objects (the default), or a count spread over the weight range")
     parser.add_argument("--png", type=image_file)
@@ -181,7 +177,7 @@ def train_weight_main(argv: list[str] | None = None) -> int:
         train_weight(net, frames, grams, cfg, print, "[all objects] ")
         base = LinearBaseline.fit(frames.reshape(len(frames), -1).sum(1).numpy(), grams)
         write_bundle(args.bundle_out, "weight", net, {
-            "width": cfg.width, "normalisation": {"low": 500, "high": 650}, "target": "log(grams)",
+            "width": cfg.width, "target": "log(grams)",
             "linear_baseline": {"a": base.a, "b": base.b}, "trained_on": source, "command": command,
             "loo_cnn_mean_error_g": cnn, "loo_linear_mean_error_g": linear, "loo_folds": len(folds)})
     print(f"done in {time.perf_counter() - started:.0f} s")
@@ -191,10 +187,8 @@ def train_weight_main(argv: list[str] | None = None) -> int:
 # -------------------------------------------------------------------------------- pose
 @command("stag-train-pose")
 def train_pose_main(argv: list[str] | None = None) -> int:
-    parser = ArgumentParser(prog="stag-train-pose", description="Hand-pose classifier (7 grasps + empty "
-                            "hand), single frame, held-out session.")
-    add_data_args(parser)
-    add_train_args(parser, epochs=15, lr_step=10)
+    parser = training_parser("stag-train-pose", "Hand-pose classifier (7 grasps + empty hand), single frame, "
+                             "held-out session.", epochs=15, lr_step=10)
     parser.add_argument("--confusion-png", type=image_file)
     add_bundle_out(parser, "save the model here")
     args = parser.parse_args(argv)
@@ -216,8 +210,8 @@ def train_pose_main(argv: list[str] | None = None) -> int:
                                 "seconds": time.perf_counter() - started})
     if args.bundle_out:
         write_bundle(args.bundle_out, "pose", net, {"width": args.width, "n_frames": 1, "labels": ds.objects,
-                                                   "normalisation": {"low": 500, "high": 650}, "trained_on": source,
-                                                   "command": command, "held_out_top1": ev.top1})
+                                                   "trained_on": source, "command": command,
+                                                   "held_out_top1": ev.top1})
     print(f"done in {time.perf_counter() - started:.0f} s")
     return 0
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from prisma_common.atomic import atomic_output
 from prisma_common.cli_args import (
+    ArgumentParser,
     UserError,
     check_bundle_out,
     existing_file,
@@ -75,9 +76,20 @@ def check_outputs(args) -> None:
         check_bundle_out(args.bundle_out, "--bundle-out")
 
 
-def write_bundle(path: Path, kind: str, model, metadata: dict) -> None:
-    from .bundle import save_bundle
+def training_parser(prog: str, description: str, epochs: int, lr_step: int) -> ArgumentParser:
+    """A training command's parser: the data and training arguments, with its epochs and lr step."""
+    parser = ArgumentParser(prog=prog, description=description)
+    add_data_args(parser)
+    add_train_args(parser, epochs=epochs, lr_step=lr_step)
+    return parser
 
+
+def write_bundle(path: Path, kind: str, model, metadata: dict) -> None:
+    """The bundle, its metadata with the normalisation the training frames had (normalise's range)."""
+    from .bundle import save_bundle
+    from .processing import NormalisationConfig
+
+    metadata = {**metadata, "normalisation": {"low": NormalisationConfig.low, "high": NormalisationConfig.high}}
     with atomic_output(path) as staged:  # whole or not at all
         save_bundle(staged, kind, model, metadata)
     print(f"wrote bundle {path}")

@@ -32,7 +32,8 @@ class NormalisationConfig:
             raise ValueError(f"contact_margin must be >= 0, got {self.contact_margin}")
 
 
-def normalise(raw: np.ndarray, low: float = 500.0, high: float = 650.0) -> np.ndarray:
+def normalise(raw: np.ndarray, low: float = NormalisationConfig.low,
+              high: float = NormalisationConfig.high) -> np.ndarray:
     """Counts -> pressure 0..1 (float32), clipped; works on one frame or a stack."""
     scale = np.float32(1.0 / (high - low))
     out = (np.asarray(raw, dtype=np.float32) - np.float32(low)) * scale

@@ -40,6 +40,7 @@ def test_train_classifier_writes_curve_confusion_json_and_bundle(files, tmp_path
     bundle = load_bundle(out / "bundle", "object")
     assert bundle.n_frames == 3 and bundle.labels == load_dataset(files["object"]).objects
     assert bundle.metadata["selection"] == "cluster" and "stag-train-classifier" in bundle.metadata["command"]
+    assert bundle.metadata["normalisation"] == {"low": 500, "high": 650}  # the counts the frames were scaled from
 
 
 def test_train_weight_and_pose_and_correlation(files, tmp_path, capsys):
@@ -51,6 +52,7 @@ def test_train_weight_and_pose_and_correlation(files, tmp_path, capsys):
     assert weight["cnn_mean_error_g"] > 0 and weight["linear_mean_error_g"] > 0
     wb = load_bundle(tmp_path / "wb", "weight")
     assert set(wb.metadata["linear_baseline"]) == {"a", "b"}
+    assert wb.metadata["normalisation"] == {"low": 500, "high": 650}
     assert cli.main(["train-pose", "--dataset", str(files["pose"]), *TINY, "--out-json", str(tmp_path / "p.json"),
                      "--bundle-out", str(tmp_path / "pb")]) == 0
     pose = json.loads((tmp_path / "p.json").read_text())
