@@ -20,6 +20,7 @@ from prisma_manipulation.node_config import ManipulationConfig
 from .bag_export import ACTION, CONTACT, STATE, TACTILE, WRENCH
 from .dataset_check import CheckReport
 from .lerobot_format import EXPORT_NOTES_PATH
+from .verdict import verdict_lines
 
 FZ = 2  # observation.wrench's axis of the pad's normal force (fx fy fz tx ty tz)
 # the touch limit a Teleoperate goal with max_pad_force 0 gets: the manipulation node's default
@@ -67,11 +68,8 @@ def summary_lines(report: CheckReport, episode: int | None = None) -> list[str]:
         lines.append(line)
     lines.append(f"  outcomes: {', '.join(f'{n} {o}' for o, n in sorted(outcomes.items())) or 'no episode'}")
     lines.append(f"  gaps that ended episodes: {gaps}")
-    if report.ok:
-        lines.append("  invariants: all hold (info.json, features, index, episodes, timestamps, tasks, stats)")
-    else:
-        lines.append(f"  invariants: {len(report.problems)} broken")
-        lines += [f"    {p}" for p in report.problems]
+    lines += verdict_lines("invariants", report.problems,
+                           "all hold (info.json, features, index, episodes, timestamps, tasks, stats)", "broken")
     return lines
 
 

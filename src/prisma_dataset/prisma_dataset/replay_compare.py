@@ -26,6 +26,7 @@ from prisma_common.atomic import atomic_output
 
 from .replay_plan import ReplayEpisode
 from .sampling import NS
+from .verdict import verdict_lines
 
 
 @dataclass(frozen=True)
@@ -229,11 +230,7 @@ def report_lines(comparison: ReplayComparison, recording: ReplayRecording) -> li
     lines.append("  position RMS (rad): " + ", ".join(f"{m} {_n(v, '')}" for m, v in c.position_rms_rad.items()))
     lines.append(f"  tolerances: force {t.force_tolerance_n:g} N, touch limit {t.touch_limit_n:g} N + "
                  f"{t.overshoot_n:g} N, position RMS {t.position_tolerance_rad:g} rad")
-    if c.ok:
-        lines.append("  verdict: the replay matches the recording")
-    else:
-        lines.append(f"  verdict: {len(c.problems)} problem(s)")
-        lines += [f"    {p}" for p in c.problems]
+    lines += verdict_lines("verdict", c.problems, "the replay matches the recording", "problem(s)")
     return lines
 
 
