@@ -22,9 +22,10 @@ building the outgoing message from the incoming one (stamp and frame id copied):
                                            (the real graph's)                    (a JointState per /joint_states)
     watch                a display         --topic (MarkerArray)                 -
 
-`stretch` is the bare relay of the display bench (graph_bench/display.py): beside the real graph it
-takes the same two 100 Hz streams tendon_stretch reads and sends one JointState per /joint_states
-message (its stamp, names and positions copied), nothing computed and nothing dropped.
+`stretch` is tendon_stretch's relay in the display bench (graph_bench/display.py): beside the real
+graph it takes the same two 100 Hz streams tendon_stretch reads and sends one JointState per
+/joint_states message (its stamp, names and positions copied), nothing computed and nothing dropped.
+`markers`, watched by `watch`, is the display bench's bare relay (issue 42's unit).
 `markers` runs beside the real hand graph, as tactile_markers does, and sends the same MarkerArray
 (per finger a 9-cell CUBE_LIST, a SPHERE, an ARROW and a TEXT marker) with the newest ContactState's
 frame id and voltages copied in, nothing computed. `watch` subscribes to a MarkerArray topic as RViz

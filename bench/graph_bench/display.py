@@ -13,15 +13,19 @@ JointState copied out per /joint_states message, nothing computed; each tendon_s
 it (issue 42: a node at most 1.5 of its relay), and the graph over it too, for the figures of the
 session that measured against it (about half the bare relay's CPU, so twice the count).
 
-Figures per window: the graph's nodes together over the bare relay ("graph in relays": issue 42 asks
-at most 4.0 for the sim hand, 8 for two hands and the glove) and each tendon_stretch over its relay.
-Nobody watches the graph's markers and no goal runs: the graph at rest, as it runs beside RViz's
-robot model (the bare relay's subscription to /prisma/hand/contact has manipulation build and send
-it, as a watched tactile_markers does; that cost is counted in the graph). The executor of the graph's nodes is whatever PRISMA_EXECUTOR asks (inherited by the
-launch); the relays always run on rclpy's SingleThreadedExecutor, on the control path's rung
-(SCHED_FIFO 20 where permitted, as the hand bench's relays), the bare relay's display too: at the
-default rung a loaded machine starves a relay, which then drops samples and reads cheap. The graph
-runs as launched (its control path on that rung, the display nodes at the default one). Run it in a
+Before the relays start, one window of the graph alone (`graph_alone`: the issue's protocol, graph
+and relay one after the other, given over the median relay). Figures per window: the graph's nodes
+together over the bare relay ("graph in relays": issue 42 asks at most 4.0 for the sim hand, 8 for
+two hands and the glove) and each tendon_stretch over its relay. Nobody watches the graph's markers
+and no goal runs: the graph at rest, as it runs beside RViz's robot model (the bare relay's
+subscription to /prisma/hand/contact has manipulation build and send it, as a watched
+tactile_markers does; beside the relay that cost is counted in the graph).
+
+The executor of the graph's nodes is whatever PRISMA_EXECUTOR asks (inherited by the launch); the
+relays always run on rclpy's SingleThreadedExecutor, on the control path's rung (SCHED_FIFO 20
+where permitted, as the hand bench's relays), the bare relay's display too: at the default rung a
+loaded machine starves a relay, which then drops samples and reads cheap. The graph runs as
+launched (its control path on that rung, the display nodes at the default one). Run it in a
 ROS_DOMAIN_ID of its own on a shared machine: another graph in the domain feeds the relays too.
 """
 from __future__ import annotations
@@ -63,6 +67,13 @@ def run_display(control: Any, graph: str, out: Path, repeat: int, settle_s: floa
     procs = [launch]
     try:
         pids = namespaced_node_pids([launch.popen.pid], [(label, node, ns, "") for label, node, ns in nodes])
+        # one window of the graph alone first (the issue's protocol: the graph, then the relay, one
+        # after the other): beside the bare relay, manipulation also builds /prisma/hand/contact for it
+        control.wait_publishers([f"{namespace}/prisma/hand/wrench", f"{namespace}/prisma/model_joint_states"],
+                                120.0, procs)
+        time.sleep(settle_s)
+        print(f"display {graph}: the graph alone", flush=True)
+        alone = measure_cpu({**pids, "launch": launch.popen.pid}, cpu_s)
         relay_args = ["--ros-args", "-r", f"__ns:={namespace}"] if namespace else []
         # the relays and the bare relay's display on the control path's rung, as the hand bench's
         # relays: on a loaded machine a relay at the default rung is starved, drops samples and reads cheap
@@ -87,8 +98,14 @@ def run_display(control: Any, graph: str, out: Path, repeat: int, settle_s: floa
             check_alive(procs)
     finally:
         stop(procs)
-    return {"graph": graph, "launch": " ".join(launch_args), "machine_before": before, "windows": windows,
-            "summary": summarise_display(windows, [label for label, _, _ in nodes])}
+    labels = [label for label, _, _ in nodes]
+    summary = summarise_display(windows, labels)
+    graph_alone = round(sum(alone["processes"][n]["cpu_pct"] for n in labels), 1)
+    summary["graph_alone"] = {"graph_nodes_pct": graph_alone, "loadavg_1min": alone["loadavg_1min"],
+                              "in_median_relays": round(graph_alone / max(1e-9, summary["relay_pct"]["median"]), 3),
+                              "per_node_pct": {n: alone["processes"][n]["cpu_pct"] for n in labels}}
+    return {"graph": graph, "launch": " ".join(launch_args), "machine_before": before, "alone": alone,
+            "windows": windows, "summary": summary}
 
 
 def summarise_display(windows: list[dict], nodes: list[str]) -> dict:
