@@ -13,12 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from prisma_common.atomic import atomic_output
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_manipulation.node_config import ManipulationConfig
 
 from .bag_export import ACTION, CONTACT, STATE, TACTILE, WRENCH
 from .dataset_check import CheckReport
+from .figures import pyplot, save_figure
 from .lerobot_format import EXPORT_NOTES_PATH
 from .verdict import verdict_lines
 
@@ -90,11 +90,7 @@ def moments(frames: dict[str, np.ndarray], span: slice) -> list[tuple[str, int]]
 def plot_episode(report: CheckReport, number: int, out: Path, touch_limit_n: float = DEFAULT_TOUCH_LIMIT_N) -> Path:
     """One episode: motor positions against the actions, the normal forces with the touch limit,
     and the taxel heat maps at the first contact and the peak force."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     row = report.episodes[number]
     span = slice(row["dataset_from_index"], row["dataset_to_index"])
     t = report.frames["timestamp"][span]
@@ -131,12 +127,7 @@ def plot_episode(report: CheckReport, number: int, out: Path, touch_limit_n: flo
             pad.set_yticks([])
             pad.set_title(f"{finger}" + (f"\n{label} {t[frame]:.2f} s" if f == 0 else ""), fontsize=8)
         fig.colorbar(image, ax=pad, fraction=0.046, label="V")
-    fig.suptitle(f"episode {number}: {row['tasks'][0]}")
-    fig.tight_layout()
-    with atomic_output(out) as staged:
-        fig.savefig(staged, dpi=80)
-    plt.close(fig)
-    return out
+    return save_figure(fig, f"episode {number}: {row['tasks'][0]}", out)
 
 
 def episode_numbers(report: CheckReport, episode: int | None) -> list[int]:

@@ -22,8 +22,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from prisma_common.atomic import atomic_output
-
+from .figures import pyplot, save_figure
 from .replay_plan import ReplayEpisode
 from .sampling import NS
 from .verdict import verdict_lines
@@ -236,11 +235,7 @@ def report_lines(comparison: ReplayComparison, recording: ReplayRecording) -> li
 
 def plot_comparison(episode: ReplayEpisode, comparison: ReplayComparison, out: Path) -> Path:
     """Recorded against replayed: each motor's position, then each pad's normal force with the touch limit."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     t = np.arange(episode.frames) / episode.fps
     rows = len(episode.motors) + 1
     fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True)
@@ -261,9 +256,4 @@ def plot_comparison(episode: ReplayEpisode, comparison: ReplayComparison, out: P
     ax.set_xlabel("time in the episode (s, at the recording's pace)")
     ax.legend(loc="upper right", ncol=3, fontsize=7)
     verdict = "matches" if comparison.ok else f"{len(comparison.problems)} problem(s)"
-    fig.suptitle(f"replay of episode {episode.number}: {verdict}")
-    fig.tight_layout()
-    with atomic_output(out) as staged:
-        fig.savefig(staged, dpi=80)
-    plt.close(fig)
-    return out
+    return save_figure(fig, f"replay of episode {episode.number}: {verdict}", out)
