@@ -287,9 +287,12 @@ def test_per_hand_streams_give_each_sample_once_and_the_same_grasp(ros, hand):
 
 def test_cancel_stops_the_motors(ros, hand):
     h = hand(stand_world())
+    watchdog = h.manipulation._watchdog
+    assert watchdog.is_canceled()  # idle: nothing to watch, the node is not woken 50 times a second
     handle = send(ros, f"{NS}/prisma/grasp", Grasp, Grasp.Goal(grasp="pinch", timeout=5.0))
     ros.advance(0.3, step=STEP, settle=True)
     assert velocity(h.joints, "fingers") > 6.0  # rad/s: closing at 60 rpm
+    assert not watchdog.is_canceled()
     canceled_at = ros.now_ns()
     handle.cancel_goal_async()
     outcome = finish(ros, handle)
@@ -303,6 +306,7 @@ def test_cancel_stops_the_motors(ros, hand):
     ros.advance(0.3, step=STEP, settle=True)
     assert velocity(h.joints, "fingers") == pytest.approx(0.0, abs=1e-3)
     assert position(h.joints, "fingers") == pytest.approx(stopped_at, abs=1e-4)
+    assert watchdog.is_canceled()  # its first tick after the goal ended stopped it
 
 
 def result_text(result) -> str:
@@ -629,15 +633,18 @@ def test_manipulation_node_destroyed_mid_goal_stops_the_motors_within_half_a_sec
     assert handle.accepted
     ros.advance(0.35, step=STEP, settle=True)
     assert velocity(h.joints, "fingers") > 6.0  # rad/s: closing at 60 rpm
-    last_refresh = h.move_goals[-1][0]
+    last_refresh, last_goal = h.move_goals[-1]
+    # the lease counts from the stamp of the data the refresh was made of: its arrival on a watchdog
+    # tick sends data up to one sample period old, on a sample the sample's own instant
+    assert last_refresh - 10 * MS <= last_goal.stamp_ns <= last_refresh
     ros.destroy_node(h.manipulation)  # as if its process died: no refresh, no cancel
     lost_at = ros.now_ns()
     ros.advance(0.6, step=STEP, settle=True)
     first_still = next(m for m in h.joints if stamp_ns(m) > lost_at and stopped(m, SIM_STOPPED_RAD_S))
     assert stamp_ns(first_still) - lost_at <= 500 * MS
-    # the goal's 0.3 s lease from its last refresh ends on the driver's tick at that instant, which
-    # stops the motors before it reads them: that tick's /joint_states already shows them braking
-    assert braking_ns(h.joints, lost_at, "fingers") - last_refresh == MOVE_LEASE_S * 1e9
+    # the goal's 0.3 s lease from its last refresh's stamp ends on the driver's tick at that instant,
+    # which stops the motors before it reads them: that tick's /joint_states already shows them braking
+    assert braking_ns(h.joints, lost_at, "fingers") - last_goal.stamp_ns == MOVE_LEASE_S * 1e9
     assert all(stopped(m, SIM_STOPPED_RAD_S) for m in h.joints if stamp_ns(m) >= stamp_ns(first_still))
     assert not h.motor.core.runner.active  # the goal was dropped
     assert ros.wait_for_log(name="motor_driver", contains="MoveMotors goal ended: timeout")

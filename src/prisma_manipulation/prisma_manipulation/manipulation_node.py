@@ -2,7 +2,8 @@
 one action server per goal kind (goal_kinds.GOAL_KINDS: Grasp on /prisma/grasp, Manipulate
 on /prisma/manipulate, control_msgs GripperCommand on /prisma/gripper_cmd, Teleoperate on
 /prisma/teleoperate following /prisma/teleop/motor_targets), one goal at a time across them, a
-client of /prisma/motors/move, and the 100 ms sensor watchdog.
+client of /prisma/motors/move, and the 100 ms sensor watchdog (checking every watchdog_period while
+a goal runs; an idle node's timer is cancelled).
 
     ros2 run prisma_manipulation manipulation --ros-args --params-file config/manipulation.yaml
 
@@ -125,6 +126,9 @@ class ManipulationNode(Node):
                                       cancel_callback=self._on_cancel, callback_group=group,
                                       result_timeout=RESULT_TIMEOUT_S) for kind in kinds]
         self._watchdog = self.create_timer(self.config.watchdog_period, self._on_watchdog, callback_group=group)
+        # it ticks only while a goal runs (idle, the core's check has nothing to watch): the idle node
+        # is not woken watchdog_period^-1 times a second for nothing, beside the control path
+        self._watchdog.cancel()
         # each goal's end, on /diagnostics at once and every second (`manipulation: goals`), and which
         # ends the log shows: a kind without a result text logs a failure once per episode
         self.goal_ends = GoalEnds(frozenset(k.name for k in kinds if not k.result_has_text))
@@ -183,6 +187,8 @@ class ManipulationNode(Node):
         if self._goal is not None and self._goal.is_cancel_requested:
             self._apply(self.core.cancel(now))
         self._apply(self.core.check(now))
+        if self._goal is None and not self.core.busy:
+            self._watchdog.cancel()  # until the next goal starts it (_execute)
 
     # ---- goals -----------------------------------------------------------------------------
     def _on_cancel(self, goal_handle) -> CancelResponse:
@@ -212,6 +218,7 @@ class ManipulationNode(Node):
         self.get_logger().info(f"{kind.name} goal started: {request}")
         done = self._goal_done = Future()
         self._goal = goal_handle
+        self._watchdog.reset()  # its first check one watchdog_period from now
         self._apply(actions)  # may end it at once (a gripper already at its position)
         return await done
 
