@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from prisma_common import topics
 
-TARGETS_TOPIC = "/prisma/teleop/motor_targets"  # the teleop node's prisma/teleop/motor_targets
+TARGETS_TOPIC = topics.TELEOP_TARGETS  # the teleop node's prisma/teleop/motor_targets
 GLOVE_TOPIC = "/glove/joint_states"  # a hand-pose glove's (the synthetic_glove node's) glove/joint_states
 STAG_FRAME_TOPIC = "/stag/frame"  # the STAG glove's glove_driver: prisma_msgs/msg/GloveFrame
 EPISODE_TOPIC = "/prisma/teleop/episode"  # the teleop node's episode markers (prisma_msgs/msg/EpisodeMarker)

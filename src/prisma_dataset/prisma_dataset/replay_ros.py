@@ -30,6 +30,7 @@ from sensor_msgs.msg import JointState
 from prisma_common.cli_args import UserError
 from prisma_common.messages import robot_types
 from prisma_common.scheduling import CONTROL_PATH_RT_PRIORITY, try_rt_priority
+from prisma_common.topics import TELEOPERATE_ACTION, TELEOP_TARGETS, relative
 from prisma_force_estimator.ros_conversions import wrench_from_msg
 from prisma_manipulation.ros_conversions import contact_state_from_msg, joint_sample_from_msg
 from prisma_teleop.node_config import TeleopConfig
@@ -40,8 +41,7 @@ from .replay_compare import ReplayRecording, Samples
 from .replay_plan import STARTING, CancelGoal, Finished, Publish, ReplayCore, SendGoal
 from .sampling import NS
 
-TARGETS_TOPIC = "prisma/teleop/motor_targets"
-TELEOPERATE_ACTION = "prisma/teleoperate"
+TARGETS_TOPIC = relative(TELEOP_TARGETS)
 DEPTH = 10
 DISCOVERY_SETTLE_S = 1.0  # after the server appeared: the rest of the graph (a teleop node's publisher) too
 WATCH_PERIOD_S = 0.5  # how often a replay looks for another publisher of the targets

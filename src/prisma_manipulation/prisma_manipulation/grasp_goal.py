@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from prisma_common.topics import GRASP_ACTION
+
 from .controllers import Controller
 from .goal_kind import (
     Built,
@@ -39,7 +41,7 @@ class GraspStatus:
 
 class GraspGoal(GoalKind[GraspRequest]):
     name, label = "grasp", "Grasp"
-    action, action_type = "prisma/grasp", "prisma_msgs/action/Grasp"
+    action, action_type = GRASP_ACTION, "prisma_msgs/action/Grasp"
     request_type = GraspRequest
 
     def resolve(self, req: GraspRequest, ctx: GoalContext) -> tuple[GraspRequest | None, str | None]:

@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from prisma_common.topics import GRIPPER_ACTION
+
 from .controllers import Controller
 from .goal_kind import Built, Feedback, Finished, GoalContext, GoalKind, Streams, Types, f32, finite
 from .gripper_controller import GripperController
@@ -29,7 +31,7 @@ class GripperStatus:
 
 class GripperGoal(GoalKind[GripperRequest]):
     name, label = "gripper", "GripperCommand"
-    action, action_type = "prisma/gripper_cmd", "control_msgs/action/GripperCommand"
+    action, action_type = GRIPPER_ACTION, "control_msgs/action/GripperCommand"
     request_type = GripperRequest
     result_has_text = False
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from prisma_common.topics import MANIPULATE_ACTION
+
 from .contact_monitor import check_k
 from .controllers import Controller
 from .goal_kind import (
@@ -45,7 +47,7 @@ class ManipulateStatus:
 
 class ManipulateGoal(GoalKind[ManipulateRequest]):
     name, label = "manipulate", "Manipulate"
-    action, action_type = "prisma/manipulate", "prisma_msgs/action/Manipulate"
+    action, action_type = MANIPULATE_ACTION, "prisma_msgs/action/Manipulate"
     request_type = ManipulateRequest
 
     def resolve(self, req: ManipulateRequest, ctx: GoalContext) -> tuple[ManipulateRequest | None, str | None]:

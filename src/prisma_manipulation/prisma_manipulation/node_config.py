@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_common.parameters import ParameterError, Params, check_fingers, parameter
 from prisma_common.sample_stamps import StampLimits
+from prisma_common.topics import MOVE_MOTORS_ACTION
 from prisma_motor_driver.backend import (
     DEFAULT_MAX_POSITIONS,
     DEFAULT_MIN_POSITIONS,
@@ -149,7 +150,7 @@ class ManipulationConfig(Params):
                                     rules="one entry per motor, in the order of motor_names; above min_positions")
     limit_margin: float = parameter(0.02, "a motor this close to a limit counts as at the limit", unit="rad",
                                     bounds=(0.0, 1.0), open_low=True)
-    move_action: str = parameter("prisma/motors/move", "the motor driver's MoveMotors action (relative: follows the "
+    move_action: str = parameter(MOVE_MOTORS_ACTION, "the motor driver's MoveMotors action (relative: follows the "
                                                        "node's namespace)")
 
     def check_rules(self) -> None:

@@ -22,6 +22,7 @@ import numpy as np
 
 from prisma_common.hand import MOTOR_NAMES
 from prisma_common.messages import ns_from_stamp, sequence_field
+from prisma_common.topics import TELEOPERATE_ACTION, TELEOP_TARGETS, relative
 
 from .controllers import Controller
 from .goal_kind import Built, Feedback, Finished, GoalContext, GoalKind, InputStream, Streams, Types, f32, finite
@@ -29,7 +30,7 @@ from .node_config import MAX_INPUT_TIMEOUT_S
 from .teleop_controller import PRESSING_MOTORS, TARGET_STREAM, TeleopController, TeleopTarget, pads_of
 
 INPUT_STALE = "input_stale"
-TARGETS_TOPIC = "prisma/teleop/motor_targets"
+TARGETS_TOPIC = relative(TELEOP_TARGETS)
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class TeleopStatus:
 
 class TeleopGoal(GoalKind[TeleopRequest]):
     name, label = "teleop", "Teleoperate"
-    action, action_type = "prisma/teleoperate", "prisma_msgs/action/Teleoperate"
+    action, action_type = TELEOPERATE_ACTION, "prisma_msgs/action/Teleoperate"
     request_type = TeleopRequest
     inputs = (InputStream(TARGET_STREAM, TARGETS_TOPIC, "sensor_msgs/msg/JointState",
                           lambda msg: teleop_target_from_msg(msg)),)  # (defined below)

@@ -25,6 +25,7 @@ from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.hand_config import HandConfig, HandConfigError
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
+from prisma_common.topics import HOME_MOTORS_ACTION, MOVE_MOTORS_ACTION
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import stream_publisher
@@ -44,8 +45,7 @@ from .ros_conversions import (
     move_result_to_msg,
 )
 
-MOVE_ACTION = "prisma/motors/move"
-HOME_ACTION = "prisma/motors/home"
+MOVE_ACTION, HOME_ACTION = MOVE_MOTORS_ACTION, HOME_MOTORS_ACTION
 
 
 class MotorDriverNode(Node):

@@ -32,6 +32,7 @@ from sensor_msgs.msg import JointState
 from prisma_common.hand import FINGERS
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
+from prisma_common.topics import TELEOPERATE_ACTION, TELEOP_TARGETS, relative
 from prisma_node_wiring.node_parameters import declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import FingerAndHandInput, stream_publisher, stream_subscription
@@ -49,8 +50,7 @@ from .ros_conversions import (
     wrench_from_msg,
 )
 
-TARGETS_TOPIC = "prisma/teleop/motor_targets"
-TELEOPERATE_ACTION = "prisma/teleoperate"
+TARGETS_TOPIC = relative(TELEOP_TARGETS)
 
 
 class PolicyNode(Node):

@@ -29,6 +29,7 @@ import numpy as np
 
 from prisma_common.bag import BagWriter
 from prisma_common.hand import FINGERS, MOTOR_NAMES
+from prisma_common.topics import TELEOP_TARGETS
 from prisma_common.typestore import types as typestore_types
 from prisma_force_estimator.inference import ForceEstimator
 from prisma_hand_sim.hand_world import HandWorld
@@ -48,7 +49,7 @@ from .hand_session import HandRecorder
 
 TELEOP = "teleop"
 NS = 1_000_000_000
-GLOVE_TOPIC, TARGETS_TOPIC = "/glove/joint_states", "/prisma/teleop/motor_targets"
+GLOVE_TOPIC, TARGETS_TOPIC = "/glove/joint_states", TELEOP_TARGETS
 STOPPED_RPM = 0.229  # one velocity unit of an X-series Dynamixel: "stopped" as the launch tests read it
 SILENT_S = 1.0  # the run goes on this long after the glove fell silent
 DESCRIPTION = ("the synthetic operator's hand-pose glove (60 Hz) closes to a fist over the pinch ball, holds, opens "

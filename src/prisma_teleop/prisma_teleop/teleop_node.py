@@ -49,6 +49,7 @@ from std_srvs.srv import SetBool, Trigger
 from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.messages import ns_from_stamp, robot_types
 from prisma_common.parameters import ParameterError
+from prisma_common.topics import GRASP_ACTION, GRIPPER_ACTION, TELEOPERATE_ACTION, TELEOP_TARGETS, relative
 from prisma_node_wiring.node_parameters import accept_live_changes, declare_config
 from prisma_node_wiring.node_process import run_node
 from prisma_node_wiring.sample_streams import stream_publisher, stream_subscription
@@ -70,8 +71,8 @@ from .ros_conversions import (
 from .stag_poses import GraspCommand, OpenCommand
 from .teleop_core import CancelGoal, HandPoseTeleop, Note, SendGoal, StagTeleop, describe
 
-ACTIONS = {"teleoperate": (Teleoperate, "prisma/teleoperate"), "grasp": (Grasp, "prisma/grasp"),
-           "open": (GripperCommand, "prisma/gripper_cmd")}
+ACTIONS = {"teleoperate": (Teleoperate, TELEOPERATE_ACTION), "grasp": (Grasp, GRASP_ACTION),
+           "open": (GripperCommand, GRIPPER_ACTION)}
 EPISODE_TOPIC = "prisma/teleop/episode"
 # depth 1: a subscriber joining late (a recorder) gets the last marker only, the open episode's start
 # while one is open; reliable: no marker is lost to a busy subscriber (they come seconds apart)
@@ -92,7 +93,7 @@ class TeleopNode(Node):
             calibration, loaded = self._calibration()
             glove = self.resolve_topic_name("glove/joint_states")
             self.core = HandPoseTeleop(config, calibration, captured=loaded, input_topic=glove)
-            self._targets = stream_publisher(self, JointState, "prisma/teleop/motor_targets")
+            self._targets = stream_publisher(self, JointState, relative(TELEOP_TARGETS))
             stream_subscription(self, JointState, "glove/joint_states", self._on_hand_pose)
             for pose in POSES:
                 self.create_service(Trigger, f"~/capture_{pose}",
