@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prisma_common.diagnostics import ERROR, OK, WARN, DiagnosticStatusData
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_motor_driver.control_table import rpm_to_rad_s
 
@@ -52,6 +53,10 @@ class PolicyCore:
         self.stamps: dict[str, int] = {}  # input name ("taxels/index", "wrench/thumb", "joint_states") -> stamp
         self.goal_running = False
         self.goal_retry_ns: int | None = None  # no goal before this (one ended or was refused)
+        self.holding: str | None = None  # why the last tick published nothing; None while it acts
+        self.acts = 0  # ticks that published targets
+        self.goals_sent = 0
+        self.last_goal_end = "none"
 
     # ---- inputs --------------------------------------------------------------------------------
     def on_taxels(self, finger: str, stamp_ns: int, voltages: np.ndarray) -> None:
@@ -88,21 +93,40 @@ class PolicyCore:
         return None
 
     def tick(self, now_ns: int) -> Act | Hold:
-        if self.policy is None:
-            return Hold(self.no_model_reason)
-        stale = self.stale_input(now_ns)
-        if stale is not None:
-            return Hold(stale)
+        reason = self.no_model_reason if self.policy is None else self.stale_input(now_ns)
+        self.holding = reason
+        if reason is not None:
+            return Hold(reason)
+        assert self.policy is not None
         targets = self.policy.act(self.tactile, self.wrench, self.state)
         send = not self.goal_running and (self.goal_retry_ns is None or now_ns >= self.goal_retry_ns)
         if send:
             self.goal_running = True
+            self.goals_sent += 1
+        self.acts += 1
         return Act(now_ns, dict(zip(MOTOR_NAMES, map(float, targets))), send)
 
-    def on_goal_ended(self, now_ns: int) -> None:
-        """The goal ended (input_stale, aborted, refused): the next one after RETRY_S, if the policy acts."""
+    def on_goal_ended(self, now_ns: int, reason: str = "ended") -> None:
+        """The goal ended (input_stale, aborted, refused: `reason`): the next one after RETRY_S, if the
+        policy acts."""
         self.goal_running = False
         self.goal_retry_ns = now_ns + int(RETRY_S * NS)
+        self.last_goal_end = reason
+
+    def diagnostics(self) -> DiagnosticStatusData:
+        """The node's status (name `policy`): ERROR without a model, WARN while it holds (with why), OK
+        while it acts; the targets published, the goals sent and how the last one ended."""
+        model = "none" if self.policy is None else f"{self.policy.episodes} episodes at {self.policy.fps} fps"
+        values = {"model": model,
+                  "targets_published": str(self.acts), "goals_sent": str(self.goals_sent),
+                  "goal_running": str(self.goal_running).lower(), "last_goal_end": self.last_goal_end}
+        if self.policy is None:
+            level, message = ERROR, self.no_model_reason
+        elif self.holding is not None:
+            level, message = WARN, f"publishing nothing: {self.holding}"
+        else:
+            level, message = OK, "acting"
+        return DiagnosticStatusData("policy", level, message, values=values)
 
     def period_s(self, rate_hz: float) -> float:
         """The tick period: `rate_hz`, or the model's fps when 0 (10 Hz without a model, to say why)."""

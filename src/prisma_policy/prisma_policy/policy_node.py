@@ -13,7 +13,9 @@ teleop node's default fields, so the manipulation node's touch limit and stale-i
 it as to a glove. A missing or stale input publishes nothing, logged once when the policy stops
 acting (and once when it acts again; each at most every 5 s). Without a model (model_path "")
 nothing is published and no publisher is made. Letting go is the operator's: stop the node, and
-the goal ends input_stale.
+the goal ends input_stale. /diagnostics every second: status `policy` (ERROR without a model, WARN
+while it publishes nothing and why, OK while it acts; targets published, goals sent, the last goal's
+end).
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from prisma_msgs.action import Teleoperate
 from prisma_msgs.msg import HandTaxels, HandWrench, TaxelArray
@@ -29,6 +32,7 @@ from rclpy.node import Node
 from rosidl_runtime_py.utilities import get_action, get_message
 from sensor_msgs.msg import JointState
 
+from prisma_common.diagnostics import diagnostics_to_msg, in_namespace
 from prisma_common.hand import FINGERS
 from prisma_common.messages import robot_types
 from prisma_common.parameters import ParameterError
@@ -51,6 +55,7 @@ from .ros_conversions import (
 )
 
 TARGETS_TOPIC = relative(TELEOP_TARGETS)
+DIAGNOSTICS_PERIOD_S = 1.0  # as the other nodes: robot monitors show a status as stale after a few seconds
 
 
 class PolicyNode(Node):
@@ -72,6 +77,8 @@ class PolicyNode(Node):
         self._client = ActionClient(self, Teleoperate, TELEOPERATE_ACTION) if policy is not None else None
         period = self.core.period_s(config.rate_hz)
         self.create_timer(period, self._on_tick)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_status)
         if policy is None:
             self.get_logger().warning(self.core.no_model_reason)
         else:
@@ -115,7 +122,7 @@ class PolicyNode(Node):
         if not self._client.server_is_ready():
             self.get_logger().warning(f"no action server {self.resolve_topic_name(TELEOPERATE_ACTION)} (is the "
                                       "manipulation node running?); trying again", throttle_duration_sec=5.0)
-            self.core.on_goal_ended(self._now_ns())
+            self.core.on_goal_ended(self._now_ns(), "no action server")
             return
         self.get_logger().info("sending the Teleoperate goal")
         self._client.send_goal_async(policy_goal_to_msg(self.types)).add_done_callback(self._on_accepted)
@@ -123,7 +130,7 @@ class PolicyNode(Node):
     def _on_accepted(self, future) -> None:
         handle = future.result()
         if not handle.accepted:  # the manipulation node accepts every goal and aborts those it refuses
-            self.core.on_goal_ended(self._now_ns())
+            self.core.on_goal_ended(self._now_ns(), "not accepted")
             return
         self._handle = handle
         handle.get_result_async().add_done_callback(self._on_result)
@@ -134,7 +141,11 @@ class PolicyNode(Node):
                   else str(getattr(wrapped.result, "reason", "")) or "ended")
         self._handle = None
         self.get_logger().info(f"Teleoperate goal ended: {reason}")
-        self.core.on_goal_ended(self._now_ns())
+        self.core.on_goal_ended(self._now_ns(), reason)
+
+    def _on_status(self) -> None:
+        statuses = in_namespace([self.core.diagnostics()], self.get_namespace())
+        self._diag_pub.publish(diagnostics_to_msg(self.types, self._now_ns(), statuses))
 
     def destroy_node(self) -> None:
         # Node.destroy_node would leave the action client (and so the node) in the graph

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from prisma_common.diagnostics import ERROR, OK, WARN
 from prisma_common.hand import FINGERS, MOTOR_NAMES
 from prisma_motor_driver.control_table import rpm_to_rad_s
 from prisma_policy.bc_policy import Policy
@@ -102,3 +103,28 @@ def test_the_period_is_the_rate_or_the_models_fps():
     core = PolicyCore(linear_policy(), 0.1)
     assert core.period_s(0.0) == pytest.approx(1 / 50)
     assert core.period_s(25.0) == pytest.approx(1 / 25)
+
+
+def test_diagnostics_say_no_model_holding_and_acting_with_the_counts():
+    without = PolicyCore(None, 0.05, "no model: give model_path")
+    without.tick(NS)
+    status = without.diagnostics()
+    assert (status.name, status.level, status.message) == ("policy", ERROR, "no model: give model_path")
+    assert status.values["model"] == "none" and status.values["targets_published"] == "0"
+
+    core = PolicyCore(linear_policy(), 0.05)
+    core.tick(NS)
+    status = core.diagnostics()
+    assert (status.level, status.message) == (WARN, "publishing nothing: no taxels/thumb sample yet")
+    fed(core, 2 * NS)
+    core.tick(2 * NS)
+    core.tick(2 * NS + NS // 100)
+    status = core.diagnostics()
+    assert (status.level, status.message) == (OK, "acting")
+    assert status.values == {"model": "0 episodes at 50 fps", "targets_published": "2", "goals_sent": "1",
+                             "goal_running": "true", "last_goal_end": "none"}
+    core.on_goal_ended(2 * NS + NS // 50, "aborted: touch_limit")
+    core.tick(2 * NS + NS)  # inputs 1 s old: held
+    status = core.diagnostics()
+    assert status.level == WARN and status.message.startswith("publishing nothing: taxels/thumb is 1.000 s old")
+    assert (status.values["goal_running"], status.values["last_goal_end"]) == ("false", "aborted: touch_limit")
