@@ -127,7 +127,6 @@ class RosHarness(HandGoals, SimClock, Streams):
         self._publishers: dict = {}
         self._clients: dict = {}
         self._log: Sequence | None = None
-        self._action_clients: list = []  # destroyed at shutdown: destroy_node leaves them in the graph
         self._collect_apart = collect_apart
         self._wait_spin_sec = self.APART_SPIN_SEC if collect_apart else self.SPIN_SEC  # spin_for, spin_until
         # DDS starts its threads with the first node of the process: the probe (the test's own node,
@@ -296,12 +295,11 @@ class RosHarness(HandGoals, SimClock, Streams):
         return self.call(SetParameters, f"{node_name}/set_parameters", request).results
 
     def action_client(self, action_type: type, name: str, wait_sec: float | None = 10.0):
-        """An ActionClient of the probe, destroyed at shutdown; waits up to `wait_sec` for its server
+        """An ActionClient of the probe (destroyed at shutdown); waits up to `wait_sec` for its server
         (None: not at all, for a test that sends goals the moment the server appears)."""
         from rclpy.action import ActionClient
 
         client = ActionClient(self.probe, action_type, name)
-        self._action_clients.append(client)
         if wait_sec is not None and not self.spin_until(client.server_is_ready, wait_sec):
             raise TimeoutError(f"action server {name} not available")
         return client
@@ -348,9 +346,14 @@ class RosHarness(HandGoals, SimClock, Streams):
 
     # ---- teardown --------------------------------------------------------------------------
     def shutdown(self) -> None:
+        from rclpy.action import ActionClient, ActionServer
+
         self._close_streams()
-        for client in self._action_clients:
-            client.destroy()
+        # Node.destroy_node leaves a node's action clients and servers, and so the node, in the graph
+        # of this process (the nodes under test destroy their own): the probe's go first, the
+        # harness's clients and a test's stand-in servers, or the next test finds a second server
+        for action in [w for w in self.probe.waitables if isinstance(w, (ActionClient, ActionServer))]:
+            action.destroy()
         for node in list(self.executor.get_nodes()):
             self.executor.remove_node(node)
             node.destroy_node()
