@@ -23,10 +23,9 @@ from prisma_testing.emulated_launch import wait_until_homed
 from prisma_testing.launch_case import (
     GraphTestCase,
     assert_clean_shutdown,
-    assert_touch_limited,
     graph_under_test,
     include_launch,
-    pad_force_peaks,
+    touch_limited_peaks,
 )
 from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
 from prisma_testing.ros_harness import require_ros
@@ -69,16 +68,12 @@ class TestTeleopEmulated(WearingTheGlove, GraphTestCase):
         glove.move(FIST, 1.5)
         ros.spin_for(6.0)  # closes at up to 40 rpm (4.2 rad/s) onto the ball, then holds
         held = self.positions()
-        peaks = pad_force_peaks(self.wrenches, closing_ns)
-        print(f"emulated: the hand stopped at { {m: round(v, 3) for m, v in held.items()} }, peak Fz "
-              f"{ {f: round(v, 3) for f, v in peaks.items()} }")
-        assert_touch_limited(peaks)
+        print(f"emulated: the hand stopped at { {m: round(v, 3) for m, v in held.items()} }")
+        touch_limited_peaks(self.wrenches, closing_ns)
         self.assertTrue(3.0 < held["fingers"] < 8.5, held)  # on the ball, short of the operator's fist
         glove.move(OPEN, 1.5)
-        opened = self.wait_until_at(dict.fromkeys(MOTOR_NAMES, 0.0), 0.05, timeout_sec=15.0)
+        opened = self.assert_reaches(dict.fromkeys(MOTOR_NAMES, 0.0), 0.05, timeout_sec=15.0)
         print(f"emulated: opened to { {m: round(v, 3) for m, v in opened.items()} }")
-        for m in MOTOR_NAMES:
-            self.assertAlmostEqual(opened[m], 0.0, delta=0.05, msg=m)
         glove.stop()
 
 

@@ -29,10 +29,9 @@ from prisma_testing.launch_case import (
     GraphTestCase,
     MotorPositions,
     assert_clean_shutdown,
-    assert_touch_limited,
     launch_test,
-    pad_force_peaks,
     touch_limit_n,
+    touch_limited_peaks,
 )
 from prisma_testing.node_process import NodeProcess
 from prisma_testing.ros_harness import SIM_STOPPED_RAD_S, STOPPED_RAD_S, joint, require_ros, stamp_ns, stopped
@@ -163,25 +162,21 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         ros.spin_for(2.0)  # holding: nothing creeps on
         fb = self.latest_feedback(handle)
         at = self.positions()
-        peaks = pad_force_peaks(self.wrenches, closing_ns)
         rounded = {m: round(v, 3) for m, v in at.items()}
         print(f"held after closing: phase {fb.phase}, force_limited {list(fb.force_limited)}, positions {rounded}, "
-              f"feedback pad_forces {[round(v, 3) for v in fb.pad_forces]}, peak Fz "
-              f"{ {f: round(v, 3) for f, v in peaks.items()} }, "
-              f"overshoot {max(peaks.values()) - touch_limit_n():+.3f} N")
+              f"feedback pad_forces {[round(v, 3) for v in fb.pad_forces]}")
         self.assertEqual((fb.phase, sorted(fb.force_limited)), ("holding", ["fingers", "thumb_flexion"]))
         for target, clamped in zip(fb.targets, (9.0 - 0.02, 7.0 - 0.02, 0.0)):  # inside the limit margin
             self.assertAlmostEqual(target, clamped, places=5)
-        assert_touch_limited(peaks, reached_n=touch_limit_n())  # the ball is held by both pads, at the limit
+        # the ball is held by both pads, at the limit
+        touch_limited_peaks(self.wrenches, closing_ns, reached_n=touch_limit_n())
         self.assertLess(at["fingers"], 8.5)  # stopped on the ball, short of the closed end
         self.assertTrue(stopped(self.ros.message_at(self.joints, 0.0)))
 
     def test_2_targets_at_0_open_the_hand(self):
         self.glove_sends(OPEN)
-        at = self.wait_until_at(OPEN, 0.05, 15.0)
+        at = self.assert_reaches(OPEN, 0.05, 15.0)
         print(f"opened: {at}")
-        for m in MOTOR_NAMES:
-            self.assertAlmostEqual(at[m], 0.0, delta=0.05, msg=m)
         fb = self.latest_feedback(self.handle)
         self.assertEqual((fb.phase, list(fb.force_limited)), ("following", []))
         self.assertFalse(self.handle.get_result_async().done())
@@ -222,9 +217,7 @@ class TestTeleopGoal(MotorPositions, GraphTestCase):
         ros = self.ros
         self.glove_sends(OPEN)
         handle = self.start_goal()
-        at = self.wait_until_at(OPEN, 0.05, 15.0)
-        for m in MOTOR_NAMES:
-            self.assertAlmostEqual(at[m], 0.0, delta=0.05, msg=m)
+        self.assert_reaches(OPEN, 0.05, 15.0)
         cancel = handle.cancel_goal_async()
         self.assertTrue(ros.spin_until(cancel, 10.0))
         result = ros.result(handle, timeout_sec=10.0)

@@ -153,7 +153,7 @@ class GraphTestCase(unittest.TestCase):
 
 class MotorPositions:
     """For a GraphTestCase whose subscribe() sets `cls.joints` (a /joint_states collection): where the
-    motors stand, and a wait until they stand at targets."""
+    motors stand, and that they reach targets."""
 
     JOINT_STATES_WAIT_S = 10.0  # for the next /joint_states
 
@@ -162,13 +162,17 @@ class MotorPositions:
         last = self.ros.message_at(self.joints, 0.0, timeout_sec=self.JOINT_STATES_WAIT_S)  # type: ignore[attr-defined]
         return {m: joint(last, m) for m in MOTOR_NAMES}
 
-    def wait_until_at(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
-        """The motors' positions once each of `targets` is within `tolerance` (rad), or at the timeout."""
+    def assert_reaches(self, targets: dict[str, float], tolerance: float, timeout_sec: float) -> dict[str, float]:
+        """The motors' positions once each of `targets` is within `tolerance` (rad); AssertionError
+        naming the motors still off it at the timeout."""
         deadline = time.monotonic() + timeout_sec
         while True:
             at = self.positions()
-            if all(abs(at[m] - v) <= tolerance for m, v in targets.items()) or time.monotonic() > deadline:
+            off = {m: round(at[m], 3) for m, v in targets.items() if abs(at[m] - v) > tolerance}
+            if not off:
                 return at
+            if time.monotonic() > deadline:
+                raise AssertionError(f"not within {tolerance} rad of {targets} after {timeout_sec} s: {off}")
             self.ros.spin_for(0.1)  # type: ignore[attr-defined]
 
 
@@ -210,6 +214,17 @@ def assert_touch_limited(peaks: dict[str, float], reached_n: float | None = None
     short = {f: round(peaks[f], 3) for f in fingers if peaks[f] < reached}
     assert not over and not short, (f"pads above {limit} + {FORCE_TOLERANCE_N} N: {over}; {', '.join(fingers)} "
                                     f"below {reached:.3f} N: {short}")
+
+
+def touch_limited_peaks(hand_wrenches: Sequence, since_ns: int, reached_n: float | None = None) -> dict[str, float]:
+    """Each pad's peak estimated Fz in a /prisma/hand/wrench collection since `since_ns`
+    (`pad_force_peaks`), printed with its overshoot of the touch limit and checked
+    (`assert_touch_limited`): what a teleoperated close on the pinch ball must show."""
+    peaks = pad_force_peaks(hand_wrenches, since_ns)
+    print(f"pad Fz peaks { {f: round(v, 3) for f, v in peaks.items()} }, overshoot "
+          f"{max(peaks.values()) - touch_limit_n():+.3f} N of the {touch_limit_n()} N touch limit")
+    assert_touch_limited(peaks, reached_n)
+    return peaks
 
 
 def process_outputs(proc_output: Any) -> dict[str, str]:
