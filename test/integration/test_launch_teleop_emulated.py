@@ -17,16 +17,8 @@ import time
 import unittest
 from pathlib import Path
 
-import pytest
-
 from prisma_testing.emulated_launch import wait_until_homed
-from prisma_testing.launch_case import (
-    GraphTestCase,
-    assert_clean_shutdown,
-    graph_under_test,
-    include_launch,
-    touch_limited_peaks,
-)
+from prisma_testing.launch_case import GraphTestCase, assert_clean_shutdown, launch_test, touch_limited_peaks
 from prisma_testing.operator_glove import FIST, OPEN, OperatorGlove, WearingTheGlove
 from prisma_testing.ros_harness import require_ros
 
@@ -43,11 +35,9 @@ from prisma_common.hand import MOTOR_NAMES  # noqa: E402
 EMULATOR_DIR = Path(tempfile.gettempdir()) / f"prisma_teleop_emulated_{os.getpid()}"
 
 
-@pytest.mark.launch_test
-def generate_test_description():
-    EMULATOR_DIR.mkdir(exist_ok=True)
-    return graph_under_test(include_launch("teleop.launch.py", hardware="emulated", glove="none",
-                                           emulator_dir=str(EMULATOR_DIR)))
+# the emulator makes its folder (and removes it when it stops)
+generate_test_description = launch_test("teleop.launch.py", hardware="emulated", glove="none",
+                                        emulator_dir=str(EMULATOR_DIR))
 
 
 class TestTeleopEmulated(WearingTheGlove, GraphTestCase):
