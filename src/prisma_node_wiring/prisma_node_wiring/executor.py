@@ -30,6 +30,7 @@ with parameter services and five action endpoints on the node.
 from __future__ import annotations
 
 import inspect
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -211,18 +212,22 @@ def events_executor_class() -> type[Executor] | None:
 
 
 _choice_made: ExecutorChoice | None = None  # this process's, made once (process_executor_choice)
+# made once even when two threads ask at once (a node's main and a thread of the same process that
+# waits for its executor): without it each made and logged its own, and one watched an empty executor
+_made_once = threading.RLock()
 
 
 def process_executor_choice(context: Context | None = None) -> ExecutorChoice:
     """This process's executor choice (PRISMA_EXECUTOR, executor_choice.choose_executor), made on first
     use (after rclpy.init; the self-test runs on `context`, default: rclpy's) and logged then, once."""
     global _choice_made
-    if _choice_made is None:
-        _choice_made = choose_executor(requested_executor(), rclpy_version(),
-                                       lambda: fast_executor_self_test(context),
-                                       events_executor_class() is not None)
-        rclpy.logging.get_logger(EXECUTOR_LOGGER).info(_choice_made.log_line())
-    return _choice_made
+    with _made_once:
+        if _choice_made is None:
+            _choice_made = choose_executor(requested_executor(), rclpy_version(),
+                                           lambda: fast_executor_self_test(context),
+                                           events_executor_class() is not None)
+            rclpy.logging.get_logger(EXECUTOR_LOGGER).info(_choice_made.log_line())
+        return _choice_made
 
 
 def new_executor(context: Context | None = None) -> Executor:
@@ -243,6 +248,7 @@ def process_executor() -> Executor:
     """The executor `run_node` spins the process's node on: one per process, made on first use (after
     rclpy.init), as rclpy's global executor is for rclpy.spin."""
     global _process_executor
-    if _process_executor is None:
-        _process_executor = new_executor()
-    return _process_executor
+    with _made_once:
+        if _process_executor is None:
+            _process_executor = new_executor()
+        return _process_executor

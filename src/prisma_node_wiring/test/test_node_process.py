@@ -135,6 +135,38 @@ def test_a_node_process_says_once_which_executor_spins_it_and_why(requested, kin
     assert len(logged) == 1 and logged[0].endswith(f"[prisma_executor]: executor: {kind}"), out.stderr
 
 
+EXECUTOR_FROM_THREADS = """
+import threading
+import rclpy
+from prisma_node_wiring.executor import process_executor
+
+rclpy.init()
+start = threading.Barrier(8)
+made = []
+
+def ask():
+    start.wait()
+    made.append(process_executor())
+
+threads = [threading.Thread(target=ask) for _ in range(8)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+print(len(made), len({id(executor) for executor in made}))
+rclpy.shutdown()
+"""
+
+
+def test_threads_asking_at_once_get_the_one_process_executor_said_once():
+    # the node's main and a thread that waits for its executor (external_shutdown_command) ask at
+    # once: each made and logged its own executor before, and the thread watched an empty one
+    out = subprocess.run([sys.executable, "-c", EXECUTOR_FROM_THREADS], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["8", "1"], out.stdout
+    assert len([line for line in out.stderr.splitlines() if "executor:" in line]) == 1, out.stderr
+
+
 def test_a_prisma_executor_naming_no_executor_stops_the_node_with_one_line_naming_it():
     env = {**os.environ, "PRISMA_EXECUTOR": "single_wait"}
     out = subprocess.run([sys.executable, "-c", SPUN_NODE], env=env, capture_output=True, text=True, timeout=60)
