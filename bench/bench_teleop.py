@@ -33,9 +33,10 @@ from graph_bench.facts import MOVE_FEEDBACK, MOVE_STATUS
 from graph_bench.probe import Recording, read_probe, start_probe
 from graph_bench.processes import Proc, check_alive, launch_nodes, relay_command, start, stop
 from graph_bench.stats import percentiles
+from prisma_common.topics import TELEOP_TARGETS
 from run import Benchmark
 
-TARGETS = "/prisma/teleop/motor_targets"
+TARGETS = TELEOP_TARGETS
 STEP_S = 1.5
 STEPS = 20
 NODES = ("teleop", "manipulation", "motor_driver")

@@ -69,6 +69,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from prisma_common.hand import FINGERS
 from prisma_common.scheduling import apply_priority_from_env
+from prisma_common.topics import GRASP_ACTION, MANIPULATE_ACTION, MOVE_MOTORS_ACTION
 from prisma_node_wiring.executor import SingleWaitExecutor
 
 MOTORS = ("fingers", "thumb_flexion", "thumb_rotation")
@@ -124,7 +125,7 @@ class Manipulation(Node):
             self.create_subscription(TaxelArray, f"prisma/{f}/taxels", lambda m, f=f: self._on_taxels(f, m), DEPTH)
             self.create_subscription(WrenchStamped, f"prisma/{f}/wrench", lambda m, f=f: self._on_wrench(f, m), DEPTH)
         self.create_subscription(JointState, "joint_states", self._on_joints, DEPTH)
-        self._client = ActionClient(self, MoveMotors, "prisma/motors/move")
+        self._client = ActionClient(self, MoveMotors, MOVE_MOTORS_ACTION)
         self._goal_every = goal_every
         self._index_wrenches = 0
         if like_node:
@@ -132,7 +133,7 @@ class Manipulation(Node):
             # nothing: what the executor costs for entities that are idle
             reject = lambda request: GoalResponse.REJECT  # noqa: E731
             self._servers = [ActionServer(self, action, name, lambda handle: None, goal_callback=reject)
-                             for action, name in ((Grasp, "prisma/grasp"), (Manipulate, "prisma/manipulate"))]
+                             for action, name in ((Grasp, GRASP_ACTION), (Manipulate, MANIPULATE_ACTION))]
             self.create_timer(0.02, lambda: None)
 
     def _on_taxels(self, finger: str, msg: TaxelArray) -> None:
@@ -162,7 +163,7 @@ class Motor(Node):
         self._joint_pub = self.create_publisher(JointState, "joint_states", DEPTH)
         self._goal = None
         self._done: Future | None = None
-        self._server = ActionServer(self, MoveMotors, "prisma/motors/move", self._execute,
+        self._server = ActionServer(self, MoveMotors, MOVE_MOTORS_ACTION, self._execute,
                                     goal_callback=lambda request: GoalResponse.ACCEPT,
                                     cancel_callback=lambda handle: CancelResponse.ACCEPT, result_timeout=10)
         self.create_timer(1.0 / rate_hz, self._on_tick)

@@ -36,6 +36,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from prisma_common.hand import MOTOR_NAMES
+from prisma_common.topics import MOVE_MOTORS_ACTION, TELEOPERATE_ACTION, TELEOP_TARGETS, relative
 from prisma_teleop.retargeting import nominal_calibration
 from prisma_teleop.synthetic_glove_core import Synergies, hand_pose
 
@@ -69,11 +70,11 @@ class Glove(Node):
 class Teleop(Node):
     def __init__(self) -> None:
         super().__init__("bench_relay_teleop")
-        self._pub = self.create_publisher(JointState, "prisma/teleop/motor_targets", DEPTH)
+        self._pub = self.create_publisher(JointState, relative(TELEOP_TARGETS), DEPTH)
         self.create_subscription(JointState, "glove/joint_states", self._on_glove, DEPTH)
         self._positions = [0.0] * len(MOTOR_NAMES)
         # the node keeps a Teleoperate goal: its client takes the goal's feedback (every manipulation step)
-        self._client = ActionClient(self, Teleoperate, "prisma/teleoperate")
+        self._client = ActionClient(self, Teleoperate, TELEOPERATE_ACTION)
         self._sent = False
 
     def _on_glove(self, msg: JointState) -> None:
@@ -89,12 +90,12 @@ class Teleop(Node):
 class Manipulation(Node):
     def __init__(self) -> None:
         super().__init__("bench_relay_manipulation")
-        self.create_subscription(JointState, "prisma/teleop/motor_targets", self._on_target, DEPTH)
-        self._client = ActionClient(self, MoveMotors, "prisma/motors/move")
+        self.create_subscription(JointState, relative(TELEOP_TARGETS), self._on_target, DEPTH)
+        self._client = ActionClient(self, MoveMotors, MOVE_MOTORS_ACTION)
         self._latest: JointState | None = None
         self._last_sent: list[float] | None = None
         self._teleop = None  # the running Teleoperate goal's handle
-        self._server = ActionServer(self, Teleoperate, "prisma/teleoperate", self._execute,
+        self._server = ActionServer(self, Teleoperate, TELEOPERATE_ACTION, self._execute,
                                     goal_callback=lambda request: GoalResponse.ACCEPT,
                                     cancel_callback=lambda handle: CancelResponse.ACCEPT)
         self.create_timer(1.0 / TICK_HZ, self._on_tick)

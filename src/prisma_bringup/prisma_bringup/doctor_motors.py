@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 from prisma_common.diagnostics import ERROR, DiagnosticStatusData
 from prisma_common.hand import MOTOR_NAMES
+from prisma_common.topics import HOME_MOTORS_ACTION
 from prisma_motor_driver import control_table as ct
 
 from .doctor_facts import HandFacts, node_path, param, status_named
@@ -18,7 +19,6 @@ from .doctor_result import CheckResult, failed, passed, skipped, warned
 DRIVER_MODES = ("velocity", "extended_position", "current_based_position", "position")
 # a lost status packet now and then is normal on a loaded host; more than this share of the reads is a bus problem
 MAX_RETRY_SHARE = 0.01
-HOME_ACTION = "prisma/motors/home"
 
 
 # a bus error naming the motor it happened at (the ping at open, a sync read after)
@@ -128,7 +128,8 @@ def check_servo(facts: HandFacts, motor: str) -> CheckResult:
         return failed(name, status.message, "remove the cause, then power-cycle the servo (clears its hardware error)")
     if backend != "dynamixel":
         return passed(name, f"id {servo_id}, {backend} motor")
-    return _check_servo_settings(name, v, servo_id, f"{baud} baud", node_path(facts.namespace, HOME_ACTION), motor)
+    home = node_path(facts.namespace, HOME_MOTORS_ACTION)
+    return _check_servo_settings(name, v, servo_id, f"{baud} baud", home, motor)
 
 
 def _check_servo_settings(name: str, v: Mapping[str, str], servo_id: int, baud: str, home: str,

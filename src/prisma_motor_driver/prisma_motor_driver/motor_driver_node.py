@@ -45,14 +45,12 @@ from .ros_conversions import (
     move_result_to_msg,
 )
 
-MOVE_ACTION, HOME_ACTION = MOVE_MOTORS_ACTION, HOME_MOTORS_ACTION
-
 
 class MotorDriverNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__("motor_driver", **kwargs)
         # one motor driver per bus: a second one would open the same port (AlreadyRunning: exit 1)
-        refuse_if_running(self, (MOVE_ACTION, HOME_ACTION))
+        refuse_if_running(self, (MOVE_MOTORS_ACTION, HOME_MOTORS_ACTION))
         # fails here, at start, with the parameter's name and value when one is invalid
         self.config = declare_config(self, MotorDriverConfig)
         self.types = robot_types(get_message, get_action)
@@ -84,9 +82,9 @@ class MotorDriverNode(Node):
         # MoveLease): finished goals are dropped after 10 s, not rclpy's 15 min, so the status
         # topic lists about a hundred goals, not thousands
         # every goal is accepted: one that cannot run is aborted at once with the reason in its result
-        self._server = ActionServer(self, MoveMotors, MOVE_ACTION, self._execute,
+        self._server = ActionServer(self, MoveMotors, MOVE_MOTORS_ACTION, self._execute,
                                     cancel_callback=self._on_cancel, callback_group=group, result_timeout=10)
-        self._home_server = ActionServer(self, HomeMotors, HOME_ACTION, self._execute_homing,
+        self._home_server = ActionServer(self, HomeMotors, HOME_MOTORS_ACTION, self._execute_homing,
                                          cancel_callback=self._on_cancel, callback_group=group)
         self._timer = self.create_timer(1.0 / self.config.rate_hz, self._on_tick, callback_group=group)
         self._diag_timer = self.create_timer(self.config.diagnostics_period, self._on_diagnostics)
