@@ -67,7 +67,6 @@ class PolicyNode(Node):
         self.core = PolicyCore(policy, config.max_input_age,
                                "no model: give model_path (a file prisma-policy train --out wrote)")
         self._handle: Any = None
-        self._holding: str | None = None  # the reason logged when the policy stopped acting
         self._taxels = FingerAndHandInput(self, TaxelArray, HandTaxels, "taxels", FINGERS, hand_taxels_samples,
                                           self._on_taxels)
         self._wrenches = FingerAndHandInput(self, WrenchStamped, HandWrench, "wrench", FINGERS,
@@ -103,15 +102,14 @@ class PolicyNode(Node):
 
     # ---- carrying out the core's decisions ------------------------------------------------------
     def _on_tick(self) -> None:
+        was_holding = self.core.holding is not None
         decision = self.core.tick(self._now_ns())
         if not isinstance(decision, Act):
-            if self._holding is None:  # once as it stops acting (at most every 5 s: a loaded machine flickers)
-                self._holding = decision.reason
+            if not was_holding:  # once as it stops acting (at most every 5 s: a loaded machine flickers)
                 self.get_logger().warning(f"publishing nothing: {decision.reason}", throttle_duration_sec=5.0)
             return
-        if self._holding is not None:
+        if was_holding:
             self.get_logger().info("inputs fresh: the policy acts", throttle_duration_sec=5.0)
-        self._holding = None
         assert self._targets is not None and self._client is not None
         self._targets.publish(motor_targets_to_msg(self.types, decision.stamp_ns, decision.targets))
         if decision.send_goal:
