@@ -38,7 +38,7 @@ from typing import Any
 import rclpy
 import rclpy.logging
 from rclpy.context import Context
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
@@ -217,22 +217,37 @@ _choice_made: ExecutorChoice | None = None  # this process's, made once (process
 _made_once = threading.RLock()
 
 
+def _still_running(context: Context | None) -> None:
+    """ExternalShutdownException when `context` (default: rclpy's) was shut down, as a stop request
+    during a node's start does (a launch stopping whole): an executor made on it fails half-built and
+    rclpy prints its __del__'s traceback, and a self-test run on it fails for no fault of the rclpy."""
+    if not rclpy.ok(context=context):
+        raise ExternalShutdownException()
+
+
 def process_executor_choice(context: Context | None = None) -> ExecutorChoice:
     """This process's executor choice (PRISMA_EXECUTOR, executor_choice.choose_executor), made on first
-    use (after rclpy.init; the self-test runs on `context`, default: rclpy's) and logged then, once."""
+    use (after rclpy.init; the self-test runs on `context`, default: rclpy's) and logged then, once.
+    ExternalShutdownException when the context is shut down before or during the choice (nothing
+    chosen, nothing logged)."""
     global _choice_made
     with _made_once:
         if _choice_made is None:
-            _choice_made = choose_executor(requested_executor(), rclpy_version(),
-                                           lambda: fast_executor_self_test(context),
-                                           events_executor_class() is not None)
-            rclpy.logging.get_logger(EXECUTOR_LOGGER).info(_choice_made.log_line())
+            _still_running(context)
+            choice = choose_executor(requested_executor(), rclpy_version(),
+                                     lambda: fast_executor_self_test(context),
+                                     events_executor_class() is not None)
+            _still_running(context)  # a self-test the shutdown broke says nothing of this rclpy
+            _choice_made = choice
+            rclpy.logging.get_logger(EXECUTOR_LOGGER).info(choice.log_line())
         return _choice_made
 
 
 def new_executor(context: Context | None = None) -> Executor:
-    """An executor of this process's choice (process_executor_choice) on `context`."""
+    """An executor of this process's choice (process_executor_choice) on `context`;
+    ExternalShutdownException instead when the context is shut down."""
     kind = process_executor_choice(context).kind
+    _still_running(context)
     if kind == FAST:
         return SingleWaitExecutor(context=context)
     events = events_executor_class()

@@ -67,12 +67,9 @@ def run_node(make_node: Callable[[], Node], logger_name: str,
         # shutdown. A steady-clock timer bounds that to one period, whatever the node's clock.
         node.create_timer(SHUTDOWN_CHECK_PERIOD_S, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
         settle_garbage_collector()
-        if not rclpy.ok():
-            # stopped while it started (a launch that stops whole when another node failed at start):
-            # an executor made on the shut-down context fails half-built, and rclpy prints its __del__'s
-            # traceback as the process ends
-            return
-        # the executor PRISMA_EXECUTOR and the running rclpy allow, logged once (executor.py)
+        # the executor PRISMA_EXECUTOR and the running rclpy allow, logged once (executor.py); a node
+        # stopped while it started (a launch that stops whole when another node failed at start) gets
+        # ExternalShutdownException from it instead, before or during the choice's self-test
         rclpy.spin(node, executor=process_executor())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -167,6 +167,32 @@ def test_threads_asking_at_once_get_the_one_process_executor_said_once():
     assert len([line for line in out.stderr.splitlines() if "executor:" in line]) == 1, out.stderr
 
 
+EXECUTOR_AFTER_SHUTDOWN = """
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from prisma_node_wiring.executor import process_executor
+
+rclpy.init()
+rclpy.get_default_context().handle.shutdown()  # rcl only, as rclpy's signal handler does
+try:
+    process_executor()
+except ExternalShutdownException:
+    print("stopped")
+"""
+
+
+def test_a_process_stopped_before_its_executor_is_made_stops_without_choosing_one():
+    # a launch stopping whole while this node started: the self-test failed on the shut-down context
+    # ("the fast executor's self-test failed"), the stock executor was made on it half-built and
+    # rclpy printed its __del__'s traceback as the process ended
+    for requested in ("", "stock"):
+        env = {**os.environ, "PRISMA_EXECUTOR": requested}
+        out = subprocess.run([sys.executable, "-c", EXECUTOR_AFTER_SHUTDOWN], env=env, capture_output=True,
+                             text=True, timeout=60)
+        assert (out.returncode, out.stdout) == (0, "stopped\n"), out.stderr
+        assert "Traceback" not in out.stderr and "executor:" not in out.stderr, out.stderr
+
+
 def test_a_prisma_executor_naming_no_executor_stops_the_node_with_one_line_naming_it():
     env = {**os.environ, "PRISMA_EXECUTOR": "single_wait"}
     out = subprocess.run([sys.executable, "-c", SPUN_NODE], env=env, capture_output=True, text=True, timeout=60)
